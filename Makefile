@@ -1,0 +1,34 @@
+# csim developer targets. `make run` and `make test` set up .venv on first use.
+PYTHON ?= python3
+VENV   ?= .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+
+.PHONY: install run test test-all bench lint clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[test]'
+	touch $(STAMP)
+
+install: $(STAMP)  ## create .venv and install csim with its test dependencies
+
+run: $(STAMP)  ## run the default case
+	$(BIN)/csim run configs/quick_return.yaml -o results/quick_return.h5
+
+test: $(STAMP)  ## the default test suite (slow tests excluded)
+	$(BIN)/python -m pytest
+
+test-all: $(STAMP)  ## every test, the slow ones included
+	$(BIN)/python -m pytest -m ""
+
+bench: $(STAMP)  ## speed and accuracy benchmark, side by side in one run
+	$(BIN)/python bench/run.py
+
+lint: $(STAMP)
+	$(BIN)/python -m pip install --quiet ruff
+	$(BIN)/python -m ruff check csim tests bench
+
+clean:
+	rm -rf $(VENV) results .pytest_cache build *.egg-info

@@ -1,0 +1,3 @@
+from csim.cli import main
+
+main()

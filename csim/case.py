@@ -1,0 +1,334 @@
+"""Case files: load the YAML, apply ``--set`` overrides, validate, fill defaults.
+
+A case file has these sections (every key but ``mechanism.name`` has a default)::
+
+    mechanism:      name, parameters (defaults from the mechanism's table)
+    initial:        q, qd (independent coordinates and velocities), guess (dependent)
+    loads:          one law per load of the mechanism (absent loads are zero)
+    formulation:    method (kkt | elimination), independent
+    stabilization:  method
+    simulation:     t_end, integrator, rtol, atol, step, max_step, first_step, events, max_events
+    output:         dt
+
+Units are SI throughout (m, kg, s, rad, N, N m, J); see ``csim.io.units``.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from csim.errors import CaseError
+from csim.loads import VELOCITY_CONDITIONS, LoadLaw, LoadSet
+from csim.mechanisms import MECHANISMS, get_mechanism
+from csim.model.definition import MechanismDefinition
+from csim.schema import REQUIRED, Field, Section, check_value, describe, field_paths, unknown_key, validate_section
+from csim.solver.formulations import FORMULATIONS
+from csim.solver.integrators import INTEGRATORS
+from csim.solver.simulate import IntegrationSettings
+from csim.solver.stabilizers import STABILIZERS
+
+EPS = float(np.finfo(float).eps)
+
+
+class CaseLoader(yaml.SafeLoader):
+    """YAML loader that reads ``1e-8`` as a number (YAML 1.1 needs ``1.0e-8``) and
+    rejects duplicate keys instead of silently keeping the last one."""
+
+
+CaseLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(
+        r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+        |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
+        |\.[0-9_]+(?:[eE][-+]?[0-9]+)?
+        |[-+]?\.(?:inf|Inf|INF)
+        |\.(?:nan|NaN|NAN))$""",
+        re.X,
+    ),
+    list("-+0123456789."),
+)
+
+
+def _construct_mapping(loader, node, deep=False):
+    seen = {}
+    for key_node, _ in node.value:
+        key = loader.construct_object(key_node, deep=deep)
+        if key in seen:
+            raise yaml.constructor.ConstructorError(
+                None, None, f"duplicate key {key!r} (first at line {seen[key] + 1})", key_node.start_mark
+            )
+        seen[key] = key_node.start_mark.line
+    return yaml.SafeLoader.construct_mapping(loader, node, deep=deep)
+
+
+CaseLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
+
+
+#: The case-file schema (mechanism-specific parts are checked by :func:`validate_case`).
+SCHEMA = Section({
+    "mechanism": Section({
+        "name": Field("string", REQUIRED, "registered mechanism", choices=lambda: sorted(MECHANISMS)),
+        "parameters": Field("mapping", {}, "parameter values overriding the mechanism's defaults"),
+    }, "the mechanism and its parameters"),
+    "initial": Section({
+        "q": Field("mapping", None, "independent coordinates, name: value [rad or m]", nullable=True),
+        "qd": Field("mapping", None, "velocities of the independent coordinates [rad/s or m/s]", nullable=True),
+        "guess": Field("mapping", {}, "Newton start values of dependent coordinates (choose the assembly branch)"),
+        "tol": Field("number", 1e-12, "Newton tolerance on max |Phi|", gt=0.0),
+        "max_iter": Field("integer", 50, "Newton iteration limit", ge=1),
+    }, "initial conditions; dependent coordinates and velocities are solved for"),
+    "loads": Field("mapping", {}, "load laws by load name; a number is a constant load"),
+    "formulation": Section({
+        "method": Field("string", "kkt", "how the DAE becomes an ODE", choices=lambda: list(FORMULATIONS)),
+        "independent": Field("list", None, "independent coordinates of the elimination (null: chosen and "
+                             "re-chosen automatically)", nullable=True),
+        "max_condition": Field("number", 1e8, "re-partition when cond(Phi_v) exceeds this", gt=1.0),
+    }),
+    "stabilization": Section({
+        "method": Field("string", "none", "constraint stabilization", choices=lambda: list(STABILIZERS)),
+    }),
+    "simulation": Section({
+        "t_end": Field("number", 5.0, "end time", "s", gt=0.0),
+        "integrator": Field("string", "DOP853", "time integrator", choices=lambda: list(INTEGRATORS)),
+        "rtol": Field("number", 1e-8, "relative tolerance (adaptive integrators)", ge=100 * EPS, le=1.0),
+        "atol": Field("number", 1e-8, "absolute tolerance (adaptive integrators)", gt=0.0),
+        "step": Field("number", 1e-3, "step of the fixed-step integrators", "s", gt=0.0),
+        "max_step": Field("number", None, "largest step of the adaptive integrators", "s", gt=0.0, nullable=True),
+        "first_step": Field("number", None, "first step of the adaptive integrators", "s", gt=0.0, nullable=True),
+        "events": Field("boolean", True, "locate switching instants of the load laws and restart there"),
+        "max_events": Field("integer", 100_000, "fail after this many switching events", ge=1),
+    }),
+    "output": Section({
+        "dt": Field("number", 0.01, "output sampling interval", "s", gt=0.0),
+    }),
+})
+
+#: Key paths that ``--set`` may change, with their schema fields.
+SETTABLE = field_paths(SCHEMA)
+
+LOAD_SCHEMA = Section({
+    "magnitude": Field("number", REQUIRED, "value while active [N or N m]"),
+    "window": Field("list", None, "[lo, hi]: active only while the load coordinate is inside", nullable=True),
+    "velocity": Field("string", "any", "active only while the load coordinate moves this way",
+                      choices=VELOCITY_CONDITIONS),
+})
+
+
+@dataclass
+class Case:
+    """A validated case.
+
+    Attributes
+    ----------
+    data : dict
+        The full case with defaults filled in (what ``csim`` writes into result files).
+    mechanism : MechanismDefinition
+    source : str
+        Where it came from (a path, or ``"<dict>"``).
+    """
+
+    data: dict
+    mechanism: MechanismDefinition
+    source: str = "<dict>"
+
+    @property
+    def parameters(self) -> dict[str, float]:
+        return {p.name: self.data["mechanism"]["parameters"].get(p.name, p.default) for p in self.mechanism.parameters}
+
+    def load_set(self) -> LoadSet:
+        laws = []
+        for load in self.mechanism.loads:
+            spec = self.data["loads"].get(load.name, 0.0)
+            if isinstance(spec, dict):
+                window = spec["window"] or [-np.inf, np.inf]
+                laws.append(LoadLaw(load.name, spec["magnitude"], (float(window[0]), float(window[1])), spec["velocity"]))
+            else:
+                laws.append(LoadLaw(load.name, float(spec)))
+        return LoadSet(laws)
+
+    def integration_settings(self) -> IntegrationSettings:
+        s = self.data["simulation"]
+        return IntegrationSettings(
+            integrator=s["integrator"], t_end=s["t_end"], rtol=s["rtol"], atol=s["atol"], step=s["step"],
+            max_step=np.inf if s["max_step"] is None else s["max_step"], first_step=s["first_step"],
+            events=s["events"], max_events=s["max_events"], output_dt=self.data["output"]["dt"],
+        )
+
+    def to_yaml(self) -> str:
+        return yaml.safe_dump(self.data, sort_keys=False, default_flow_style=None)
+
+
+def parse_yaml(text: str, source: str) -> Any:
+    """YAML text to Python data, with syntax errors as :class:`CaseError`."""
+    try:
+        return yaml.load(text, Loader=CaseLoader)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""
+        problem = getattr(exc, "problem", None) or str(exc)
+        raise CaseError([f"{source}: not valid YAML{where}: {problem}"]) from None
+
+
+def apply_overrides(data: dict, overrides: list[str]) -> dict:
+    """Apply ``key.path=value`` overrides (values parsed as YAML) to ``data`` in place."""
+    problems = []
+    for item in overrides:
+        if "=" not in item:
+            problems.append(f"--set {item!r}: expected key=value, e.g. --set simulation.t_end=10")
+            continue
+        path, text = (part.strip() for part in item.split("=", 1))
+        if path not in SETTABLE and not path.startswith(("mechanism.parameters.", "loads.", "initial.")):
+            close = [p for p in SETTABLE if p.split(".")[-1] == path.split(".")[-1]]
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            problems.append(f"--set {path}: unknown key{hint}; settable keys: {', '.join(SETTABLE)}, "
+                            f"mechanism.parameters.NAME, loads.NAME[.FIELD], initial.q.NAME, ...")
+            continue
+        try:
+            value = yaml.load(text, Loader=CaseLoader) if text else None
+        except yaml.YAMLError:
+            value = text
+        node = data
+        keys = path.split(".")
+        for key in keys[:-1]:
+            if not isinstance(node.get(key), dict):
+                node[key] = {}
+            node = node[key]
+        node[keys[-1]] = value
+    if problems:
+        raise CaseError(problems)
+    return data
+
+
+def load_case(path: str | Path, overrides: list[str] | None = None) -> Case:
+    """Read, override and validate the case file at ``path``.
+
+    Raises
+    ------
+    CaseError
+        Listing every problem found (missing file, YAML syntax, unknown keys, wrong
+        types, impossible values).
+    """
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise CaseError([f"{path}: no such case file"]) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise CaseError([f"{path}: cannot read the case file ({exc})"]) from None
+    data = parse_yaml(text, str(path))
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise CaseError([f"{path}: got {describe(data)} at the top level; expected a mapping of sections "
+                         f"({', '.join(SCHEMA.fields)})"])
+    apply_overrides(data, overrides or [])
+    return validate_case(data, source=str(path))
+
+
+def validate_case(data: dict, source: str = "<dict>") -> Case:
+    """Validate a case given as a dict (as read from YAML); see :func:`load_case`."""
+    problems: list[str] = []
+    out = validate_section("", data, SCHEMA, problems)
+    name = out.get("mechanism", {}).get("name")
+    if name is None or name not in MECHANISMS:
+        raise CaseError(problems)
+    mech = get_mechanism(name)
+    _validate_parameters(out, mech, problems)
+    _validate_initial(out, mech, problems)
+    _validate_loads(out, mech, problems)
+    _validate_formulation(out, mech, problems)
+    if problems:
+        raise CaseError(problems)
+    return Case(data=out, mechanism=mech, source=source)
+
+
+def _validate_parameters(out, mech, problems):
+    given = out["mechanism"]["parameters"] or {}
+    values = {}
+    for key, value in given.items():
+        try:
+            p = mech.parameter(str(key))
+        except KeyError:
+            problems.append(unknown_key("mechanism.parameters", str(key), mech.parameter_names))
+            continue
+        spec = Field("number", unit=p.unit, gt=0.0 if p.strictly_positive else None, ge=p.minimum)
+        checked = check_value(f"mechanism.parameters.{key} [{p.unit}]", value, spec, problems)
+        if checked is not None:
+            values[p.name] = checked
+    out["mechanism"]["parameters"] = {p.name: values.get(p.name, p.default) for p in mech.parameters}
+
+
+def _coordinate_map(path, given, allowed, problems, what):
+    result = {}
+    for key, value in (given or {}).items():
+        if str(key) not in allowed:
+            problems.append(f"{path}.{key}: not {what}; expected one of {', '.join(allowed) or '(none)'}")
+            continue
+        checked = check_value(f"{path}.{key}", value, Field("number"), problems)
+        if checked is not None:
+            result[str(key)] = checked
+    return result
+
+
+def _validate_initial(out, mech, problems):
+    ini = out["initial"]
+    names = mech.coordinate_names
+    n_dof = len(names) - len(mech.constraints)
+    q = ini["q"] if ini["q"] is not None else dict(mech.default_independent)
+    q = _coordinate_map("initial.q", q, names, problems, "a coordinate of " + mech.name)
+    if len(q) != n_dof:
+        problems.append(
+            f"initial.q: got {len(q)} coordinate(s) ({', '.join(q) or 'none'}); expected exactly {n_dof} "
+            f"independent coordinate(s) of {names} ({mech.name} has {len(names)} coordinates and "
+            f"{len(mech.constraints)} constraints)"
+        )
+    qd = ini["qd"] if ini["qd"] is not None else {k: v for k, v in mech.default_independent_velocities.items() if k in q}
+    qd = _coordinate_map("initial.qd", qd, list(q), problems, "an independent coordinate (listed in initial.q)")
+    dependent = [n for n in names if n not in q]
+    guess = {**{k: v for k, v in mech.default_guess.items() if k in dependent}, **(ini["guess"] or {})}
+    guess = _coordinate_map("initial.guess", guess, dependent, problems, "a dependent coordinate")
+    ini.update(q=q, qd=qd, guess=guess)
+
+
+def _validate_loads(out, mech, problems):
+    load_names = [ld.name for ld in mech.loads]
+    result = {}
+    for key, spec in (out["loads"] or {}).items():
+        path = f"loads.{key}"
+        if str(key) not in load_names:
+            problems.append(unknown_key("loads", str(key), load_names))
+            continue
+        unit = mech.loads[load_names.index(key)].unit
+        if isinstance(spec, dict):
+            law = validate_section(path, spec, LOAD_SCHEMA, problems)
+            window = law.get("window")
+            if window is not None:
+                ok = len(window) == 2 and all(isinstance(w, (int, float)) and not isinstance(w, bool) for w in window)
+                if not ok or not window[0] < window[1]:
+                    problems.append(f"{path}.window: got {describe(window)}; expected [lo, hi] with lo < hi "
+                                    f"(use .inf for an open end)")
+                else:
+                    law["window"] = [float(w) for w in window]
+            result[key] = law
+        else:
+            checked = check_value(f"{path} [{unit}]", spec, Field("number"), problems)
+            if checked is not None:
+                result[key] = checked
+    out["loads"] = result
+
+
+def _validate_formulation(out, mech, problems):
+    independent = out["formulation"]["independent"]
+    if independent is None:
+        return
+    n_dof = len(mech.coordinates) - len(mech.constraints)
+    names = mech.coordinate_names
+    bad = [x for x in independent if x not in names]
+    if bad or len(set(independent)) != n_dof or len(independent) != n_dof:
+        problems.append(f"formulation.independent: got {describe(independent)}; expected {n_dof} distinct "
+                        f"coordinate name(s) from {names}")

@@ -1,0 +1,28 @@
+"""Exceptions that csim turns into clear messages (never tracebacks) at the CLI."""
+from __future__ import annotations
+
+
+class CsimError(Exception):
+    """Base class of csim's expected errors."""
+
+
+class CaseError(CsimError):
+    """A case file (or a ``--set`` override) is invalid.
+
+    Parameters
+    ----------
+    problems : list of str
+        One line per problem, each naming the key path, the value and what was expected.
+    """
+
+    def __init__(self, problems: list[str]):
+        self.problems = list(problems)
+        super().__init__("\n".join(self.problems))
+
+
+class SimulationFailure(CsimError):
+    """The simulation cannot go on (Newton did not converge, singular matrix, blow-up)."""
+
+
+class ResultFileError(CsimError):
+    """A result file is missing, unreadable or not a csim result."""

@@ -1,0 +1,122 @@
+"""The quick-return (shaper) mechanism of Haug's textbook, as used by the sliding-mode paper.
+
+Planar, 1 DOF, vertical x-y plane, gravity along -y. Redundant coordinates
+q = [q1, q2, q3]: crank, rocker and connecting-rod angles from +x. Rocker pivot B at the
+origin, crank pivot O at (0, h1), ram guide on the line y = h2. See
+``shared/brief/quick_return.md``; only geometry, bodies and loads are written here, the
+equations of motion are derived.
+"""
+from __future__ import annotations
+
+import sympy as sp
+
+from csim.model.definition import (
+    Drawing,
+    Load,
+    MechanismDefinition,
+    Observable,
+    Parameter,
+    PlanarBody,
+)
+
+PARAMETERS = [
+    Parameter("l1", 1.5, "m", "crank length OA", strictly_positive=True),
+    Parameter("l2", 4.0, "m", "rocker length BC", strictly_positive=True),
+    Parameter("l3", 1.9, "m", "connecting-rod length CD", strictly_positive=True),
+    Parameter("h1", 2.0, "m", "height of the crank pivot O above the rocker pivot B", strictly_positive=True),
+    Parameter("h2", 4.0, "m", "height of the ram guide above B", strictly_positive=True),
+    Parameter("a1", 0.0, "m", "crank centre of mass from O", minimum=0.0),
+    Parameter("a2", 2.0, "m", "rocker centre of mass from B", minimum=0.0),
+    Parameter("a3", 0.95, "m", "rod centre of mass from C", minimum=0.0),
+    Parameter("m1", 4000.0, "kg", "crank mass", strictly_positive=True),
+    Parameter("m2", 100.0, "kg", "rocker mass", strictly_positive=True),
+    Parameter("m3", 30.0, "kg", "rod mass", strictly_positive=True),
+    Parameter("m4", 5.0, "kg", "slider-block mass", strictly_positive=True),
+    Parameter("m5", 50.0, "kg", "ram mass", strictly_positive=True),
+    Parameter("J1", 4000.0, "kg m^2", "crank inertia about its centre of mass", strictly_positive=True),
+    Parameter("J2", 100.0, "kg m^2", "rocker inertia about its centre of mass", strictly_positive=True),
+    Parameter("J3", 10.0, "kg m^2", "rod inertia about its centre of mass", strictly_positive=True),
+    Parameter("J4", 0.05, "kg m^2", "slider-block inertia about its centre of mass", minimum=0.0),
+    Parameter("g", 9.81, "m/s^2", "gravitational acceleration (along -y)", minimum=0.0),
+]
+
+
+def definition() -> MechanismDefinition:
+    """Build the symbolic quick-return mechanism."""
+    q1, q2, q3 = q = sp.symbols("q1 q2 q3", real=True)
+    qd = sp.symbols("qd1 qd2 qd3", real=True)
+    P = {p.name: p.symbol for p in PARAMETERS}
+    l1, l2, l3, h1, h2 = (P[k] for k in ("l1", "l2", "l3", "h1", "h2"))
+
+    def unit(angle):
+        return sp.cos(angle), sp.sin(angle)
+
+    O = (sp.Integer(0), h1)
+    B = (sp.Integer(0), sp.Integer(0))
+    A = (O[0] + l1 * sp.cos(q1), O[1] + l1 * sp.sin(q1))  # crank pin
+    C = (l2 * sp.cos(q2), l2 * sp.sin(q2))  # rocker tip
+    D = (C[0] + l3 * sp.cos(q3), C[1] + l3 * sp.sin(q3))  # rod end on the ram
+
+    def along(start, angle, distance):
+        e = unit(angle)
+        return (start[0] + distance * e[0], start[1] + distance * e[1])
+
+    bodies = [
+        PlanarBody("crank", P["m1"], P["J1"], along(O, q1, P["a1"]), q1),
+        PlanarBody("rocker", P["m2"], P["J2"], along(B, q2, P["a2"]), q2),
+        PlanarBody("rod", P["m3"], P["J3"], along(C, q3, P["a3"]), q3),
+        # The block is pinned to the crank at A and turns with the rocker.
+        PlanarBody("block", P["m4"], P["J4"], A, q2),
+        # The ram only translates; D rides on it. Its weight is carried by the guide at
+        # height h2, so its potential energy is constant (it enters neither h nor lambda).
+        PlanarBody("ram", P["m5"], sp.Integer(0), D, sp.Integer(0), height=h2),
+    ]
+    T = sum(b.kinetic_energy(list(q), list(qd)) for b in bodies)
+    V = sum(b.potential_energy(P["g"]) for b in bodies)
+
+    constraints = [
+        # A lies on the rocker line BC: (A - B) x e2 = 0, written as in the brief
+        l1 * sp.sin(q1 - q2) + h1 * sp.cos(q2),
+        # D stays on the ram guide, y_D = h2
+        h2 - D[1],
+    ]
+    loads = [
+        Load("torque", q1, "N m", "rad", "driving torque on the crank, counter-clockwise positive"),
+        Load("cutting_force", D[0], "N", "m", "horizontal force on the ram at D, positive along +x"),
+    ]
+    observables = [
+        Observable("ram_x", D[0], "m", "m/s", "ram position x_D"),
+    ]
+    ram_half = sp.Rational(1, 2)
+    drawing = Drawing(
+        points={
+            "O": O,
+            "A": A,
+            "B": B,
+            "C": C,
+            "D": D,
+            "ram_rear": (D[0] - ram_half, h2),
+            "ram_front": (D[0] + ram_half, h2),
+        },
+        links=[("O", "A"), ("B", "C"), ("C", "D"), ("ram_rear", "ram_front")],
+        ground=["O", "B"],
+        guides=[((-l2 - l3, h2), (l2 + l3, h2))],
+    )
+    return MechanismDefinition(
+        name="quick_return",
+        description="quick-return (shaper) mechanism: crank, rocker, rod, slider block, ram",
+        coordinates=list(q),
+        velocities=list(qd),
+        coordinate_units=["rad", "rad", "rad"],
+        parameters=list(PARAMETERS),
+        kinetic_energy=T,
+        potential_energy=V,
+        constraints=constraints,
+        loads=loads,
+        observables=observables,
+        drawing=drawing,
+        default_independent={"q1": 3.0020},
+        default_independent_velocities={"q1": 6.2832},
+        # branch of the brief: rocker leaning left of A's side, cos q3 < 0
+        default_guess={"q2": 2.0, "q3": 2.8},
+    )

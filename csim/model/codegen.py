@@ -1,0 +1,153 @@
+"""Generate plain array-in/array-out Python functions from a :class:`DerivedModel`.
+
+Every function takes flat float arrays (``q`` (m,), ``qd`` (m,), ``par`` (n_par,)) and
+returns a new float array; the bodies are straight-line scalar code after common
+subexpression elimination, using only ``math`` and ``numpy.empty``. That keeps them fast
+in CPython and compilable as they are (numba ``njit``) without touching the derivation.
+
+The generated source is cached on disk (``$CSIM_CACHE_DIR``, default ``~/.cache/csim``),
+keyed by a hash of the symbolic definition, so the sympy derivation runs once per model.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import tempfile
+from pathlib import Path
+
+import sympy as sp
+from sympy.printing.pycode import PythonCodePrinter
+
+from csim.model.definition import MechanismDefinition
+
+#: Generated functions: name -> (arguments, attribute of DerivedModel, kind of output).
+#: kind "matrix" returns (rows, cols), "vector" returns (rows,), "scalar" a float,
+#: "points" returns (rows/2, 2).
+FUNCTIONS: dict[str, tuple[tuple[str, ...], str, str]] = {
+    "mass": (("q", "par"), "mass", "matrix"),
+    "velocity_terms": (("q", "qd", "par"), "velocity_terms", "vector"),
+    "gravity": (("q", "par"), "gravity", "vector"),
+    "phi": (("q", "par"), "phi", "vector"),
+    "phi_q": (("q", "par"), "phi_q", "matrix"),
+    "gamma": (("q", "qd", "par"), "gamma", "vector"),
+    "load_coordinates": (("q", "par"), "load_coordinates", "vector"),
+    "load_matrix": (("q", "par"), "load_matrix", "matrix"),
+    "kinetic_energy": (("q", "qd", "par"), "kinetic_energy", "scalar"),
+    "potential_energy": (("q", "par"), "potential_energy", "scalar"),
+    "observables": (("q", "par"), "observables", "vector"),
+    "observable_jacobian": (("q", "par"), "observable_jacobian", "matrix"),
+    "points": (("q", "par"), "points", "points"),
+}
+
+#: Bump when the generated code changes shape, to invalidate old caches.
+CODEGEN_VERSION = "1"
+
+
+class _Printer(PythonCodePrinter):
+    """Prints sympy expressions as plain Python using ``math``."""
+
+    def _print_Symbol(self, expr):  # symbols are unpacked into locals of the same name
+        return str(expr)
+
+
+def definition_key(definition: MechanismDefinition) -> str:
+    """A hash of everything the generated code depends on."""
+    parts = [
+        CODEGEN_VERSION,
+        definition.name,
+        sp.srepr(definition.coordinates),
+        sp.srepr(definition.velocities),
+        sp.srepr(definition.parameter_symbols),
+        sp.srepr(definition.kinetic_energy),
+        sp.srepr(definition.potential_energy),
+        sp.srepr(definition.constraints),
+        sp.srepr([ld.coordinate for ld in definition.loads]),
+        sp.srepr([o.expression for o in definition.observables]),
+        sp.srepr(list(definition.drawing.points.values()) if definition.drawing else []),
+    ]
+    return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:24]
+
+
+def _function_source(name, args, expr, kind, unpack) -> str:
+    """Source of one function: unpack symbols, CSE temporaries, fill the output."""
+    printer = _Printer()
+    if kind == "scalar":
+        flat = [expr]
+    else:
+        flat = list(expr)
+    temps, reduced = sp.cse(flat, symbols=sp.numbered_symbols("_x"), optimizations="basic")
+    used = set()
+    for e in [t[1] for t in temps] + reduced:
+        used |= {str(s) for s in e.free_symbols}
+    lines = [f"def {name}({', '.join(args)}):"]
+    for arg in args:
+        for index, sym_name in unpack[arg]:
+            if sym_name in used:
+                lines.append(f"    {sym_name} = {arg}[{index}]")
+    for sym, value in temps:
+        lines.append(f"    {sym} = {printer.doprint(value)}")
+    if kind == "scalar":
+        lines.append(f"    return float({printer.doprint(reduced[0])})")
+    else:
+        if kind == "matrix":
+            rows, cols = expr.shape
+            shape = f"({rows}, {cols})"
+            index = [f"{i}, {j}" for i in range(rows) for j in range(cols)]
+        elif kind == "points":
+            n = expr.shape[0] // 2
+            shape = f"({n}, 2)"
+            index = [f"{i // 2}, {i % 2}" for i in range(expr.shape[0])]
+        else:
+            shape = f"({expr.shape[0]},)"
+            index = [str(i) for i in range(expr.shape[0])]
+        lines.append(f"    out = np.empty({shape})")
+        for ix, value in zip(index, reduced):
+            lines.append(f"    out[{ix}] = {printer.doprint(value)}")
+        lines.append("    return out")
+    return "\n".join(lines)
+
+
+def generate_source(derived) -> str:
+    """Python source of a module defining every function in :data:`FUNCTIONS`."""
+    d = derived.definition
+    unpack = {
+        "q": list(enumerate(d.coordinate_names)),
+        "qd": list(enumerate(str(s) for s in d.velocities)),
+        "par": list(enumerate(d.parameter_names)),
+    }
+    chunks = [
+        f'"""Generated by csim from the symbolic model {d.name!r}. Do not edit."""',
+        "import math",
+        "import numpy as np",
+        "",
+    ]
+    for name, (args, attr, kind) in FUNCTIONS.items():
+        chunks.append(_function_source(name, args, getattr(derived, attr), kind, unpack))
+        chunks.append("")
+    return "\n\n".join(chunks)
+
+
+def cache_dir() -> Path:
+    """Where generated model sources are cached."""
+    root = os.environ.get("CSIM_CACHE_DIR")
+    return Path(root) if root else Path.home() / ".cache" / "csim"
+
+
+def cached_source(definition: MechanismDefinition, use_cache: bool = True) -> str:
+    """Generated source for ``definition``, derived anew only when not cached."""
+    from csim.model.derive import derive
+
+    path = cache_dir() / f"{definition.name}-{definition_key(definition)}.py"
+    if use_cache and path.is_file():
+        return path.read_text()
+    source = generate_source(derive(definition))
+    if use_cache:
+        try:  # write atomically; a cache that cannot be written is not an error
+            path.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
+            with os.fdopen(fd, "w") as fh:
+                fh.write(source)
+            os.replace(tmp, path)
+        except OSError:
+            pass
+    return source

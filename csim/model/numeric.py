@@ -1,0 +1,68 @@
+"""The numeric model: fast functions of (q, qd, par) generated from the symbolic one."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from csim.model.codegen import FUNCTIONS, cached_source
+from csim.model.definition import MechanismDefinition
+
+
+@dataclass
+class NumericModel:
+    """Array-in/array-out model functions of one mechanism.
+
+    All functions take ``q`` (m,) [rad or m], ``qd`` (m,) where listed, and ``par``
+    (n_par,) in the order of ``definition.parameters``:
+
+    ``mass(q, par)`` (m, m); ``velocity_terms(q, qd, par)`` (m,) = C qd;
+    ``gravity(q, par)`` (m,) = h; ``phi(q, par)`` (r,); ``phi_q(q, par)`` (r, m);
+    ``gamma(q, qd, par)`` (r,); ``load_coordinates(q, par)`` (k,);
+    ``load_matrix(q, par)`` (m, k) = B; ``kinetic_energy``, ``potential_energy`` floats [J];
+    ``observables(q, par)`` (o,); ``observable_jacobian(q, par)`` (o, m);
+    ``points(q, par)`` (P, 2) [m].
+    """
+
+    definition: MechanismDefinition
+    source: str
+    mass: Callable
+    velocity_terms: Callable
+    gravity: Callable
+    phi: Callable
+    phi_q: Callable
+    gamma: Callable
+    load_coordinates: Callable
+    load_matrix: Callable
+    kinetic_energy: Callable
+    potential_energy: Callable
+    observables: Callable
+    observable_jacobian: Callable
+    points: Callable
+
+    @property
+    def n_coordinates(self) -> int:
+        return len(self.definition.coordinates)
+
+    @property
+    def n_constraints(self) -> int:
+        return len(self.definition.constraints)
+
+    @property
+    def n_loads(self) -> int:
+        return len(self.definition.loads)
+
+    def parameter_vector(self, values: dict[str, float] | None = None) -> np.ndarray:
+        """``par`` (n_par,) from defaults overridden by ``values``."""
+        values = values or {}
+        return np.array([float(values.get(p.name, p.default)) for p in self.definition.parameters])
+
+
+def build_numeric_model(definition: MechanismDefinition, use_cache: bool = True) -> NumericModel:
+    """Derive (or load from the cache) and compile the model functions of ``definition``."""
+    source = cached_source(definition, use_cache=use_cache)
+    namespace: dict = {}
+    exec(compile(source, f"<csim model {definition.name}>", "exec"), namespace)
+    functions = {name: namespace[name] for name in FUNCTIONS}
+    return NumericModel(definition=definition, source=source, **functions)

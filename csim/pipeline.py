@@ -1,0 +1,116 @@
+"""The run pipeline: case -> model -> system -> initial state -> integration -> result.
+
+Library functions the CLI and the tests both call.
+"""
+from __future__ import annotations
+
+import time
+from typing import Callable
+
+import numpy as np
+
+from csim.case import Case
+from csim.errors import SimulationFailure
+from csim.model.numeric import NumericModel, build_numeric_model
+from csim.result import Result
+from csim.solver.formulations import make_formulation
+from csim.solver.initial import consistent_initial_state
+from csim.solver.simulate import Trajectory, integrate
+from csim.solver.stabilizers import make_stabilizer
+from csim.solver.system import ConstrainedSystem
+
+_MODELS: dict[str, NumericModel] = {}
+
+
+def numeric_model(case: Case) -> NumericModel:
+    """The (process-wide cached) numeric model of the case's mechanism."""
+    name = case.mechanism.name
+    if name not in _MODELS:
+        _MODELS[name] = build_numeric_model(case.mechanism)
+    return _MODELS[name]
+
+
+def build_system(case: Case) -> ConstrainedSystem:
+    """The ODE system of a case: model, parameters, loads, formulation and stabilizer."""
+    model = numeric_model(case)
+    form = case.data["formulation"]
+    settings = {}
+    if form["method"] == "elimination":
+        names = case.mechanism.coordinate_names
+        independent = form["independent"]
+        settings = dict(
+            independent=None if independent is None else [names.index(n) for n in independent],
+            max_condition=form["max_condition"],
+        )
+    stab = {k: v for k, v in case.data["stabilization"].items() if k != "method"}
+    return ConstrainedSystem(
+        model=model,
+        par=model.parameter_vector(case.parameters),
+        loads=case.load_set(),
+        formulation=make_formulation(form["method"], **settings),
+        stabilizer=make_stabilizer(case.data["stabilization"]["method"], stab),
+    )
+
+
+def initial_state(case: Case, system: ConstrainedSystem) -> np.ndarray:
+    """Consistent initial state vector y0 = [q0, qd0, W0 = 0] (raises SimulationFailure)."""
+    ini = case.data["initial"]
+    state = consistent_initial_state(
+        system.model, system.par, ini["q"], ini["qd"], ini["guess"], tol=ini["tol"], max_iter=ini["max_iter"]
+    )
+    return np.concatenate((state.q, state.qd, np.zeros(system.k)))
+
+
+def run_case(case: Case, progress: Callable[[float], None] | None = None) -> Result:
+    """Simulate a validated case. Failures come back as a result with status "failed"."""
+    start = time.perf_counter()
+    system = build_system(case)
+    try:
+        y0 = initial_state(case, system)
+    except SimulationFailure as exc:
+        empty = Trajectory(t=np.zeros(0), y=np.zeros((0, system.n_state)),
+                           mode=np.zeros((0, system.loads.n_switches), bool), status="failed", message=str(exc))
+        return assemble_result(case, system, empty, time.perf_counter() - start)
+    trajectory = integrate(system, y0, case.integration_settings(), progress=progress)
+    return assemble_result(case, system, trajectory, time.perf_counter() - start)
+
+
+def assemble_result(case: Case, system: ConstrainedSystem, traj: Trajectory, wall_time: float) -> Result:
+    """Evaluate every recorded quantity at the output times of a trajectory."""
+    model, par = system.model, system.par
+    N, m, r, k = traj.t.size, system.m, system.r, system.k
+    o = len(case.mechanism.observables)
+    arrays = {name: np.zeros(shape) for name, shape in dict(
+        qdd=(N, m), lam=(N, r), phi=(N, r), phi_dot=(N, r), loads=(N, k), generalized_forces=(N, m),
+        observables=(N, o), observable_rates=(N, o), kinetic=(N,), potential=(N,),
+    ).items()}
+    status, message = traj.status, traj.message
+    for i in range(N):
+        q, qd, _ = system.split(traj.y[i])
+        try:
+            ev = system.evaluate(traj.t[i], traj.y[i], traj.mode[i])
+        except SimulationFailure as exc:  # e.g. the last state of a failed run is singular
+            for a in arrays.values():
+                a[i] = np.nan
+            if status == "success":
+                status, message = "failed", str(exc)
+            continue
+        arrays["qdd"][i], arrays["lam"][i], arrays["phi"][i], arrays["phi_dot"][i] = ev.qdd, ev.lam, ev.phi, ev.phi_dot
+        arrays["loads"][i], arrays["generalized_forces"][i] = ev.u, ev.Q
+        arrays["kinetic"][i], arrays["potential"][i] = ev.kinetic, ev.potential
+        if o:
+            arrays["observables"][i] = model.observables(q, par)
+            arrays["observable_rates"][i] = model.observable_jacobian(q, par) @ qd
+    y = traj.y
+    return Result(
+        mechanism=case.mechanism.name,
+        coordinate_names=case.mechanism.coordinate_names,
+        load_names=[ld.name for ld in case.mechanism.loads],
+        observable_names=[ob.name for ob in case.mechanism.observables],
+        case_yaml=case.to_yaml(),
+        t=traj.t, q=y[:, :m], qd=y[:, m:2 * m], work=y[:, 2 * m:],
+        status=status, message=message, wall_time=wall_time,
+        nfev=traj.nfev, njev=traj.njev, nlu=traj.nlu, nsteps=traj.nsteps,
+        event_times=np.asarray(traj.event_times, dtype=float), event_labels=list(traj.event_labels),
+        **arrays,
+    )

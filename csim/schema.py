@@ -1,0 +1,185 @@
+"""A small declarative schema for case files: types, defaults, bounds, documentation.
+
+Validation collects every problem at once, each naming the key path, the value found and
+what was expected, e.g. ``simulation.t_end: got -1 (number); expected a number > 0``.
+"""
+from __future__ import annotations
+
+import difflib
+import math
+from dataclasses import dataclass
+from typing import Any, Callable
+
+REQUIRED = object()
+
+TYPE_NAMES = {
+    "number": "a number",
+    "integer": "an integer",
+    "string": "a string",
+    "boolean": "true or false",
+    "mapping": "a mapping (key: value lines)",
+    "list": "a list",
+}
+
+
+@dataclass(frozen=True)
+class Field:
+    """One leaf of the schema.
+
+    Parameters
+    ----------
+    type : {"number", "integer", "string", "boolean", "mapping", "list", "any"}
+    default : object
+        Value used when the key is absent; ``REQUIRED`` makes the key mandatory.
+    doc : str
+        One line for a person (shown by ``csim`` help and in the README).
+    unit : str
+    choices : tuple or callable or None
+        Allowed values (a callable returns them, for registries).
+    gt, ge, le : float or None
+        Bounds for numbers: > gt, >= ge, <= le.
+    nullable : bool
+        ``null`` is allowed.
+    check : callable or None
+        Extra check ``check(value) -> str or None`` returning what was expected.
+    """
+
+    type: str
+    default: Any = REQUIRED
+    doc: str = ""
+    unit: str = ""
+    choices: Any = None
+    gt: float | None = None
+    ge: float | None = None
+    le: float | None = None
+    nullable: bool = False
+    check: Callable[[Any], str | None] | None = None
+
+    def expected(self) -> str:
+        """What a valid value looks like, for error messages."""
+        text = TYPE_NAMES.get(self.type, "a value")
+        bounds = []
+        if self.gt is not None:
+            bounds.append(f"> {self.gt:g}")
+        if self.ge is not None:
+            bounds.append(f">= {self.ge:g}")
+        if self.le is not None:
+            bounds.append(f"<= {self.le:g}")
+        if bounds:
+            text += " " + " and ".join(bounds)
+        choices = self.valid_choices()
+        if choices is not None:
+            text = "one of " + ", ".join(str(c) for c in choices)
+        if self.nullable:
+            text += " (or null)"
+        return text
+
+    def valid_choices(self):
+        return self.choices() if callable(self.choices) else self.choices
+
+
+def describe(value: Any) -> str:
+    """``value`` as it reads in a message, with its YAML type."""
+    kind = {bool: "boolean", int: "integer", float: "number", str: "string",
+            dict: "mapping", list: "list", type(None): "null"}.get(type(value), type(value).__name__)
+    text = repr(value)
+    if len(text) > 60:
+        text = text[:57] + "..."
+    return f"{text} ({kind})"
+
+
+def check_value(path: str, value: Any, spec: Field, problems: list[str]) -> Any:
+    """Validate one value against ``spec``; append problems; return the normalized value."""
+    if value is None:
+        if spec.nullable:
+            return None
+        problems.append(f"{path}: got null; expected {spec.expected()}")
+        return None
+    ok = True
+    if spec.type == "number":
+        ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+        if ok:
+            value = float(value)
+            ok = math.isfinite(value)
+    elif spec.type == "integer":
+        ok = isinstance(value, int) and not isinstance(value, bool)
+    elif spec.type == "string":
+        ok = isinstance(value, str)
+    elif spec.type == "boolean":
+        ok = isinstance(value, bool)
+    elif spec.type == "mapping":
+        ok = isinstance(value, dict)
+    elif spec.type == "list":
+        ok = isinstance(value, list)
+    if not ok:
+        problems.append(f"{path}: got {describe(value)}; expected {spec.expected()}")
+        return None
+    if spec.type in ("number", "integer"):
+        if (spec.gt is not None and not value > spec.gt) or (spec.ge is not None and not value >= spec.ge) \
+                or (spec.le is not None and not value <= spec.le):
+            problems.append(f"{path}: got {describe(value)}; expected {spec.expected()}")
+            return None
+    choices = spec.valid_choices()
+    if choices is not None and value not in choices:
+        hint = difflib.get_close_matches(str(value), [str(c) for c in choices], n=1)
+        extra = f" (did you mean {hint[0]!r}?)" if hint else ""
+        problems.append(f"{path}: got {describe(value)}; expected one of {', '.join(map(str, choices))}{extra}")
+        return None
+    if spec.check is not None:
+        expectation = spec.check(value)
+        if expectation:
+            problems.append(f"{path}: got {describe(value)}; expected {expectation}")
+            return None
+    return value
+
+
+@dataclass
+class Section:
+    """A mapping of named fields and subsections."""
+
+    fields: dict[str, "Field | Section"]
+    doc: str = ""
+
+
+def unknown_key(path: str, key: str, valid: list[str]) -> str:
+    """Message for a key that the schema does not know, with the closest valid key."""
+    where = f"{path}.{key}" if path else key
+    hint = difflib.get_close_matches(key, valid, n=1)
+    extra = f" (did you mean {hint[0]!r}?)" if hint else ""
+    return f"{where}: unknown key{extra}; valid keys here: {', '.join(valid)}"
+
+
+def validate_section(path: str, data: Any, section: Section, problems: list[str]) -> dict:
+    """Validate a mapping against ``section``; returns it with defaults filled in."""
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        problems.append(f"{path or 'case file'}: got {describe(data)}; expected a mapping (key: value lines)")
+        return {}
+    out = {}
+    for key in data:
+        if key not in section.fields:
+            problems.append(unknown_key(path, str(key), list(section.fields)))
+    for key, spec in section.fields.items():
+        sub = f"{path}.{key}" if path else key
+        if isinstance(spec, Section):
+            out[key] = validate_section(sub, data.get(key), spec, problems)
+        elif key in data:
+            out[key] = check_value(sub, data[key], spec, problems)
+        elif spec.default is REQUIRED:
+            problems.append(f"{sub}: missing; expected {spec.expected()}")
+        else:
+            out[key] = spec.default
+    return out
+
+
+def field_paths(section: Section, prefix: str = "") -> dict[str, Field]:
+    """Every leaf of ``section`` by dotted path."""
+    paths = {}
+    for key, spec in section.fields.items():
+        path = f"{prefix}.{key}" if prefix else key
+        if isinstance(spec, Section):
+            paths.update(field_paths(spec, path))
+        else:
+            paths[path] = spec
+    return paths

@@ -1,0 +1,158 @@
+"""Formulations that turn the DAE into an ODE: accelerations and multipliers from a state.
+
+Both solve, at one state, the equations of motion with the acceleration-level constraint
+
+    M qdd + Phi_q^T lambda = p,      Phi_q qdd = gamma*
+
+and differ in how: ``kkt`` solves the (m + r) augmented system; ``elimination`` (the
+paper's eqs. 8-10) premultiplies by the null-space matrix R and solves an m x m system.
+"""
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg
+
+from csim.errors import SimulationFailure
+
+
+class Formulation:
+    """Solves for (qdd, lambda); ``name`` is the registry key (``formulation.method``)."""
+
+    name = "abstract"
+
+    def solve(self, M, phi_q, p, gamma_star):
+        """Accelerations and multipliers.
+
+        Parameters
+        ----------
+        M : ndarray (m, m)
+            Mass matrix.
+        phi_q : ndarray (r, m)
+            Constraint Jacobian.
+        p : ndarray (m,)
+            Q - C qd - h.
+        gamma_star : ndarray (r,)
+            Right-hand side of the acceleration-level constraint (from the stabilizer).
+
+        Returns
+        -------
+        qdd : ndarray (m,)
+        lam : ndarray (r,)
+
+        Raises
+        ------
+        SimulationFailure
+            If the system is singular.
+        """
+        raise NotImplementedError
+
+
+class KKT(Formulation):
+    """Lagrange multipliers: [[M, Phi_q^T], [Phi_q, 0]] [qdd; lambda] = [p; gamma*]."""
+
+    name = "kkt"
+
+    def solve(self, M, phi_q, p, gamma_star):
+        m, r = M.shape[0], phi_q.shape[0]
+        A = np.zeros((m + r, m + r))
+        A[:m, :m] = M
+        A[:m, m:] = phi_q.T
+        A[m:, :m] = phi_q
+        b = np.concatenate((p, gamma_star))
+        try:
+            x = np.linalg.solve(A, b)
+        except np.linalg.LinAlgError:
+            raise SimulationFailure(
+                "singular KKT matrix: the constraint Jacobian Phi_q lost rank (a singular "
+                "configuration of the mechanism) or M is singular"
+            ) from None
+        return x[:m], x[m:]
+
+
+def choose_independent(phi_q: np.ndarray) -> np.ndarray:
+    """Indices of the independent coordinates u for a Jacobian ``phi_q`` (r, m).
+
+    QR with column pivoting orders the columns by how much each adds to the rank; the
+    first r pivots form the best-conditioned dependent block Phi_v, the rest are u.
+    """
+    r = phi_q.shape[0]
+    _, _, piv = scipy.linalg.qr(phi_q, pivoting=True, mode="economic")
+    return np.sort(piv[r:])
+
+
+class Elimination(Formulation):
+    """Elimination of the multipliers with R = [E; -Phi_v^-1 Phi_u] (paper's eqs. 8-10).
+
+        [R^T M ] qdd = [R^T p ]
+        [Phi_q ]       [gamma*]
+
+    The multipliers are recovered from the dependent rows, Phi_v^T lambda = (p - M qdd)_v.
+
+    Parameters
+    ----------
+    independent : sequence of int or None
+        Indices of the independent coordinates u. ``None`` chooses them from Phi_q by
+        pivoted QR at the first evaluation and re-chooses them whenever the condition
+        number of Phi_v exceeds ``max_condition``.
+    max_condition : float
+        Largest acceptable condition number of Phi_v.
+    """
+
+    name = "elimination"
+
+    def __init__(self, independent=None, max_condition: float = 1e8):
+        self.fixed = independent is not None
+        self.independent = None if independent is None else np.asarray(independent, dtype=int)
+        self.max_condition = float(max_condition)
+        self.repartitions = 0
+
+    def _partition(self, phi_q):
+        m = phi_q.shape[1]
+        if self.independent is None:
+            self.independent = choose_independent(phi_q)
+        u = self.independent
+        v = np.setdiff1d(np.arange(m), u)
+        phi_v = phi_q[:, v]
+        if np.linalg.cond(phi_v) > self.max_condition:
+            if self.fixed:
+                raise SimulationFailure(
+                    f"the dependent block Phi_v of the constraint Jacobian is singular "
+                    f"(condition number {np.linalg.cond(phi_v):.3g}) with the independent "
+                    f"coordinates fixed by formulation.independent"
+                )
+            self.independent = u = choose_independent(phi_q)
+            self.repartitions += 1
+            v = np.setdiff1d(np.arange(m), u)
+            phi_v = phi_q[:, v]
+            if np.linalg.cond(phi_v) > self.max_condition:
+                raise SimulationFailure("singular constraint Jacobian: no well-conditioned dependent block exists")
+        return u, v, phi_v
+
+    def solve(self, M, phi_q, p, gamma_star):
+        m, r = M.shape[0], phi_q.shape[0]
+        u, v, phi_v = self._partition(phi_q)
+        # R (m, n): rows u = identity, rows v = -Phi_v^-1 Phi_u
+        R = np.zeros((m, m - r))
+        R[u, np.arange(m - r)] = 1.0
+        R[v, :] = -np.linalg.solve(phi_v, phi_q[:, u])
+        A = np.vstack((R.T @ M, phi_q))
+        b = np.concatenate((R.T @ p, gamma_star))
+        try:
+            qdd = np.linalg.solve(A, b)
+        except np.linalg.LinAlgError:
+            raise SimulationFailure("singular system [R^T M; Phi_q] in the elimination formulation") from None
+        lam = np.linalg.solve(phi_v.T, (p - M @ qdd)[v])
+        return qdd, lam
+
+
+#: name -> class
+FORMULATIONS: dict[str, type[Formulation]] = {KKT.name: KKT, Elimination.name: Elimination}
+
+
+def make_formulation(name: str, **settings) -> Formulation:
+    """Build the formulation registered as ``name``."""
+    try:
+        cls = FORMULATIONS[name]
+    except KeyError:
+        raise KeyError(f"unknown formulation {name!r}; valid names: {', '.join(FORMULATIONS)}") from None
+    return cls(**settings)

@@ -1,0 +1,267 @@
+"""The simulation driver: step an integrator, locate switching events, sample the output.
+
+One loop serves every integrator of :mod:`csim.solver.integrators`:
+
+1. take one accepted step of the integrator;
+2. with event location on, check whether any switching function of the load laws has
+   left the sign its mode says; if so, find the earliest zero on the step's dense output
+   (Brent's method), cut the step there, flip the conditions that switched, and restart
+   the integrator from the event state (the right-hand side is smooth between events);
+3. sample the dense output at the requested output times inside the (cut) step.
+
+With event location off, the load laws are evaluated at every right-hand-side call and the
+integrator steps over the discontinuities as best it can.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+from scipy.optimize import brentq
+
+from csim.errors import SimulationFailure
+from csim.solver.integrators import make_integrator
+from csim.solver.system import ConstrainedSystem
+
+EPS = np.finfo(float).eps
+
+
+@dataclass(frozen=True)
+class IntegrationSettings:
+    """How to integrate (the validated ``simulation`` section of a case file).
+
+    Parameters
+    ----------
+    integrator : str
+        Registry name, see :data:`csim.solver.integrators.INTEGRATORS`.
+    t_end : float
+        End time [s] (the run starts at t = 0).
+    rtol, atol : float
+        Tolerances of the adaptive integrators (atol in the units of each state).
+    step : float
+        Step [s] of the fixed-step integrators.
+    max_step : float
+        Largest step of the adaptive integrators [s].
+    first_step : float or None
+        First step of the adaptive integrators [s]; ``None`` lets the integrator choose.
+    events : bool
+        Locate the switching instants of the load laws and restart there.
+    max_events : int
+        Stop with a failure after this many events (chattering of a switching law).
+    output_dt : float
+        Output sampling interval [s].
+    """
+
+    integrator: str = "DOP853"
+    t_end: float = 5.0
+    rtol: float = 1e-8
+    atol: float = 1e-8
+    step: float = 1e-3
+    max_step: float = np.inf
+    first_step: float | None = None
+    events: bool = True
+    max_events: int = 100_000
+    output_dt: float = 0.01
+
+
+@dataclass
+class Trajectory:
+    """Raw output of :func:`integrate`.
+
+    Attributes
+    ----------
+    t : ndarray (N,)
+        Output times [s].
+    y : ndarray (N, n_state)
+        States at the output times.
+    mode : ndarray (N, n_switches) bool
+        Load-law conditions in force at each output time.
+    status : {"success", "failed"}
+    message : str
+    nfev : int
+        Right-hand-side evaluations, all of them (stages, Jacobian differences, restarts).
+    njev, nlu, nsteps : int
+        Jacobian evaluations, LU decompositions (implicit integrators), accepted steps.
+    event_times : list of float
+    event_labels : list of str
+        What switched at each event.
+    """
+
+    t: np.ndarray
+    y: np.ndarray
+    mode: np.ndarray
+    status: str
+    message: str
+    nfev: int = 0
+    njev: int = 0
+    nlu: int = 0
+    nsteps: int = 0
+    event_times: list = field(default_factory=list)
+    event_labels: list = field(default_factory=list)
+
+
+def output_times(t_end: float, dt: float) -> np.ndarray:
+    """Uniform output grid 0, dt, 2 dt, ... ending exactly at ``t_end``."""
+    n = int(np.floor(t_end / dt * (1 + 1e-12)))
+    t = np.arange(n + 1) * dt
+    if t_end - t[-1] > 1e-9 * dt:
+        t = np.append(t, t_end)
+    else:
+        t[-1] = t_end
+    return t
+
+
+class _Counter:
+    """Wraps the right-hand side to count every evaluation and report progress."""
+
+    def __init__(self, fun: Callable, progress: Callable | None):
+        self.fun = fun
+        self.progress = progress
+        self.n = 0
+
+    def __call__(self, t, y):
+        self.n += 1
+        if self.progress is not None and self.n % 256 == 0:
+            self.progress(t)
+        return self.fun(t, y)
+
+
+def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSettings,
+              progress: Callable[[float], None] | None = None) -> Trajectory:
+    """Integrate ``system`` from t = 0, state ``y0``, to ``settings.t_end``.
+
+    Never raises for a failure of the integration itself: a failed run comes back with
+    ``status = "failed"``, a message naming the cause, and the output up to the failure.
+    """
+    t_out = output_times(settings.t_end, settings.output_dt)
+    n_state = y0.size
+    ts, ys, modes = [], [], []
+    counters = dict(njev=0, nlu=0, nsteps=0)
+    events_t, events_label = [], []
+    labels = system.loads.switch_labels
+    locate = settings.events and system.loads.n_switches > 0
+
+    t, y = 0.0, np.array(y0, dtype=float)
+    mode = system.loads.mode(system.switching(y)) if system.loads.n_switches else np.zeros(0, bool)
+    i_out = 0
+    status, message = "success", f"reached t_end = {settings.t_end:g} s"
+
+    def record(t_i, y_i):
+        ts.append(t_i)
+        ys.append(np.array(y_i))
+        modes.append(mode.copy())
+
+    record(t, y)
+    i_out = 1
+    counter = None
+    all_nfev = 0
+    try:
+        while t < settings.t_end and i_out <= len(t_out):
+            if locate:
+                frozen = mode.copy()
+                fun = lambda t_, y_, frozen=frozen: system.rhs(t_, y_, frozen)  # noqa: E731
+            else:
+                fun = system.rhs_unlocated
+            counter = _Counter(fun, progress)
+            solver = make_integrator(
+                settings.integrator, counter, t, y, settings.t_end,
+                rtol=settings.rtol, atol=_atol(settings.atol, system, y),
+                step=settings.step, max_step=settings.max_step, first_step=settings.first_step,
+            )
+            restarted = False
+            while solver.status == "running":
+                msg = solver.step()
+                counters["nsteps"] += 1
+                if solver.status == "failed":
+                    raise SimulationFailure(f"integrator {settings.integrator} failed at t = {solver.t:.6g} s: {msg}")
+                if not np.all(np.isfinite(solver.y)):
+                    raise SimulationFailure(f"blow-up: non-finite state at t = {solver.t:.6g} s")
+                t_old, t_new = solver.t_old, solver.t
+                dense = None
+                t_stop = t_new
+                if locate:
+                    g_new = system.switching(solver.y)
+                    disagree = np.flatnonzero(system.loads.mode(g_new) != mode)
+                    if disagree.size:
+                        dense = solver.dense_output()
+                        t_stop, switched = _locate(system, dense, t_old, t_new, disagree, mode)
+                # sample output times in (t_old, t_stop]
+                while i_out < len(t_out) and t_out[i_out] <= t_stop:
+                    if t_out[i_out] == t_new and t_stop == t_new:
+                        y_i = solver.y
+                    else:
+                        dense = dense or solver.dense_output()
+                        y_i = dense(t_out[i_out])
+                    record(t_out[i_out], y_i)
+                    i_out += 1
+                if t_stop < t_new or (locate and disagree.size):
+                    # restart from the event state with the switched conditions flipped
+                    y = dense(t_stop) if t_stop < t_new else solver.y.copy()
+                    t = t_stop
+                    for j in switched:
+                        mode[j] = not mode[j]
+                    events_t.append(t)
+                    events_label.append("; ".join(labels[j] for j in switched))
+                    if len(events_t) > settings.max_events:
+                        raise SimulationFailure(
+                            f"more than simulation.max_events = {settings.max_events} switching events "
+                            f"by t = {t:.6g} s: the load law chatters"
+                        )
+                    restarted = True
+                    break
+                t, y = t_new, solver.y.copy()
+            counters["njev"] += solver.njev
+            counters["nlu"] += solver.nlu
+            all_nfev += counter.n
+            counter = None
+            if not restarted:
+                break
+    except SimulationFailure as exc:
+        status, message = "failed", str(exc)
+    if counter is not None:
+        all_nfev += counter.n
+    return Trajectory(
+        t=np.array(ts), y=np.array(ys).reshape(len(ts), n_state),
+        mode=np.array(modes).reshape(len(ts), len(mode)),
+        status=status, message=message, nfev=all_nfev, **counters,
+        event_times=events_t, event_labels=events_label,
+    )
+
+
+def _atol(atol: float, system: ConstrainedSystem, y: np.ndarray) -> np.ndarray:
+    """Absolute tolerance per state: ``atol`` for q and qd, scaled to the energy for W.
+
+    The work states are integrated only for the energy balance; they are measured in J,
+    so their absolute tolerance is atol times the system's energy scale.
+    """
+    q, qd, _ = system.split(y)
+    scale = max(1.0, abs(system.model.kinetic_energy(q, qd, system.par)))
+    tol = np.full(y.size, float(atol))
+    tol[2 * system.m:] *= scale
+    return tol
+
+
+def _locate(system, dense, t_old, t_new, candidates, mode):
+    """Earliest zero of the switching functions ``candidates`` in (t_old, t_new].
+
+    Returns the event time and the indices of the functions that switch there (those
+    whose zeros coincide to within 4 eps in time).
+    """
+    roots = {}
+    for j in candidates:
+        def g(tau, j=j):
+            return system.switching(dense(tau))[j]
+
+        g_old = g(t_old)
+        if (g_old > 0) == mode[j]:
+            roots[j] = brentq(g, t_old, t_new, xtol=4 * EPS, rtol=4 * EPS)
+        else:
+            # the state at the start of the step is already on the other side (the
+            # previous event was located a hair early): it switches at once
+            roots[j] = t_old
+    t_event = min(roots.values())
+    tol = 4 * EPS * max(1.0, abs(t_event)) + 4 * EPS
+    switched = [j for j, r in roots.items() if r - t_event <= tol]
+    return t_event, switched

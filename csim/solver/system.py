@@ -1,0 +1,113 @@
+"""The ODE integrated by csim: a mechanism with its loads, formulation and stabilizer.
+
+State vector y (2 m + k,) = [q (m), qd (m), W (k)], where W_k is the work done so far by
+load k (a quadrature state, integrated with the motion so that the energy balance
+T + V - (T0 + V0) = sum W_k can be checked to the integrator's accuracy).
+
+    dq/dt = qd
+    dqd/dt = qdd  from  M qdd + Phi_q^T lambda = B u - C qd - h,  Phi_q qdd = gamma*
+    dW_k/dt = u_k ds_k/dt,   ds/dt = B^T qd
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from csim.loads import LoadSet
+from csim.model.numeric import NumericModel
+from csim.solver.formulations import Formulation
+from csim.solver.stabilizers import Stabilizer
+
+
+@dataclass
+class Evaluation:
+    """Everything csim records at one instant (shapes for m coordinates, r constraints, k loads)."""
+
+    qdd: np.ndarray  # (m,)
+    lam: np.ndarray  # (r,)
+    phi: np.ndarray  # (r,)
+    phi_dot: np.ndarray  # (r,) = Phi_q qd
+    u: np.ndarray  # (k,) load values
+    Q: np.ndarray  # (m,) generalized applied forces B u
+    kinetic: float
+    potential: float
+
+
+class ConstrainedSystem:
+    """Right-hand side of the constrained equations of motion.
+
+    Parameters
+    ----------
+    model : NumericModel
+    par : ndarray (n_par,)
+        Parameter values.
+    loads : LoadSet
+    formulation : Formulation
+    stabilizer : Stabilizer
+    """
+
+    def __init__(self, model: NumericModel, par: np.ndarray, loads: LoadSet,
+                 formulation: Formulation, stabilizer: Stabilizer):
+        self.model = model
+        self.par = np.asarray(par, dtype=float)
+        self.loads = loads
+        self.formulation = formulation
+        self.stabilizer = stabilizer
+        self.m = model.n_coordinates
+        self.r = model.n_constraints
+        self.k = model.n_loads
+
+    @property
+    def n_state(self) -> int:
+        return 2 * self.m + self.k
+
+    def split(self, y):
+        """(q, qd, W) views of a state vector."""
+        m = self.m
+        return y[:m], y[m:2 * m], y[2 * m:]
+
+    def switching(self, y: np.ndarray) -> np.ndarray:
+        """Switching functions of the load laws at state y (n_switches,)."""
+        q, qd, _ = self.split(y)
+        s = self.model.load_coordinates(q, self.par)
+        sdot = self.model.load_matrix(q, self.par).T @ qd
+        return self.loads.switching(s, sdot)
+
+    def _solve(self, q, qd, u):
+        """qdd, lambda and the pieces of the balance at (q, qd) with loads u."""
+        model, par = self.model, self.par
+        M = model.mass(q, par)
+        phi_q = model.phi_q(q, par)
+        B = model.load_matrix(q, par)
+        Q = B @ u
+        # p = Q - C qd - h
+        p = Q - model.velocity_terms(q, qd, par) - model.gravity(q, par)
+        phi = model.phi(q, par)
+        phi_dot = phi_q @ qd
+        gamma_star = self.stabilizer.gamma_star(model.gamma(q, qd, par), phi, phi_dot)
+        qdd, lam = self.formulation.solve(M, phi_q, p, gamma_star)
+        return qdd, lam, phi, phi_dot, Q, B
+
+    def rhs(self, t: float, y: np.ndarray, mode: np.ndarray) -> np.ndarray:
+        """dy/dt (n_state,) with the load laws held in ``mode`` (n_switches,) bool."""
+        q, qd, _ = self.split(y)
+        u = self.loads.values(mode)
+        qdd, _, _, _, _, B = self._solve(q, qd, u)
+        # dW/dt = u * ds/dt
+        return np.concatenate((qd, qdd, u * (B.T @ qd)))
+
+    def rhs_unlocated(self, t: float, y: np.ndarray) -> np.ndarray:
+        """dy/dt with the load laws evaluated at the state itself (discontinuous in y)."""
+        return self.rhs(t, y, self.loads.mode(self.switching(y)))
+
+    def evaluate(self, t: float, y: np.ndarray, mode: np.ndarray) -> Evaluation:
+        """All recorded quantities at one instant."""
+        q, qd, _ = self.split(y)
+        u = self.loads.values(mode)
+        qdd, lam, phi, phi_dot, Q, _ = self._solve(q, qd, u)
+        return Evaluation(
+            qdd=qdd, lam=lam, phi=phi, phi_dot=phi_dot, u=u, Q=Q,
+            kinetic=self.model.kinetic_energy(q, qd, self.par),
+            potential=self.model.potential_energy(q, self.par),
+        )
