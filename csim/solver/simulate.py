@@ -157,69 +157,71 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
     i_out = 1
     counter = None
     all_nfev = 0
-    try:
-        while t < settings.t_end and i_out <= len(t_out):
-            if locate:
-                frozen = mode.copy()
-                fun = lambda t_, y_, frozen=frozen: system.rhs(t_, y_, frozen)  # noqa: E731
-            else:
-                fun = system.rhs_unlocated
-            counter = _Counter(fun, progress)
-            solver = make_integrator(
-                settings.integrator, counter, t, y, settings.t_end,
-                rtol=settings.rtol, atol=_atol(settings.atol, system, y),
-                step=settings.step, max_step=settings.max_step, first_step=settings.first_step,
-            )
-            restarted = False
-            while solver.status == "running":
-                msg = solver.step()
-                counters["nsteps"] += 1
-                if solver.status == "failed":
-                    raise SimulationFailure(f"integrator {settings.integrator} failed at t = {solver.t:.6g} s: {msg}")
-                if not np.all(np.isfinite(solver.y)):
-                    raise SimulationFailure(f"blow-up: non-finite state at t = {solver.t:.6g} s")
-                t_old, t_new = solver.t_old, solver.t
-                dense = None
-                t_stop = t_new
+    # blow-ups are detected and reported below; numpy's overflow warnings would only add noise
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        try:
+            while t < settings.t_end and i_out <= len(t_out):
                 if locate:
-                    g_new = system.switching(solver.y)
-                    disagree = np.flatnonzero(system.loads.mode(g_new) != mode)
-                    if disagree.size:
-                        dense = solver.dense_output()
-                        t_stop, switched = _locate(system, dense, t_old, t_new, disagree, mode)
-                # sample output times in (t_old, t_stop]
-                while i_out < len(t_out) and t_out[i_out] <= t_stop:
-                    if t_out[i_out] == t_new and t_stop == t_new:
-                        y_i = solver.y
-                    else:
-                        dense = dense or solver.dense_output()
-                        y_i = dense(t_out[i_out])
-                    record(t_out[i_out], y_i)
-                    i_out += 1
-                if t_stop < t_new or (locate and disagree.size):
-                    # restart from the event state with the switched conditions flipped
-                    y = dense(t_stop) if t_stop < t_new else solver.y.copy()
-                    t = t_stop
-                    for j in switched:
-                        mode[j] = not mode[j]
-                    events_t.append(t)
-                    events_label.append("; ".join(labels[j] for j in switched))
-                    if len(events_t) > settings.max_events:
-                        raise SimulationFailure(
-                            f"more than simulation.max_events = {settings.max_events} switching events "
-                            f"by t = {t:.6g} s: the load law chatters"
-                        )
-                    restarted = True
+                    frozen = mode.copy()
+                    fun = lambda t_, y_, frozen=frozen: system.rhs(t_, y_, frozen)  # noqa: E731
+                else:
+                    fun = system.rhs_unlocated
+                counter = _Counter(fun, progress)
+                solver = make_integrator(
+                    settings.integrator, counter, t, y, settings.t_end,
+                    rtol=settings.rtol, atol=_atol(settings.atol, system, y),
+                    step=settings.step, max_step=settings.max_step, first_step=settings.first_step,
+                )
+                restarted = False
+                while solver.status == "running":
+                    msg = solver.step()
+                    counters["nsteps"] += 1
+                    if solver.status == "failed":
+                        raise SimulationFailure(f"integrator {settings.integrator} failed at t = {solver.t:.6g} s: {msg}")
+                    if not np.all(np.isfinite(solver.y)):
+                        raise SimulationFailure(f"blow-up: non-finite state at t = {solver.t:.6g} s")
+                    t_old, t_new = solver.t_old, solver.t
+                    dense = None
+                    t_stop = t_new
+                    if locate:
+                        g_new = system.switching(solver.y)
+                        disagree = np.flatnonzero(system.loads.mode(g_new) != mode)
+                        if disagree.size:
+                            dense = solver.dense_output()
+                            t_stop, switched = _locate(system, dense, t_old, t_new, disagree, mode)
+                    # sample output times in (t_old, t_stop]
+                    while i_out < len(t_out) and t_out[i_out] <= t_stop:
+                        if t_out[i_out] == t_new and t_stop == t_new:
+                            y_i = solver.y
+                        else:
+                            dense = dense or solver.dense_output()
+                            y_i = dense(t_out[i_out])
+                        record(t_out[i_out], y_i)
+                        i_out += 1
+                    if t_stop < t_new or (locate and disagree.size):
+                        # restart from the event state with the switched conditions flipped
+                        y = dense(t_stop) if t_stop < t_new else solver.y.copy()
+                        t = t_stop
+                        for j in switched:
+                            mode[j] = not mode[j]
+                        events_t.append(t)
+                        events_label.append("; ".join(labels[j] for j in switched))
+                        if len(events_t) > settings.max_events:
+                            raise SimulationFailure(
+                                f"more than simulation.max_events = {settings.max_events} switching events "
+                                f"by t = {t:.6g} s: the load law chatters"
+                            )
+                        restarted = True
+                        break
+                    t, y = t_new, solver.y.copy()
+                counters["njev"] += solver.njev
+                counters["nlu"] += solver.nlu
+                all_nfev += counter.n
+                counter = None
+                if not restarted:
                     break
-                t, y = t_new, solver.y.copy()
-            counters["njev"] += solver.njev
-            counters["nlu"] += solver.nlu
-            all_nfev += counter.n
-            counter = None
-            if not restarted:
-                break
-    except SimulationFailure as exc:
-        status, message = "failed", str(exc)
+        except SimulationFailure as exc:
+            status, message = "failed", str(exc)
     if counter is not None:
         all_nfev += counter.n
     return Trajectory(

@@ -1,0 +1,52 @@
+"""Shared fixtures: the quick-return case, its numeric model, and a private model cache."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+CONFIGS = ROOT / "configs"
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _cache_dir(tmp_path_factory):
+    """Keep generated model code of the test run out of the user's cache."""
+    import os
+
+    old = os.environ.get("CSIM_CACHE_DIR")
+    os.environ["CSIM_CACHE_DIR"] = str(tmp_path_factory.mktemp("csim-cache"))
+    yield
+    if old is None:
+        os.environ.pop("CSIM_CACHE_DIR", None)
+    else:
+        os.environ["CSIM_CACHE_DIR"] = old
+
+
+@pytest.fixture(scope="session")
+def qr_model(_cache_dir):
+    from csim.mechanisms import get_mechanism
+    from csim.model import build_numeric_model
+
+    return build_numeric_model(get_mechanism("quick_return"))
+
+
+@pytest.fixture(scope="session")
+def qr_par(qr_model):
+    return qr_model.parameter_vector()
+
+
+@pytest.fixture(scope="session")
+def reference():
+    """The minimal-coordinate reference solution at t = 5 s (and its event times)."""
+    from quick_return_reference import MinimalQuickReturn
+
+    t, y, events = MinimalQuickReturn().solve(t_end=5.0)
+    return dict(q1=y[-1, 0], qd1=y[-1, 1], events=events)
+
+
+def qr_case(*overrides: str):
+    """The default quick-return case with ``--set``-style overrides."""
+    from csim.case import load_case
+
+    return load_case(CONFIGS / "quick_return.yaml", list(overrides))
