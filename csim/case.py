@@ -14,7 +14,9 @@ Units are SI throughout (m, kg, s, rad, N, N m, J); see ``csim.io.units``.
 """
 from __future__ import annotations
 
+import difflib
 import re
+from collections.abc import Hashable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -55,9 +57,20 @@ CaseLoader.add_implicit_resolver(
 
 
 def _construct_mapping(loader, node, deep=False):
+    """Construct a mapping, rejecting duplicate keys.
+
+    Merge keys (``<<: *anchor``) may be overridden by explicit keys as usual; only
+    explicit keys are checked against each other.
+    """
     seen = {}
     for key_node, _ in node.value:
+        if key_node.tag == "tag:yaml.org,2002:merge":
+            continue
         key = loader.construct_object(key_node, deep=deep)
+        if not isinstance(key, Hashable):
+            raise yaml.constructor.ConstructorError(
+                "while constructing a mapping", node.start_mark, "found unhashable key", key_node.start_mark
+            )
         if key in seen:
             raise yaml.constructor.ConstructorError(
                 None, None, f"duplicate key {key!r} (first at line {seen[key] + 1})", key_node.start_mark
@@ -73,16 +86,18 @@ CaseLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _cons
 SCHEMA = Section({
     "mechanism": Section({
         "name": Field("string", REQUIRED, "registered mechanism", choices=lambda: sorted(MECHANISMS)),
-        "parameters": Field("mapping", {}, "parameter values overriding the mechanism's defaults"),
+        "parameters": Field("mapping", {}, "parameter values overriding the mechanism's defaults",
+                             nullable=True),
     }, "the mechanism and its parameters"),
     "initial": Section({
         "q": Field("mapping", None, "independent coordinates, name: value [rad or m]", nullable=True),
         "qd": Field("mapping", None, "velocities of the independent coordinates [rad/s or m/s]", nullable=True),
-        "guess": Field("mapping", {}, "Newton start values of dependent coordinates (choose the assembly branch)"),
+        "guess": Field("mapping", {}, "Newton start values of dependent coordinates (choose the assembly branch)",
+                        nullable=True),
         "tol": Field("number", 1e-12, "Newton tolerance on max |Phi|", gt=0.0),
         "max_iter": Field("integer", 50, "Newton iteration limit", ge=1),
     }, "initial conditions; dependent coordinates and velocities are solved for"),
-    "loads": Field("mapping", {}, "load laws by load name; a number is a constant load"),
+    "loads": Field("mapping", {}, "load laws by load name; a number is a constant load", nullable=True),
     "formulation": Section({
         "method": Field("string", "kkt", "how the DAE becomes an ODE", choices=lambda: list(FORMULATIONS)),
         "independent": Field("list", None, "independent coordinates of the elimination (null: chosen and "
@@ -172,10 +187,19 @@ def parse_yaml(text: str, source: str) -> Any:
         where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""
         problem = getattr(exc, "problem", None) or str(exc)
         raise CaseError([f"{source}: not valid YAML{where}: {problem}"]) from None
+    except ValueError as exc:  # a scalar of an impossible value: 2001-02-30, !!int abc, a huge integer
+        raise CaseError([f"{source}: not valid YAML: {exc}"]) from None
 
 
 def apply_overrides(data: dict, overrides: list[str]) -> dict:
-    """Apply ``key.path=value`` overrides (values parsed as YAML) to ``data`` in place."""
+    """Apply ``key.path=value`` overrides (values parsed as YAML) to ``data`` in place.
+
+    Raises
+    ------
+    CaseError
+        Listing every malformed override, unknown key path, or path leading through a
+        value that is not a mapping.
+    """
     problems = []
     for item in overrides:
         if "=" not in item:
@@ -183,22 +207,29 @@ def apply_overrides(data: dict, overrides: list[str]) -> dict:
             continue
         path, text = (part.strip() for part in item.split("=", 1))
         if path not in SETTABLE and not path.startswith(("mechanism.parameters.", "loads.", "initial.")):
-            close = [p for p in SETTABLE if p.split(".")[-1] == path.split(".")[-1]]
+            close = difflib.get_close_matches(path, list(SETTABLE), n=1) or \
+                [p for p in SETTABLE if p.split(".")[-1] == path.split(".")[-1]]
             hint = f" (did you mean {close[0]!r}?)" if close else ""
             problems.append(f"--set {path}: unknown key{hint}; settable keys: {', '.join(SETTABLE)}, "
                             f"mechanism.parameters.NAME, loads.NAME[.FIELD], initial.q.NAME, ...")
             continue
         try:
             value = yaml.load(text, Loader=CaseLoader) if text else None
-        except yaml.YAMLError:
+        except (yaml.YAMLError, ValueError):
             value = text
         node = data
         keys = path.split(".")
-        for key in keys[:-1]:
-            if not isinstance(node.get(key), dict):
+        for depth, key in enumerate(keys[:-1]):
+            if node.get(key) is None:
                 node[key] = {}
+            elif not isinstance(node[key], dict):
+                where = ".".join(keys[:depth + 1])
+                problems.append(f"--set {path}: cannot set a key inside {where}, which is "
+                                f"{describe(node[key])} in the case file; expected a mapping there")
+                break
             node = node[key]
-        node[keys[-1]] = value
+        else:
+            node[keys[-1]] = value
     if problems:
         raise CaseError(problems)
     return data
@@ -315,10 +346,13 @@ def _validate_loads(out, mech, problems):
                 else:
                     law["window"] = [float(w) for w in window]
             result[key] = law
-        else:
+        elif isinstance(spec, (int, float)) and not isinstance(spec, bool):
             checked = check_value(f"{path} [{unit}]", spec, Field("number"), problems)
             if checked is not None:
                 result[key] = checked
+        else:
+            problems.append(f"{path}: got {describe(spec)}; expected a number [{unit}] (a constant load) or a "
+                            f"mapping with keys {', '.join(LOAD_SCHEMA.fields)}")
     out["loads"] = result
 
 

@@ -82,6 +82,8 @@ def describe(value: Any) -> str:
     """``value`` as it reads in a message, with its YAML type."""
     kind = {bool: "boolean", int: "integer", float: "number", str: "string",
             dict: "mapping", list: "list", type(None): "null"}.get(type(value), type(value).__name__)
+    if value is None:
+        return "null"
     text = repr(value)
     if len(text) > 60:
         text = text[:57] + "..."
@@ -99,8 +101,15 @@ def check_value(path: str, value: Any, spec: Field, problems: list[str]) -> Any:
     if spec.type == "number":
         ok = isinstance(value, (int, float)) and not isinstance(value, bool)
         if ok:
-            value = float(value)
-            ok = math.isfinite(value)
+            try:
+                number = float(value)
+            except OverflowError:  # an integer beyond the float range
+                number = math.inf
+            if not math.isfinite(number):
+                problems.append(f"{path}: got {describe(value)}; expected {spec.expected()} "
+                                f"(.inf, .nan and numbers beyond the float range are not allowed)")
+                return None
+            value = number
     elif spec.type == "integer":
         ok = isinstance(value, int) and not isinstance(value, bool)
     elif spec.type == "string":

@@ -59,20 +59,27 @@ class RK4(OdeSolver):
         if not step > 0:
             raise ValueError("`step` must be positive")
         self.h = float(step)
+        self.t_start = t0
+        self.n_steps = 0
         self.f = self.fun(self.t, self.y)
         self._last = None
 
     def _step_impl(self):
-        t, y, h = self.t, self.y, min(self.h, self.t_bound - self.t)
+        # step on the grid t0 + n h (no accumulated round-off); snap the last step to t_bound
+        t, y = self.t, self.y
+        t_new = self.t_start + (self.n_steps + 1) * self.h
+        if t_new >= self.t_bound - 1e-9 * self.h:
+            t_new = self.t_bound
+        h = t_new - t
         # y_{n+1} = y_n + h/6 (k1 + 2 k2 + 2 k3 + k4)
         k1 = self.f
         k2 = self.fun(t + h / 2, y + h / 2 * k1)
         k3 = self.fun(t + h / 2, y + h / 2 * k2)
         k4 = self.fun(t + h, y + h * k3)
         y_new = y + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-        t_new = t + h if t + h < self.t_bound else self.t_bound
         f_new = self.fun(t_new, y_new)
         self._last = (t, y, k1)
+        self.n_steps += 1
         self.t, self.y, self.f = t_new, y_new, f_new
         return True, None
 

@@ -114,17 +114,14 @@ def output_times(t_end: float, dt: float) -> np.ndarray:
 
 
 class _Counter:
-    """Wraps the right-hand side to count every evaluation and report progress."""
+    """Wraps the right-hand side to count every evaluation."""
 
-    def __init__(self, fun: Callable, progress: Callable | None):
+    def __init__(self, fun: Callable):
         self.fun = fun
-        self.progress = progress
         self.n = 0
 
     def __call__(self, t, y):
         self.n += 1
-        if self.progress is not None and self.n % 256 == 0:
-            self.progress(t)
         return self.fun(t, y)
 
 
@@ -166,7 +163,7 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
                     fun = lambda t_, y_, frozen=frozen: system.rhs(t_, y_, frozen)  # noqa: E731
                 else:
                     fun = system.rhs_unlocated
-                counter = _Counter(fun, progress)
+                counter = _Counter(fun)
                 solver = make_integrator(
                     settings.integrator, counter, t, y, settings.t_end,
                     rtol=settings.rtol, atol=_atol(settings.atol, system, y),
@@ -198,6 +195,8 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
                             y_i = dense(t_out[i_out])
                         record(t_out[i_out], y_i)
                         i_out += 1
+                    if progress is not None:
+                        progress(t_stop)
                     if t_stop < t_new or (locate and disagree.size):
                         # restart from the event state with the switched conditions flipped
                         y = dense(t_stop) if t_stop < t_new else solver.y.copy()

@@ -1,0 +1,70 @@
+"""The driver: output sampling, event bookkeeping, failures with partial results."""
+from __future__ import annotations
+
+import numpy as np
+from conftest import qr_case
+
+from csim.pipeline import build_system, initial_state, run_case
+from csim.solver.simulate import integrate, output_times
+
+
+def test_output_times_end_exactly_on_t_end():
+    t = output_times(1.0, 0.3)
+    np.testing.assert_allclose(t, [0.0, 0.3, 0.6, 0.9, 1.0])
+    t = output_times(1.0, 0.1)
+    assert t.size == 11 and t[-1] == 1.0
+
+
+def test_run_samples_the_requested_grid():
+    res = run_case(qr_case("simulation.t_end=0.5", "output.dt=0.05"))
+    np.testing.assert_allclose(res.t, np.linspace(0, 0.5, 11), atol=1e-12)
+    assert res.q.shape == (11, 3) and res.lam.shape == (11, 2) and res.work.shape == (11, 2)
+
+
+def test_cutting_force_acts_only_in_its_window_on_the_backward_stroke():
+    res = run_case(qr_case("simulation.t_end=2.0", "output.dt=0.002"))
+    x, v = res.observables[:, 0], res.observable_rates[:, 0]
+    F = res.loads[:, 1]
+    on = F > 0
+    assert on.any() and (~on).any()
+    # well inside the conditions the force is on; well outside, off
+    assert np.all(F[(v < -0.5) & (x > -3.9) & (x < 1.1)] == 2e5)
+    assert np.all(F[(v > 0.5) | (x < -4.1) | (x > 1.3)] == 0.0)
+
+
+def test_each_event_flips_a_labelled_condition():
+    res = run_case(qr_case("simulation.t_end=1.0"))
+    assert len(res.event_times) == len(res.event_labels) > 0
+    assert np.all(np.diff(res.event_times) > 0)
+    assert all(label.startswith("cutting_force: ") for label in res.event_labels)
+
+
+def test_blow_up_is_reported_and_the_partial_result_kept():
+    # no cutting force: the torque spins the crank up; a huge RK4 step then explodes
+    res = run_case(qr_case("loads.cutting_force=0", "simulation.integrator=RK4", "simulation.step=0.2",
+                           "simulation.t_end=20"))
+    assert res.status == "failed"
+    assert "non-finite" in res.message or "singular" in res.message
+    assert 0 < res.t.size < output_times(20, 0.005).size
+    assert np.all(np.isfinite(res.q))
+
+
+def test_chattering_law_fails_after_max_events():
+    res = run_case(qr_case("simulation.max_events=3", "simulation.t_end=2"))
+    assert res.status == "failed" and "max_events = 3" in res.message
+    assert res.t[-1] < 2.0
+
+
+def test_progress_is_reported_with_increasing_times():
+    case = qr_case("simulation.t_end=0.5")
+    system = build_system(case)
+    seen = []
+    integrate(system, initial_state(case, system), case.integration_settings(), progress=seen.append)
+    assert len(seen) > 3 and seen == sorted(seen) and seen[-1] <= 0.5
+
+
+def test_nfev_counts_every_evaluation():
+    res = run_case(qr_case("simulation.integrator=RK4", "simulation.step=0.01", "simulation.t_end=0.1",
+                           "loads.cutting_force=0"))
+    # one initial evaluation plus four per step, ten steps
+    assert res.nfev == 1 + 4 * 10
