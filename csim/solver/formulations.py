@@ -95,53 +95,69 @@ class Elimination(Formulation):
         pivoted QR at the first evaluation and re-chooses them whenever the condition
         number of Phi_v exceeds ``max_condition``.
     max_condition : float
-        Largest acceptable condition number of Phi_v.
+        Largest acceptable condition number of Phi_v (1-norm).
     """
 
     name = "elimination"
 
     def __init__(self, independent=None, max_condition: float = 1e8):
         self.fixed = independent is not None
-        self.independent = None if independent is None else np.asarray(independent, dtype=int)
+        self.independent = self.dependent = None
+        if independent is not None:
+            self._set_independent(np.asarray(independent, dtype=int))
         self.max_condition = float(max_condition)
         self.repartitions = 0
 
-    def _partition(self, phi_q):
-        m = phi_q.shape[1]
-        if self.independent is None:
-            self.independent = choose_independent(phi_q)
-        u = self.independent
-        v = np.setdiff1d(np.arange(m), u)
+    def _set_independent(self, u):
+        self.independent = np.asarray(u, dtype=int)
+        self.dependent = None  # set from the Jacobian's width at the next evaluation
+
+    def _inverse_block(self, phi_q):
+        """Dependent indices v, Phi_v^-1 and its 1-norm condition number."""
+        if self.dependent is None:
+            self.dependent = np.setdiff1d(np.arange(phi_q.shape[1]), self.independent)
+        v = self.dependent
         phi_v = phi_q[:, v]
-        if np.linalg.cond(phi_v) > self.max_condition:
+        try:
+            inv = np.linalg.inv(phi_v)
+        except np.linalg.LinAlgError:
+            return v, None, np.inf
+        # cond_1 = ||Phi_v||_1 ||Phi_v^-1||_1 (largest absolute column sum)
+        return v, inv, np.abs(phi_v).sum(axis=0).max() * np.abs(inv).sum(axis=0).max()
+
+    def _partition(self, phi_q):
+        if self.independent is None:
+            self._set_independent(choose_independent(phi_q))
+        v, inv, cond = self._inverse_block(phi_q)
+        if cond > self.max_condition:
             if self.fixed:
                 raise SimulationFailure(
                     f"the dependent block Phi_v of the constraint Jacobian is singular "
-                    f"(condition number {np.linalg.cond(phi_v):.3g}) with the independent "
-                    f"coordinates fixed by formulation.independent"
+                    f"(condition number {cond:.3g}) with the independent coordinates fixed by "
+                    f"formulation.independent"
                 )
-            self.independent = u = choose_independent(phi_q)
+            self._set_independent(choose_independent(phi_q))
             self.repartitions += 1
-            v = np.setdiff1d(np.arange(m), u)
-            phi_v = phi_q[:, v]
-            if np.linalg.cond(phi_v) > self.max_condition:
+            v, inv, cond = self._inverse_block(phi_q)
+            if cond > self.max_condition:
                 raise SimulationFailure("singular constraint Jacobian: no well-conditioned dependent block exists")
-        return u, v, phi_v
+        return self.independent, v, inv
 
     def solve(self, M, phi_q, p, gamma_star):
         m, r = M.shape[0], phi_q.shape[0]
-        u, v, phi_v = self._partition(phi_q)
+        u, v, phi_v_inv = self._partition(phi_q)
         # R (m, n): rows u = identity, rows v = -Phi_v^-1 Phi_u
         R = np.zeros((m, m - r))
         R[u, np.arange(m - r)] = 1.0
-        R[v, :] = -np.linalg.solve(phi_v, phi_q[:, u])
+        R[v, :] = -phi_v_inv @ phi_q[:, u]
         A = np.vstack((R.T @ M, phi_q))
         b = np.concatenate((R.T @ p, gamma_star))
         try:
             qdd = np.linalg.solve(A, b)
         except np.linalg.LinAlgError:
             raise SimulationFailure("singular system [R^T M; Phi_q] in the elimination formulation") from None
-        lam = np.linalg.solve(phi_v.T, (p - M @ qdd)[v])
+        # Phi_v^T lambda = (p - M qdd)_v
+        lam = phi_v_inv.T @ (p - M @ qdd)[v]
         return qdd, lam
 
 
