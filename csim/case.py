@@ -14,7 +14,6 @@ Units are SI throughout (m, kg, s, rad, N, N m, J); see ``csim.io.units``.
 """
 from __future__ import annotations
 
-import difflib
 import re
 from collections.abc import Hashable
 from dataclasses import dataclass
@@ -28,7 +27,17 @@ from csim.errors import CaseError
 from csim.loads import VELOCITY_CONDITIONS, LoadLaw, LoadSet
 from csim.mechanisms import MECHANISMS, get_mechanism
 from csim.model.definition import MechanismDefinition
-from csim.schema import REQUIRED, Field, Section, check_value, describe, field_paths, unknown_key, validate_section
+from csim.schema import (
+    REQUIRED,
+    Field,
+    Section,
+    check_value,
+    closest,
+    describe,
+    field_paths,
+    unknown_key,
+    validate_section,
+)
 from csim.solver.formulations import FORMULATIONS
 from csim.solver.integrators import INTEGRATORS
 from csim.solver.simulate import IntegrationSettings
@@ -207,9 +216,9 @@ def apply_overrides(data: dict, overrides: list[str]) -> dict:
             continue
         path, text = (part.strip() for part in item.split("=", 1))
         if path not in SETTABLE and not path.startswith(("mechanism.parameters.", "loads.", "initial.")):
-            close = difflib.get_close_matches(path, list(SETTABLE), n=1) or \
-                [p for p in SETTABLE if p.split(".")[-1] == path.split(".")[-1]]
-            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            close = closest(path, SETTABLE) or next(
+                (p for p in SETTABLE if p.split(".")[-1] == path.split(".")[-1]), None)
+            hint = f" (did you mean {close!r}?)" if close else ""
             problems.append(f"--set {path}: unknown key{hint}; settable keys: {', '.join(SETTABLE)}, "
                             f"mechanism.parameters.NAME, loads.NAME[.FIELD], initial.q.NAME, ...")
             continue
@@ -310,17 +319,21 @@ def _validate_initial(out, mech, problems):
     ini = out["initial"]
     names = mech.coordinate_names
     n_dof = len(names) - len(mech.constraints)
-    q = ini["q"] if ini["q"] is not None else dict(mech.default_independent)
-    q = _coordinate_map("initial.q", q, names, problems, "a coordinate of " + mech.name)
-    if len(q) != n_dof:
+    given = ini["q"] if ini["q"] is not None else dict(mech.default_independent)
+    q = _coordinate_map("initial.q", given, names, problems, "a coordinate of " + mech.name)
+    # Judge the count and the other maps by the coordinates named, valid values or not, so
+    # that one bad entry gives one message.
+    independent = [n for n in names if n in map(str, given)]
+    if len(given) != n_dof:
         problems.append(
-            f"initial.q: got {len(q)} coordinate(s) ({', '.join(q) or 'none'}); expected exactly {n_dof} "
-            f"independent coordinate(s) of {names} ({mech.name} has {len(names)} coordinates and "
-            f"{len(mech.constraints)} constraints)"
+            f"initial.q: got {len(given)} coordinate(s) ({', '.join(map(str, given)) or 'none'}); expected "
+            f"exactly {n_dof} independent coordinate(s) of {names} ({mech.name} has {len(names)} coordinates "
+            f"and {len(mech.constraints)} constraints)"
         )
-    qd = ini["qd"] if ini["qd"] is not None else {k: v for k, v in mech.default_independent_velocities.items() if k in q}
-    qd = _coordinate_map("initial.qd", qd, list(q), problems, "an independent coordinate (listed in initial.q)")
-    dependent = [n for n in names if n not in q]
+    qd = ini["qd"] if ini["qd"] is not None else \
+        {k: v for k, v in mech.default_independent_velocities.items() if k in independent}
+    qd = _coordinate_map("initial.qd", qd, independent, problems, "an independent coordinate (listed in initial.q)")
+    dependent = [n for n in names if n not in independent]
     guess = {**{k: v for k, v in mech.default_guess.items() if k in dependent}, **(ini["guess"] or {})}
     guess = _coordinate_map("initial.guess", guess, dependent, problems, "a dependent coordinate")
     ini.update(q=q, qd=qd, guess=guess)

@@ -79,15 +79,22 @@ class Field:
 
 
 def describe(value: Any) -> str:
-    """``value`` as it reads in a message, with its YAML type."""
-    kind = {bool: "boolean", int: "integer", float: "number", str: "string",
-            dict: "mapping", list: "list", type(None): "null"}.get(type(value), type(value).__name__)
+    """``value`` as it reads in a message, with its YAML type (``null`` for None)."""
     if value is None:
         return "null"
+    kind = {bool: "boolean", int: "integer", float: "number", str: "string",
+            dict: "mapping", list: "list"}.get(type(value), type(value).__name__)
     text = repr(value)
     if len(text) > 60:
         text = text[:57] + "..."
     return f"{text} ({kind})"
+
+
+def closest(word: str, candidates) -> str | None:
+    """The candidate most similar to ``word``, ignoring case (``rk4`` finds ``RK4``), or None."""
+    by_lower = {str(c).lower(): str(c) for c in candidates}
+    match = difflib.get_close_matches(str(word).lower(), list(by_lower), n=1)
+    return by_lower[match[0]] if match else None
 
 
 def check_value(path: str, value: Any, spec: Field, problems: list[str]) -> Any:
@@ -130,8 +137,8 @@ def check_value(path: str, value: Any, spec: Field, problems: list[str]) -> Any:
             return None
     choices = spec.valid_choices()
     if choices is not None and value not in choices:
-        hint = difflib.get_close_matches(str(value), [str(c) for c in choices], n=1)
-        extra = f" (did you mean {hint[0]!r}?)" if hint else ""
+        hint = closest(str(value), choices)
+        extra = f" (did you mean {hint!r}?)" if hint else ""
         problems.append(f"{path}: got {describe(value)}; expected one of {', '.join(map(str, choices))}{extra}")
         return None
     if spec.check is not None:
@@ -153,8 +160,8 @@ class Section:
 def unknown_key(path: str, key: str, valid: list[str]) -> str:
     """Message for a key that the schema does not know, with the closest valid key."""
     where = f"{path}.{key}" if path else key
-    hint = difflib.get_close_matches(key, valid, n=1)
-    extra = f" (did you mean {hint[0]!r}?)" if hint else ""
+    hint = closest(key, valid)
+    extra = f" (did you mean {hint!r}?)" if hint else ""
     return f"{where}: unknown key{extra}; valid keys here: {', '.join(valid)}"
 
 

@@ -1,0 +1,284 @@
+"""End-to-end tests of ``csim run``: exit codes, messages, and the HDF5 result file."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+from csim import __version__
+from csim.case import load_case
+from csim.cli import app
+from csim.mechanisms import MECHANISMS
+from csim.solver.integrators import INTEGRATORS
+
+CONFIG = Path(__file__).resolve().parents[1] / "configs" / "quick_return.yaml"
+SHORT = ["--set", "simulation.t_end=0.2"]
+
+MINIMAL = "mechanism:\n  name: quick_return\n"
+
+DATASETS = ["t", "q", "qd", "qdd", "lambda", "phi", "phi_dot", "energy/kinetic", "energy/potential",
+            "energy/work", "forces/loads"]
+ATTRIBUTES = ["csim_version", "case", "coordinate_names", "status", "message", "wall_time", "nfev", "event_times"]
+
+
+def invoke(*args: str):
+    """Run the CLI in-process; stdout and stderr stay apart (and are both in ``output``)."""
+    return CliRunner().invoke(app, [str(a) for a in args])
+
+
+def assert_clean_exit(result, code: int) -> None:
+    """Exit ``code`` through csim's own handling: no exception escaped, no traceback printed."""
+    assert result.exit_code == code, result.output
+    assert result.exception is None or isinstance(result.exception, SystemExit), result.exc_info
+    assert "Traceback" not in result.output
+
+
+def text_attr(fh, name: str) -> str:
+    value = fh.attrs[name]
+    return value.decode() if isinstance(value, bytes) else str(value)
+
+
+# --------------------------------------------------------------------------- a good run
+
+
+@pytest.fixture
+def good_run(tmp_path):
+    case = tmp_path / "qr.yaml"
+    case.write_text(CONFIG.read_text())
+    out = tmp_path / "qr.h5"
+    result = invoke("run", case, "-o", out, *SHORT)
+    return case, out, result
+
+
+def test_good_run_exits_0_and_prints_the_summary(good_run):
+    case, out, result = good_run
+    assert_clean_exit(result, 0)
+    stdout = result.stdout
+    for label in ("case:", "status:            success", "final time:        0.2 s", "final q:", "max |Phi|:",
+                  "max |Phi_q qd|:", "energy balance:", "events:", "wall time:", "RHS evaluations:", "result:"):
+        assert label in stdout, label
+    assert str(case) in stdout and str(out) in stdout
+    assert "error" not in result.output
+
+
+def test_good_run_writes_a_complete_result_file(good_run):
+    case, out, result = good_run
+    assert_clean_exit(result, 0)
+    assert out.is_file()
+    assert [p.name for p in out.parent.iterdir() if p.name.endswith(".tmp")] == []  # no temporary left over
+    with h5py.File(out, "r") as fh:
+        for name in DATASETS:
+            assert name in fh, name
+            assert isinstance(fh[name], h5py.Dataset)
+        for name in ATTRIBUTES:
+            assert name in fh.attrs, name
+        t = fh["t"][()]
+        n = t.size
+        assert n > 10 and t[0] == 0.0 and t[-1] == pytest.approx(0.2)
+        assert np.all(np.diff(t) > 0)
+        assert fh["q"].shape == fh["qd"].shape == fh["qdd"].shape == (n, 3)
+        assert fh["lambda"].shape == fh["phi"].shape == fh["phi_dot"].shape == (n, 2)
+        assert fh["energy/kinetic"].shape == fh["energy/potential"].shape == (n,)
+        assert fh["energy/work"].shape == fh["forces/loads"].shape == (n, 2)
+        assert np.all(np.isfinite(fh["q"][()]))
+        assert np.max(np.abs(fh["phi"][()])) < 1e-6
+        assert text_attr(fh, "csim_version") == __version__
+        assert text_attr(fh, "status") == "success"
+        assert "t_end" in text_attr(fh, "message")
+        assert [x.decode() if isinstance(x, bytes) else x for x in fh.attrs["coordinate_names"]] == ["q1", "q2", "q3"]
+        assert float(fh.attrs["wall_time"]) > 0
+        assert int(fh.attrs["nfev"]) > 0
+        events = np.asarray(fh.attrs["event_times"])
+        assert events.ndim == 1 and np.all((events > 0) & (events < 0.2))
+        case_yaml = text_attr(fh, "case")
+    expected = load_case(case, ["simulation.t_end=0.2"]).data
+    assert yaml.safe_load(case_yaml) == expected
+    assert expected["simulation"]["t_end"] == 0.2
+
+
+def test_quiet_run_prints_nothing(tmp_path):
+    out = tmp_path / "qr.h5"
+    result = invoke("run", CONFIG, "-o", out, "-q", *SHORT)
+    assert_clean_exit(result, 0)
+    assert result.output == ""
+    assert out.is_file()
+
+
+def test_default_output_is_results_slash_case_stem(tmp_path, monkeypatch):
+    case = tmp_path / "my_case.yaml"
+    case.write_text(MINIMAL)
+    monkeypatch.chdir(tmp_path)
+    result = invoke("run", case, *SHORT)
+    assert_clean_exit(result, 0)
+    assert (tmp_path / "results" / "my_case.h5").is_file()
+
+
+def test_output_in_a_new_nested_directory_is_created(tmp_path):
+    out = tmp_path / "new" / "deeper" / "still" / "qr.h5"
+    result = invoke("run", CONFIG, "-o", out, *SHORT)
+    assert_clean_exit(result, 0)
+    assert out.is_file()
+    with h5py.File(out, "r") as fh:
+        assert text_attr(fh, "status") == "success"
+
+
+@pytest.mark.parametrize("where", ["parent_is_a_file", "output_is_a_directory"])
+def test_unwritable_output_is_a_clean_error(tmp_path, where):
+    if where == "parent_is_a_file":
+        (tmp_path / "blocker").write_text("not a directory")
+        out = tmp_path / "blocker" / "qr.h5"
+    else:
+        out = tmp_path / "adir"
+        out.mkdir()
+    result = invoke("run", CONFIG, "-o", out, *SHORT)
+    assert_clean_exit(result, 2)
+    assert f"csim: error: cannot write {out}" in result.stderr
+    assert [p.name for p in tmp_path.rglob("*.tmp")] == []
+
+
+@pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() == 0, reason="root may write anywhere")
+def test_output_in_a_read_only_directory_is_a_clean_error(tmp_path):
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    locked.chmod(0o500)
+    try:
+        result = invoke("run", CONFIG, "-o", locked / "sub" / "qr.h5", *SHORT)
+    finally:
+        locked.chmod(0o700)
+    assert_clean_exit(result, 2)
+    assert "csim: error: cannot write" in result.stderr
+
+
+# --------------------------------------------------------------------------- bad input: exit 2
+
+
+# id, case-file text (None: no file), extra arguments, fragments the message must contain
+BAD_CASES = [
+    ("missing_file", None, [], ["no such case file"]),
+    ("yaml_syntax", MINIMAL + "simulation: {t_end: 1\n", [], ["not valid YAML", "line 4"]),
+    ("duplicate_key", MINIMAL + "simulation: {t_end: 1, t_end: 2}\n", [], ["duplicate key 't_end'"]),
+    ("impossible_date", MINIMAL + "simulation: {t_end: 2024-02-30}\n", [], ["not valid YAML", "day is out of range"]),
+    ("top_level_list", "- mechanism\n- simulation\n", [], ["['mechanism', 'simulation'] (list)", "top level",
+                                                            "expected a mapping"]),
+    ("unknown_top_level_key", MINIMAL + "simulaton:\n  t_end: 1\n", [],
+     ["simulaton: unknown key", "did you mean 'simulation'?"]),
+    ("unknown_mechanism", "mechanism:\n  name: slider_crank\n", [],
+     ["mechanism.name", "'slider_crank'", f"one of {', '.join(sorted(MECHANISMS))}"]),
+    ("missing_mechanism_name", "simulation:\n  t_end: 1\n", [], ["mechanism.name: missing"]),
+    ("negative_mass", MINIMAL + "  parameters: {m1: -4}\n", [], ["mechanism.parameters.m1", "-4.0", "> 0"]),
+    ("zero_length", MINIMAL + "  parameters: {l1: 0}\n", [], ["mechanism.parameters.l1", "got 0.0", "> 0"]),
+    ("unknown_parameter", MINIMAL + "  parameters: {l7: 1.0}\n", [],
+     ["mechanism.parameters.l7: unknown key", "l1, l2, l3"]),
+    ("t_end_zero", MINIMAL + "simulation: {t_end: 0}\n", [], ["simulation.t_end", "got 0.0", "> 0"]),
+    ("t_end_negative", MINIMAL + "simulation: {t_end: -3}\n", [], ["simulation.t_end", "-3.0", "> 0"]),
+    ("t_end_string", MINIMAL + 'simulation: {t_end: "ten"}\n', [],
+     ["simulation.t_end", "'ten' (string)", "expected a number"]),
+    ("unknown_integrator", MINIMAL + "simulation: {integrator: Euler}\n", [],
+     ["simulation.integrator", "'Euler'", f"one of {', '.join(INTEGRATORS)}"]),
+    ("negative_rtol", MINIMAL + "simulation: {rtol: -1e-6}\n", [], ["simulation.rtol", "-1e-06", "<= 1"]),
+    ("unknown_coordinate", MINIMAL + "initial: {q: {theta: 1.0}}\n", [],
+     ["initial.q.theta", "not a coordinate of quick_return", "q1, q2, q3"]),
+    ("two_coordinates_for_1_dof", MINIMAL + "initial: {q: {q1: 3.0, q2: 2.0}}\n", [],
+     ["initial.q", "2 coordinate(s) (q1, q2)", "exactly 1"]),
+    ("unknown_load", MINIMAL + "loads: {drive_torque: 5.0}\n", [],
+     ["loads.drive_torque: unknown key", "torque, cutting_force"]),
+    ("window_lo_ge_hi", MINIMAL + "loads:\n  cutting_force: {magnitude: 1.0, window: [1.2, -4.0]}\n", [],
+     ["loads.cutting_force.window", "[1.2, -4.0]", "lo < hi"]),
+    ("bad_velocity_condition", MINIMAL + "loads:\n  cutting_force: {magnitude: 1.0, velocity: backwards}\n", [],
+     ["loads.cutting_force.velocity", "'backwards'", "one of any, positive, negative"]),
+    ("output_dt_zero", MINIMAL + "output: {dt: 0}\n", [], ["output.dt", "got 0.0", "> 0"]),
+    ("set_without_equals", MINIMAL, ["--set", "simulation.t_end"], ["--set 'simulation.t_end'", "key=value"]),
+    ("set_unknown_key", MINIMAL, ["--set", "simulation.tend=3"],
+     ["--set simulation.tend: unknown key", "did you mean 'simulation.t_end'?"]),
+    ("set_bad_value", MINIMAL, ["--set", "simulation.integrator=rk4"],
+     ["simulation.integrator", "'rk4'", "did you mean 'RK4'?"]),
+    ("set_into_a_scalar", MINIMAL + "simulation: 5\n", ["--set", "simulation.t_end=1"],
+     ["--set simulation.t_end", "5 (integer)", "expected a mapping"]),
+]
+
+
+@pytest.mark.parametrize("text, extra, fragments", [c[1:] for c in BAD_CASES], ids=[c[0] for c in BAD_CASES])
+def test_bad_input_exits_2_with_a_clear_message(tmp_path, text, extra, fragments):
+    case = tmp_path / "case.yaml"
+    if text is not None:
+        case.write_text(text)
+    out = tmp_path / "out.h5"
+    short = [] if "t_end" in (text or "") + " ".join(extra) else SHORT  # should a bad case run, keep it short
+    result = invoke("run", case, "-o", out, *short, *extra)
+    assert_clean_exit(result, 2)
+    assert result.stderr.startswith("csim: error:")
+    assert result.stdout == ""  # no summary, nothing half-done
+    for fragment in fragments:
+        assert fragment in result.stderr, (fragment, result.stderr)
+    if text is None:
+        assert str(case) in result.stderr
+    assert not out.exists()
+
+
+def test_all_problems_are_listed_in_one_go(tmp_path):
+    case = tmp_path / "case.yaml"
+    case.write_text(MINIMAL + "  parameters: {m1: -4}\nsimulation: {t_end: -1, integrator: Euler}\n")
+    result = invoke("run", case, "-o", tmp_path / "out.h5")
+    assert_clean_exit(result, 2)
+    lines = result.stderr.splitlines()
+    assert lines[0] == "csim: error: 3 problem(s):"
+    assert len(lines) == 4
+    assert {line.split(":")[0].strip().split(" [")[0] for line in lines[1:]} == {
+        "mechanism.parameters.m1", "simulation.t_end", "simulation.integrator"}
+
+
+def test_bad_command_line_usage_exits_2(tmp_path):
+    assert_clean_exit(invoke("run"), 2)
+    result = invoke("run", CONFIG, "--no-such-option")
+    assert_clean_exit(result, 2)
+    assert "--no-such-option" in result.output
+
+
+# --------------------------------------------------------------------------- a failed run: exit 1
+
+
+def test_mechanism_that_cannot_assemble_exits_1_and_keeps_a_result_file(tmp_path):
+    case = tmp_path / "far_guide.yaml"
+    case.write_text(CONFIG.read_text())
+    out = tmp_path / "far_guide.h5"
+    result = invoke("run", case, "-o", out, *SHORT, "--set", "mechanism.parameters.h2=100")
+    assert_clean_exit(result, 1)
+    assert "status:            failed" in result.stdout
+    err = result.stderr
+    assert err.startswith("csim: simulation failed:")
+    assert "Newton-Raphson did not converge" in err
+    assert "residuals" in err and "Phi[0] =" in err and "Phi[1] =" in err
+    assert f"partial result in {out}" in err
+    assert out.is_file()
+    with h5py.File(out, "r") as fh:
+        assert text_attr(fh, "status") == "failed"
+        assert "Newton-Raphson did not converge" in text_attr(fh, "message")
+        for name in DATASETS:
+            assert name in fh, name
+        assert fh["t"].shape == (0,)
+        assert yaml.safe_load(text_attr(fh, "case"))["mechanism"]["parameters"]["h2"] == 100.0
+
+
+# --------------------------------------------------------------------------- help and version
+
+
+def test_help_mentions_an_example():
+    result = invoke("--help")
+    assert_clean_exit(result, 0)
+    assert "run" in result.stdout and "Example" in result.stdout
+    result = invoke("run", "--help")
+    assert_clean_exit(result, 0)
+    assert "Example" in result.stdout and "configs/quick_return.yaml" in result.stdout
+    for option in ("--output", "--set", "--quiet"):
+        assert option in result.stdout
+
+
+def test_version():
+    result = invoke("--version")
+    assert_clean_exit(result, 0)
+    assert result.stdout.strip() == f"csim {__version__}"
