@@ -34,6 +34,28 @@ def _fail_input(exc: CsimError) -> None:
     raise typer.Exit(EXIT_BAD_INPUT)
 
 
+def check_writable(out: Path, protect: list[Path] = ()) -> None:
+    """Fail before a run, not after it, when the result file cannot be written.
+
+    Creates the output's folder, tries a scratch file in it, and refuses to overwrite the
+    input files in ``protect``.
+    """
+    from csim.errors import ResultFileError
+
+    if out.exists() and any(out.resolve() == p.resolve() for p in protect):
+        raise ResultFileError(f"--output {out}: that is an input file; choose another result path")
+    if out.is_dir():
+        raise ResultFileError(f"--output {out}: cannot write, it is a directory")
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        import tempfile
+
+        with tempfile.TemporaryFile(dir=out.parent):
+            pass
+    except OSError as exc:
+        raise ResultFileError(f"--output {out}: cannot write there ({exc.strerror or exc})") from None
+
+
 def _version(value: bool):
     if value:
         typer.echo(f"csim {__version__}")
@@ -55,11 +77,11 @@ SET_HELP = ("Override a case-file value, KEY=VALUE with a dotted key path; repea
 @app.command()
 def run(
     case: Annotated[Path, typer.Argument(help="Case file (YAML). Example: configs/quick_return.yaml",
-                                         show_default=False)],
+                                         show_default=False, metavar="CASE.yaml")],
     output: Annotated[Optional[Path], typer.Option(
-        "--output", "-o", help="Result file (HDF5), written atomically. Default: results/CASE.h5. "
+        "--output", "-o", metavar="OUT.h5", help="Result file (HDF5), written atomically. Default: results/CASE.h5. "
                                "Example: -o out/qr.h5")] = None,
-    set_: Annotated[Optional[list[str]], typer.Option("--set", "-s", help=SET_HELP)] = None,
+    set_: Annotated[Optional[list[str]], typer.Option("--set", "-s", metavar="KEY=VALUE", help=SET_HELP)] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing but errors; no progress bar.")] = False,
 ):
     """Simulate one case and write its result file.
@@ -79,6 +101,10 @@ def run(
     except CsimError as exc:
         _fail_input(exc)
     out = output or Path("results") / f"{case.stem}.h5"
+    try:
+        check_writable(out, protect=[case])
+    except CsimError as exc:
+        _fail_input(exc)
     bar = ProgressBar.for_terminal(c.data["simulation"]["t_end"], quiet)
     try:
         result = run_case(c, progress=bar)
@@ -86,7 +112,7 @@ def run(
         bar.close()
     try:
         write_result(out, result, c.mechanism.coordinate_units)
-    except OSError as exc:
+    except OSError as exc:  # e.g. the disk filled up during the run
         typer.echo(f"csim: error: cannot write {out}: {exc}", err=True)
         raise typer.Exit(EXIT_BAD_INPUT)
     if not quiet:

@@ -137,8 +137,18 @@ def test_unwritable_output_is_a_clean_error(tmp_path, where):
         out.mkdir()
     result = invoke("run", CONFIG, "-o", out, *SHORT)
     assert_clean_exit(result, 2)
-    assert f"csim: error: cannot write {out}" in result.stderr
+    assert f"--output {out}: cannot write" in result.stderr
+    assert "status:" not in result.stdout  # refused before the run, not after it
     assert [p.name for p in tmp_path.rglob("*.tmp")] == []
+
+
+def test_output_may_not_overwrite_the_case_file(tmp_path):
+    case = tmp_path / "case.yaml"
+    case.write_text(Path(CONFIG).read_text())
+    result = invoke("run", case, "-o", case, *SHORT)
+    assert_clean_exit(result, 2)
+    assert "that is an input file" in result.stderr
+    assert case.read_text() == Path(CONFIG).read_text()
 
 
 @pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() == 0, reason="root may write anywhere")
