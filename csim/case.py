@@ -170,7 +170,8 @@ class Case:
             spec = self.data["loads"].get(load.name, 0.0)
             if isinstance(spec, dict):
                 window = spec["window"] or [-np.inf, np.inf]
-                laws.append(LoadLaw(load.name, spec["magnitude"], (float(window[0]), float(window[1])), spec["velocity"]))
+                bounds = (float(window[0]), float(window[1]))
+                laws.append(LoadLaw(load.name, spec["magnitude"], bounds, spec["velocity"]))
             else:
                 laws.append(LoadLaw(load.name, float(spec)))
         return LoadSet(laws)

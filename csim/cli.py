@@ -5,9 +5,8 @@ Exit codes: 0 success; 1 the simulation ran but failed (the result file says why
 """
 from __future__ import annotations
 
-import sys
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
 
@@ -78,10 +77,10 @@ SET_HELP = ("Override a case-file value, KEY=VALUE with a dotted key path; repea
 def run(
     case: Annotated[Path, typer.Argument(help="Case file (YAML). Example: configs/quick_return.yaml",
                                          show_default=False, metavar="CASE.yaml")],
-    output: Annotated[Optional[Path], typer.Option(
+    output: Annotated[Path | None, typer.Option(
         "--output", "-o", metavar="OUT.h5", help="Result file (HDF5), written atomically. Default: results/CASE.h5. "
                                "Example: -o out/qr.h5")] = None,
-    set_: Annotated[Optional[list[str]], typer.Option("--set", "-s", metavar="KEY=VALUE", help=SET_HELP)] = None,
+    set_: Annotated[list[str] | None, typer.Option("--set", "-s", metavar="KEY=VALUE", help=SET_HELP)] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing but errors; no progress bar.")] = False,
 ):
     """Simulate one case and write its result file.
@@ -114,7 +113,7 @@ def run(
         write_result(out, result, c.mechanism.coordinate_units)
     except OSError as exc:  # e.g. the disk filled up during the run
         typer.echo(f"csim: error: cannot write {out}: {exc}", err=True)
-        raise typer.Exit(EXIT_BAD_INPUT)
+        raise typer.Exit(EXIT_BAD_INPUT) from None
     if not quiet:
         typer.echo(f"case:              {case}")
         typer.echo(result.summary())

@@ -5,7 +5,7 @@ Library functions the CLI and the tests both call.
 from __future__ import annotations
 
 import time
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

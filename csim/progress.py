@@ -30,7 +30,7 @@ class ProgressBar:
         self.drawn = False
 
     @classmethod
-    def for_terminal(cls, t_end: float, quiet: bool, label: str = "") -> "ProgressBar":
+    def for_terminal(cls, t_end: float, quiet: bool, label: str = "") -> ProgressBar:
         return cls(t_end, enabled=not quiet and sys.stderr.isatty(), label=label)
 
     def __call__(self, t: float) -> None:

@@ -7,8 +7,9 @@ from __future__ import annotations
 
 import difflib
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 REQUIRED = object()
 
@@ -130,11 +131,11 @@ def check_value(path: str, value: Any, spec: Field, problems: list[str]) -> Any:
     if not ok:
         problems.append(f"{path}: got {describe(value)}; expected {spec.expected()}")
         return None
-    if spec.type in ("number", "integer"):
-        if (spec.gt is not None and not value > spec.gt) or (spec.ge is not None and not value >= spec.ge) \
-                or (spec.le is not None and not value <= spec.le):
-            problems.append(f"{path}: got {describe(value)}; expected {spec.expected()}")
-            return None
+    out_of_bounds = (spec.gt is not None and not value > spec.gt) or (spec.ge is not None and not value >= spec.ge) \
+        or (spec.le is not None and not value <= spec.le)
+    if spec.type in ("number", "integer") and out_of_bounds:
+        problems.append(f"{path}: got {describe(value)}; expected {spec.expected()}")
+        return None
     choices = spec.valid_choices()
     if choices is not None and value not in choices:
         hint = closest(str(value), choices)
@@ -153,7 +154,7 @@ def check_value(path: str, value: Any, spec: Field, problems: list[str]) -> Any:
 class Section:
     """A mapping of named fields and subsections."""
 
-    fields: dict[str, "Field | Section"]
+    fields: dict[str, Field | Section]
     doc: str = ""
 
 

@@ -45,19 +45,17 @@ def test_every_dataset_has_units(tmp_path, short_result):
 
 def test_interrupted_write_leaves_no_file(tmp_path):
     path = tmp_path / "r.h5"
-    with pytest.raises(RuntimeError):
-        with atomic_h5(path) as fh:
-            fh.create_dataset("t", data=np.arange(3))
-            raise RuntimeError("crash while writing")
+    with pytest.raises(RuntimeError), atomic_h5(path) as fh:
+        fh.create_dataset("t", data=np.arange(3))
+        raise RuntimeError("crash while writing")
     assert list(tmp_path.iterdir()) == []
 
 
 def test_interrupted_write_keeps_the_previous_file(tmp_path, short_result):
     path = tmp_path / "r.h5"
     write_result(path, short_result)
-    with pytest.raises(RuntimeError):
-        with atomic_h5(path):
-            raise RuntimeError("crash")
+    with pytest.raises(RuntimeError), atomic_h5(path):
+        raise RuntimeError("crash")
     assert read_result(path).status == "success"
     assert [p.name for p in tmp_path.iterdir()] == ["r.h5"]
 

@@ -117,8 +117,10 @@ def read_result_group(group: h5py.Group) -> Result:
         ev = group["events"]
         obs_names = [_text(x) for x in a["observable_names"]]
         N = group["t"].shape[0]
-        observables = np.column_stack([group["observables"][n][()] for n in obs_names]) if obs_names else np.zeros((N, 0))
-        rates = np.column_stack([group["observables"][f"{n}_rate"][()] for n in obs_names]) if obs_names else np.zeros((N, 0))
+        observables, rates = np.zeros((N, 0)), np.zeros((N, 0))
+        if obs_names:
+            observables = np.column_stack([group["observables"][n][()] for n in obs_names])
+            rates = np.column_stack([group["observables"][f"{n}_rate"][()] for n in obs_names])
         return Result(
             mechanism=_text(a["mechanism"]),
             coordinate_names=[_text(x) for x in a["coordinate_names"]],

@@ -1,8 +1,8 @@
 """The numeric model: fast functions of (q, qd, par) generated from the symbolic one."""
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 

@@ -14,9 +14,8 @@ integrator steps over the discontinuities as best it can.
 """
 from __future__ import annotations
 
-import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 from scipy.optimize import brentq
@@ -174,7 +173,8 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
                     msg = solver.step()
                     counters["nsteps"] += 1
                     if solver.status == "failed":
-                        raise SimulationFailure(f"integrator {settings.integrator} failed at t = {solver.t:.6g} s: {msg}")
+                        raise SimulationFailure(
+                            f"integrator {settings.integrator} failed at t = {solver.t:.6g} s: {msg}")
                     if not np.all(np.isfinite(solver.y)):
                         raise SimulationFailure(f"blow-up: non-finite state at t = {solver.t:.6g} s")
                     t_old, t_new = solver.t_old, solver.t
