@@ -14,6 +14,7 @@ Units are SI throughout (m, kg, s, rad, N, N m, J); see ``csim.io.units``.
 """
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Hashable
 from dataclasses import dataclass
@@ -41,7 +42,7 @@ from csim.schema import (
 from csim.solver.formulations import FORMULATIONS
 from csim.solver.integrators import INTEGRATORS
 from csim.solver.simulate import IntegrationSettings
-from csim.solver.stabilizers import STABILIZERS
+from csim.solver.stabilizers import STABILIZERS, SWITCHING_FUNCTIONS
 
 EPS = float(np.finfo(float).eps)
 
@@ -91,6 +92,14 @@ def _construct_mapping(loader, node, deep=False):
 CaseLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
 
 
+def _gain_check(value):
+    """A gain is a positive number or a non-empty list of positive numbers."""
+    values = value if isinstance(value, list) else [value]
+    ok = bool(values) and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0
+                              for v in values)
+    return None if ok else "a positive number, or a list of positive numbers (one per constraint)"
+
+
 #: The case-file schema (mechanism-specific parts are checked by :func:`validate_case`).
 SCHEMA = Section({
     "mechanism": Section({
@@ -105,6 +114,9 @@ SCHEMA = Section({
                         nullable=True),
         "tol": Field("number", 1e-12, "Newton tolerance on max |Phi|", gt=0.0),
         "max_iter": Field("integer", 50, "Newton iteration limit", ge=1),
+        "q_offset": Field("mapping", {}, "added to the consistent q0 (a perturbed start, Phi(0) != 0)",
+                          nullable=True),
+        "qd_offset": Field("mapping", {}, "added to the consistent qd0", nullable=True),
     }, "initial conditions; dependent coordinates and velocities are solved for"),
     "loads": Field("mapping", {}, "load laws by load name; a number is a constant load", nullable=True),
     "formulation": Section({
@@ -115,6 +127,23 @@ SCHEMA = Section({
     }),
     "stabilization": Section({
         "method": Field("string", "none", "constraint stabilization", choices=lambda: list(STABILIZERS)),
+        # Gains: a number, or a list with one value per constraint. Every method reads only
+        # its own, so one case file can be run with each method (csim compare).
+        "d": Field("any", 1.0, "baumgarte: damping ratio (1 = critical, fastest decay without overshoot)",
+                   check=_gain_check),
+        "w": Field("any", 10.0, "baumgarte: natural frequency; Phi decays like exp(-d w t). Well above "
+                   "1/t_end, and w h << 2.8 for explicit steps h", "1/s", check=_gain_check),
+        "Lambda": Field("any", 10.0, "sliding_mode: slope of s = Phi' + Lambda Phi; on s = 0, Phi decays "
+                        "like exp(-Lambda t)", "1/s", check=_gain_check),
+        "K": Field("any", 10.0, "sliding_mode: linear reaching gain, s decays like exp(-K t)", "1/s",
+                   check=_gain_check),
+        "k": Field("any", 1e-6, "sliding_mode: switching gain, small: it only has to beat the integration "
+                   "error's drift of s", "unit of Phi/s^2", check=_gain_check),
+        "switching": Field("string", "tanh", "sliding_mode: sgn, or a smooth replacement: sat, tanh, atan, sqrt",
+                           choices=lambda: list(SWITCHING_FUNCTIONS)),
+        "eps": Field("number", 1e-6, "sliding_mode: boundary-layer width of sat and sqrt", "unit of Phi/s",
+                     gt=0.0),
+        "c": Field("number", 1e6, "sliding_mode: steepness of tanh and atan", "s/unit of Phi", gt=0.0),
     }),
     "simulation": Section({
         "t_end": Field("number", 5.0, "end time", "s", gt=0.0),
@@ -283,6 +312,7 @@ def validate_case(data: dict, source: str = "<dict>") -> Case:
     _validate_initial(out, mech, problems)
     _validate_loads(out, mech, problems)
     _validate_formulation(out, mech, problems)
+    _validate_gains(out, mech, problems)
     if problems:
         raise CaseError(problems)
     return Case(data=out, mechanism=mech, source=source)
@@ -337,7 +367,10 @@ def _validate_initial(out, mech, problems):
     dependent = [n for n in names if n not in independent]
     guess = {**{k: v for k, v in mech.default_guess.items() if k in dependent}, **(ini["guess"] or {})}
     guess = _coordinate_map("initial.guess", guess, dependent, problems, "a dependent coordinate")
-    ini.update(q=q, qd=qd, guess=guess)
+    q_offset = _coordinate_map("initial.q_offset", ini["q_offset"], names, problems, "a coordinate of " + mech.name)
+    qd_offset = _coordinate_map("initial.qd_offset", ini["qd_offset"], names, problems,
+                                "a coordinate of " + mech.name)
+    ini.update(q=q, qd=qd, guess=guess, q_offset=q_offset, qd_offset=qd_offset)
 
 
 def _validate_loads(out, mech, problems):
@@ -368,6 +401,15 @@ def _validate_loads(out, mech, problems):
             problems.append(f"{path}: got {describe(spec)}; expected a number [{unit}] (a constant load) or a "
                             f"mapping with keys {', '.join(LOAD_SCHEMA.fields)}")
     out["loads"] = result
+
+
+def _validate_gains(out, mech, problems):
+    r = len(mech.constraints)
+    for key in ("d", "w", "Lambda", "K", "k"):
+        value = out["stabilization"].get(key)
+        if isinstance(value, list) and len(value) != r:
+            problems.append(f"stabilization.{key}: got {describe(value)}; expected one number, or a list of "
+                            f"{r} (one per constraint of {mech.name})")
 
 
 def _validate_formulation(out, mech, problems):

@@ -53,12 +53,22 @@ def build_system(case: Case) -> ConstrainedSystem:
 
 
 def initial_state(case: Case, system: ConstrainedSystem) -> np.ndarray:
-    """Consistent initial state vector y0 = [q0, qd0, W0 = 0] (raises SimulationFailure)."""
+    """Initial state vector y0 = [q0, qd0, W0 = 0] (raises SimulationFailure).
+
+    Consistent, plus the case's ``initial.q_offset`` and ``initial.qd_offset`` (zero unless a
+    perturbed start is asked for).
+    """
     ini = case.data["initial"]
     state = consistent_initial_state(
         system.model, system.par, ini["q"], ini["qd"], ini["guess"], tol=ini["tol"], max_iter=ini["max_iter"]
     )
-    return np.concatenate((state.q, state.qd, np.zeros(system.k)))
+    names = case.mechanism.coordinate_names
+    q0, qd0 = state.q.copy(), state.qd.copy()
+    for name, dq in ini["q_offset"].items():
+        q0[names.index(name)] += dq
+    for name, dqd in ini["qd_offset"].items():
+        qd0[names.index(name)] += dqd
+    return np.concatenate((q0, qd0, np.zeros(system.k)))
 
 
 def run_case(case: Case, progress: Callable[[float], None] | None = None) -> Result:

@@ -51,13 +51,15 @@ def test_minimal_case_fills_every_default(tmp_path):
         "max_step": None, "first_step": None, "events": True, "max_events": 100_000,
     }
     assert d["formulation"] == {"method": "kkt", "independent": None, "max_condition": 1e8}
-    assert d["stabilization"] == {"method": "none"}
+    assert d["stabilization"] == {"method": "none", "d": 1.0, "w": 10.0, "Lambda": 10.0, "K": 10.0, "k": 1e-6,
+                                  "switching": "tanh", "eps": 1e-6, "c": 1e6}
     assert d["output"] == {"dt": 0.01}
     assert d["loads"] == {}
     assert d["initial"]["q"] == {"q1": 3.0020}
     assert d["initial"]["qd"] == {"q1": 6.2832}
     assert d["initial"]["guess"] == {"q2": 2.0, "q3": 2.8}
     assert d["initial"]["tol"] == 1e-12 and d["initial"]["max_iter"] == 50
+    assert d["initial"]["q_offset"] == {} and d["initial"]["qd_offset"] == {}
 
 
 def test_parameters_default_to_the_mechanism_table(tmp_path):

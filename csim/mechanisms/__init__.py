@@ -1,15 +1,15 @@
 """Registry of the mechanisms csim knows by name (``mechanism.name`` in a case file)."""
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
+from csim.mechanisms import pendulum, quick_return
 from csim.model.definition import MechanismDefinition
-
-from csim.mechanisms import quick_return
 
 #: name -> function returning a fresh MechanismDefinition
 MECHANISMS: dict[str, Callable[[], MechanismDefinition]] = {
     "quick_return": quick_return.definition,
+    "pendulum": pendulum.definition,
 }
 
 

@@ -1,10 +1,21 @@
 """Constraint stabilizers: the right-hand side gamma* of the acceleration-level constraint.
 
 Every formulation solves ``Phi_q qdd = gamma*``; a stabilizer is the single place where
-gamma* is chosen. ``none`` keeps gamma* = gamma = -(Phi_q qd)_q qd, so Phi and dPhi/dt
-are free to drift.
+gamma* is chosen (``stabilization.method`` in a case file):
+
+``none``
+    gamma* = gamma = -(Phi_q qd)_q qd: Phi and dPhi/dt are free to drift.
+``baumgarte``
+    Phi'' + 2 d w Phi' + w^2 Phi = 0, so gamma* = gamma - 2 d w Phi' - w^2 Phi.
+``sliding_mode``
+    s = Phi' + Lambda Phi with s' = -K s - k sw(s), so
+    gamma* = gamma - Lambda Phi' - K s - k sw(s), where sw is sgn or a smooth replacement.
+
+Gains are scalars (the same for every constraint) or one value per constraint, in 1/s.
 """
 from __future__ import annotations
+
+import inspect
 
 import numpy as np
 
@@ -12,8 +23,7 @@ import numpy as np
 class Stabilizer:
     """Maps (gamma, Phi, dPhi/dt) to gamma*.
 
-    Subclasses implement :meth:`gamma_star`; ``name`` is the registry key
-    (``stabilization.method`` in a case file).
+    Subclasses implement :meth:`gamma_star`; ``name`` is the registry key.
     """
 
     name = "abstract"
@@ -32,16 +42,97 @@ class NoStabilization(Stabilizer):
         return gamma
 
 
+class Baumgarte(Stabilizer):
+    """Baumgarte's damped oscillator on the constraints.
+
+    Parameters
+    ----------
+    d : float or array (r,)
+        Damping ratio, 0 < d (1 = critical damping, the fastest decay without overshoot).
+    w : float or array (r,)
+        Natural frequency [1/s]; Phi decays like exp(-d w t).
+    """
+
+    name = "baumgarte"
+
+    def __init__(self, d=1.0, w=10.0):
+        self.d = np.asarray(d, dtype=float)
+        self.w = np.asarray(w, dtype=float)
+
+    def gamma_star(self, gamma, phi, phi_dot):
+        # Phi'' = gamma* - gamma + ... : Phi'' + 2 d w Phi' + w^2 Phi = 0
+        return gamma - 2.0 * self.d * self.w * phi_dot - self.w**2 * phi
+
+
+def _sat(s, eps):
+    return np.clip(s / eps, -1.0, 1.0)
+
+
+#: name -> (function sw(s, width), name of its width parameter); sw approximates sgn(s)
+SWITCHING_FUNCTIONS = {
+    "sgn": (lambda s, p: np.sign(s), None),
+    "sat": (_sat, "eps"),  # sat(s / eps)
+    "tanh": (lambda s, c: np.tanh(c * s), "c"),  # tanh(c s)
+    "atan": (lambda s, c: 2.0 / np.pi * np.arctan(c * s), "c"),  # (2/pi) arctan(c s)
+    "sqrt": (lambda s, eps: s / np.sqrt(s * s + eps * eps), "eps"),  # s / sqrt(s^2 + eps^2)
+}
+
+
+class SlidingMode(Stabilizer):
+    """The paper's sliding-mode stabilization.
+
+    Parameters
+    ----------
+    Lambda : float or array (r,)
+        Slope of the sliding surface s = Phi' + Lambda Phi [1/s]; on s = 0, Phi decays like
+        exp(-Lambda t).
+    K : float or array (r,)
+        Linear reaching gain [1/s]: s decays like exp(-K t) away from s = 0.
+    k : float or array (r,)
+        Switching gain [unit of Phi / s^2]: drives s to zero in finite time.
+    switching : {"sgn", "sat", "tanh", "atan", "sqrt"}
+        The switching function: sgn itself or one of its smooth replacements.
+    eps : float
+        Boundary-layer width of ``sat`` and ``sqrt`` [unit of Phi / s].
+    c : float
+        Steepness of ``tanh`` and ``atan`` [s / unit of Phi].
+    """
+
+    name = "sliding_mode"
+
+    def __init__(self, Lambda=10.0, K=10.0, k=1e-3, switching="tanh", eps=1e-6, c=1e6):
+        self.Lambda = np.asarray(Lambda, dtype=float)
+        self.K = np.asarray(K, dtype=float)
+        self.k = np.asarray(k, dtype=float)
+        fn, width = SWITCHING_FUNCTIONS[switching]
+        self.switching = switching
+        self.width = {"eps": eps, "c": c, None: None}[width]
+        self._sw = fn
+
+    def sliding_variable(self, phi, phi_dot):
+        """s = Phi' + Lambda Phi."""
+        return phi_dot + self.Lambda * phi
+
+    def gamma_star(self, gamma, phi, phi_dot):
+        s = self.sliding_variable(phi, phi_dot)
+        # s' = Phi'' + Lambda Phi' = -K s - k sw(s)
+        return gamma - self.Lambda * phi_dot - self.K * s - self.k * self._sw(s, self.width)
+
+
 #: name -> class; each class is built from the validated ``stabilization`` section
 STABILIZERS: dict[str, type[Stabilizer]] = {
-    NoStabilization.name: NoStabilization,
+    cls.name: cls for cls in (NoStabilization, Baumgarte, SlidingMode)
 }
 
 
 def make_stabilizer(name: str, settings: dict | None = None) -> Stabilizer:
-    """Build the stabilizer registered as ``name`` from its case-file ``settings``."""
+    """Build the stabilizer registered as ``name`` from its case-file ``settings``.
+
+    ``settings`` may hold the gains of every method; each method takes only its own.
+    """
     try:
         cls = STABILIZERS[name]
     except KeyError:
         raise KeyError(f"unknown stabilization method {name!r}; valid names: {', '.join(STABILIZERS)}") from None
-    return cls(**(settings or {}))
+    accepted = inspect.signature(cls.__init__).parameters
+    return cls(**{k: v for k, v in (settings or {}).items() if k in accepted})

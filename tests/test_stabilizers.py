@@ -1,0 +1,105 @@
+"""Stabilizers against the analytic decay of Phi(t) from a perturbed start (Cartesian pendulum).
+
+For any mechanism, exact integration gives Phi'' = gamma* - gamma, so each stabilizer
+imposes a known linear ODE on Phi: Phi'' = 0 (none), the damped oscillator (baumgarte),
+s' = -K s - k sw(s) with s = Phi' + Lambda Phi (sliding mode).
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import CONFIGS, qr_case
+
+from csim.case import load_case
+from csim.pipeline import run_case
+from csim.solver.stabilizers import SWITCHING_FUNCTIONS, SlidingMode, make_stabilizer
+
+TIGHT = ["simulation.rtol=1e-11", "simulation.atol=1e-13", "output.dt=0.005"]
+
+
+def pendulum(*overrides):
+    return run_case(load_case(CONFIGS / "pendulum.yaml", [*TIGHT, *overrides]))
+
+
+def test_none_lets_phi_drift_linearly():
+    # Phi'' = 0: Phi(t) = Phi0 + Phi'0 t
+    res = pendulum("stabilization.method=none", "initial.qd_offset={y: 0.02}", "simulation.t_end=1")
+    phi0, dphi0 = res.phi[0, 0], res.phi_dot[0, 0]
+    assert abs(phi0) > 5e-3 and abs(dphi0) > 5e-3
+    np.testing.assert_allclose(res.phi[:, 0], phi0 + dphi0 * res.t, atol=1e-8)
+
+
+@pytest.mark.parametrize("d", [0.5, 1.0])
+def test_baumgarte_phi_follows_the_damped_oscillator(d):
+    w = 10.0
+    res = pendulum("stabilization.method=baumgarte", f"stabilization.d={d}", f"stabilization.w={w}",
+                   "initial.qd_offset={y: 0.02}")
+    t, phi0, dphi0 = res.t, res.phi[0, 0], res.phi_dot[0, 0]
+    if d < 1:
+        wd = w * np.sqrt(1 - d**2)
+        exact = np.exp(-d * w * t) * (phi0 * np.cos(wd * t) + (dphi0 + d * w * phi0) / wd * np.sin(wd * t))
+    else:
+        exact = np.exp(-w * t) * (phi0 + (dphi0 + w * phi0) * t)
+    np.testing.assert_allclose(res.phi[:, 0], exact, atol=1e-8)
+    assert abs(res.phi[-1, 0]) < 1e-6 * abs(phi0) * 1e3
+
+
+def test_sliding_mode_without_switching_term_is_two_exponentials():
+    # k = 0: s = s0 exp(-K t), Phi = Phi0 exp(-L t) + s0 (exp(-K t) - exp(-L t)) / (L - K)
+    lam, K = 8.0, 3.0
+    res = pendulum("stabilization.method=sliding_mode", f"stabilization.Lambda={lam}", f"stabilization.K={K}",
+                   "stabilization.k=1e-30", "initial.qd_offset={y: 0.02}")
+    t, phi0, dphi0 = res.t, res.phi[0, 0], res.phi_dot[0, 0]
+    s0 = dphi0 + lam * phi0
+    exact = phi0 * np.exp(-lam * t) + s0 * (np.exp(-K * t) - np.exp(-lam * t)) / (lam - K)
+    np.testing.assert_allclose(res.phi[:, 0], exact, atol=1e-8)
+
+
+@pytest.mark.parametrize("switching", ["sat", "tanh", "atan", "sqrt"])
+def test_sliding_mode_reaches_s_zero_then_phi_decays_like_exp_minus_lambda_t(switching):
+    lam = 5.0
+    res = pendulum("stabilization.method=sliding_mode", f"stabilization.Lambda={lam}", "stabilization.K=20",
+                   "stabilization.k=0.05", f"stabilization.switching={switching}", "stabilization.eps=1e-3",
+                   "stabilization.c=1e3")
+    s = res.phi_dot[:, 0] + lam * res.phi[:, 0]
+    assert abs(s[0]) > 1e-2
+    reached = np.flatnonzero(np.abs(s) < 1e-8)
+    assert reached.size and res.t[reached[0]] < 1.0  # reached within a second
+    i, j = reached[0] + 10, reached[0] + 110  # 0.5 s on the sliding surface
+    rate = np.log(res.phi[j, 0] / res.phi[i, 0]) / (res.t[j] - res.t[i])
+    assert rate == pytest.approx(-lam, rel=1e-4)
+
+
+def test_switching_functions_approximate_sgn():
+    s = np.array([-1.0, -1e-3, 0.0, 1e-3, 1.0])
+    for name, (fn, width) in SWITCHING_FUNCTIONS.items():
+        p = {"eps": 1e-6, "c": 1e6, None: None}[width]
+        np.testing.assert_allclose(fn(s, p), np.sign(s), atol=1e-2, err_msg=name)
+
+
+def test_gains_may_be_given_per_constraint():
+    st = SlidingMode(Lambda=[1.0, 2.0], K=[3.0, 4.0], k=0.0)
+    phi, phi_dot, gamma = np.array([1.0, 1.0]), np.array([0.0, 0.0]), np.zeros(2)
+    # gamma* = -Lambda Phi' - K s with s = Lambda Phi
+    np.testing.assert_allclose(st.gamma_star(gamma, phi, phi_dot), [-3.0, -8.0])
+
+
+def test_make_stabilizer_takes_only_its_own_gains():
+    st = make_stabilizer("baumgarte", {"d": 0.7, "w": 3.0, "Lambda": 5.0, "switching": "sgn"})
+    assert float(st.d) == 0.7 and float(st.w) == 3.0
+    with pytest.raises(KeyError, match="valid names: none, baumgarte, sliding_mode"):
+        make_stabilizer("ggl")
+
+
+@pytest.fixture(scope="module")
+def unstabilized_quick_return():
+    return run_case(qr_case("stabilization.method=none"))
+
+
+@pytest.mark.parametrize("method", ["baumgarte", "sliding_mode"])
+def test_stabilized_quick_return_agrees_with_the_reference_and_drifts_less(method, reference,
+                                                                             unstabilized_quick_return):
+    res = run_case(qr_case(f"stabilization.method={method}"))
+    assert res.ok
+    assert abs(res.q[-1, 0] - reference["q1"]) < 1e-6
+    assert res.max_phi < unstabilized_quick_return.max_phi / 10
