@@ -155,6 +155,7 @@ SCHEMA = Section({
         "first_step": Field("number", None, "first step of the adaptive integrators", "s", gt=0.0, nullable=True),
         "events": Field("boolean", True, "locate switching instants of the load laws and restart there"),
         "max_events": Field("integer", 100_000, "fail after this many switching events", ge=1),
+        "max_steps": Field("integer", 1_000_000, "fail after this many integration steps", ge=1),
     }),
     "output": Section({
         "dt": Field("number", 0.01, "output sampling interval", "s", gt=0.0),
@@ -210,7 +211,8 @@ class Case:
         return IntegrationSettings(
             integrator=s["integrator"], t_end=s["t_end"], rtol=s["rtol"], atol=s["atol"], step=s["step"],
             max_step=np.inf if s["max_step"] is None else s["max_step"], first_step=s["first_step"],
-            events=s["events"], max_events=s["max_events"], output_dt=self.data["output"]["dt"],
+            events=s["events"], max_events=s["max_events"], max_steps=s["max_steps"],
+            output_dt=self.data["output"]["dt"],
         )
 
     def to_yaml(self) -> str:

@@ -98,7 +98,8 @@ def assemble_result(case: Case, system: ConstrainedSystem, traj: Trajectory, wal
     for i in range(N):
         q, qd, _ = system.split(traj.y[i])
         try:
-            ev = system.evaluate(traj.t[i], traj.y[i], traj.mode[i])
+            with np.errstate(over="ignore", invalid="ignore"):  # the last state of a blow-up
+                ev = system.evaluate(traj.t[i], traj.y[i], traj.mode[i])
         except SimulationFailure as exc:  # e.g. the last state of a failed run is singular
             for a in arrays.values():
                 a[i] = np.nan

@@ -49,6 +49,17 @@ def test_blow_up_is_reported_and_the_partial_result_kept():
     assert np.all(np.isfinite(res.q))
 
 
+def test_non_finite_derivatives_fail_at_once():
+    res = run_case(qr_case("initial.qd.q1=1e200"))
+    assert res.status == "failed" and "non-finite right-hand side at t = 0 s" in res.message
+
+
+def test_runs_far_too_long_for_their_settings_stop_at_max_steps():
+    res = run_case(qr_case("simulation.max_steps=50"))
+    assert res.status == "failed" and "max_steps = 50" in res.message
+    assert 0 < res.t[-1] < 5.0
+
+
 def test_chattering_law_fails_after_max_events():
     res = run_case(qr_case("simulation.max_events=3", "simulation.t_end=2"))
     assert res.status == "failed" and "max_events = 3" in res.message

@@ -49,6 +49,9 @@ class IntegrationSettings:
         Locate the switching instants of the load laws and restart there.
     max_events : int
         Stop with a failure after this many events (chattering of a switching law).
+    max_steps : int
+        Stop with a failure after this many accepted steps (a run far too fast or stiff for
+        its settings, which would otherwise go on for hours).
     output_dt : float
         Output sampling interval [s].
     """
@@ -62,6 +65,7 @@ class IntegrationSettings:
     first_step: float | None = None
     events: bool = True
     max_events: int = 100_000
+    max_steps: int = 1_000_000
     output_dt: float = 0.01
 
 
@@ -113,7 +117,10 @@ def output_times(t_end: float, dt: float) -> np.ndarray:
 
 
 class _Counter:
-    """Wraps the right-hand side to count every evaluation."""
+    """Wraps the right-hand side to count every evaluation and stop on a non-finite one.
+
+    (An integrator fed NaN derivatives shrinks its step forever instead of failing.)
+    """
 
     def __init__(self, fun: Callable):
         self.fun = fun
@@ -121,7 +128,11 @@ class _Counter:
 
     def __call__(self, t, y):
         self.n += 1
-        return self.fun(t, y)
+        f = self.fun(t, y)
+        if not np.all(np.isfinite(f)):
+            raise SimulationFailure(f"blow-up: non-finite right-hand side at t = {t:.6g} s "
+                                    f"(max |y| = {np.max(np.abs(y)):.3g})")
+        return f
 
 
 def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSettings,
@@ -172,6 +183,10 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
                 while solver.status == "running":
                     msg = solver.step()
                     counters["nsteps"] += 1
+                    if counters["nsteps"] > settings.max_steps:
+                        raise SimulationFailure(
+                            f"more than simulation.max_steps = {settings.max_steps} steps by t = {solver.t:.6g} s: "
+                            f"the motion is too fast or too stiff for these settings (raise max_steps to go on)")
                     if solver.status == "failed":
                         raise SimulationFailure(
                             f"integrator {settings.integrator} failed at t = {solver.t:.6g} s: {msg}")
