@@ -156,6 +156,8 @@ SCHEMA = Section({
         "events": Field("boolean", True, "locate switching instants of the load laws and restart there"),
         "max_events": Field("integer", 100_000, "fail after this many switching events", ge=1),
         "max_steps": Field("integer", 1_000_000, "fail after this many integration steps", ge=1),
+        "event_samples": Field("integer", 4, "interior points of each step where switching functions are checked "
+                               "(catches a zero crossed twice within one step)", ge=0),
     }),
     "output": Section({
         "dt": Field("number", 0.01, "output sampling interval", "s", gt=0.0),
@@ -212,6 +214,7 @@ class Case:
             integrator=s["integrator"], t_end=s["t_end"], rtol=s["rtol"], atol=s["atol"], step=s["step"],
             max_step=np.inf if s["max_step"] is None else s["max_step"], first_step=s["first_step"],
             events=s["events"], max_events=s["max_events"], max_steps=s["max_steps"],
+            event_samples=s["event_samples"],
             output_dt=self.data["output"]["dt"],
         )
 
@@ -315,6 +318,7 @@ def validate_case(data: dict, source: str = "<dict>") -> Case:
     _validate_loads(out, mech, problems)
     _validate_formulation(out, mech, problems)
     _validate_gains(out, mech, problems)
+    _validate_resolution(out, problems)
     if problems:
         raise CaseError(problems)
     return Case(data=out, mechanism=mech, source=source)
@@ -403,6 +407,24 @@ def _validate_loads(out, mech, problems):
             problems.append(f"{path}: got {describe(spec)}; expected a number [{unit}] (a constant load) or a "
                             f"mapping with keys {', '.join(LOAD_SCHEMA.fields)}")
     out["loads"] = result
+
+
+#: Most output samples, and most fixed steps, a run may ask for.
+MAX_OUTPUT_SAMPLES = 10_000_000
+MAX_FIXED_STEPS = 1_000_000_000
+
+
+def _validate_resolution(out, problems):
+    """Sampling and fixed steps that fit in memory and in floating point."""
+    t_end, dt, step = out["simulation"].get("t_end"), out["output"].get("dt"), out["simulation"].get("step")
+    if t_end is None:
+        return
+    if dt is not None and t_end / dt > MAX_OUTPUT_SAMPLES:
+        problems.append(f"output.dt: got {describe(dt)}; expected at least t_end / {MAX_OUTPUT_SAMPLES:.0e} = "
+                        f"{t_end / MAX_OUTPUT_SAMPLES:.3g} s (at most {MAX_OUTPUT_SAMPLES:.0e} output samples)")
+    if step is not None and out["simulation"].get("integrator") == "RK4" and t_end / step > MAX_FIXED_STEPS:
+        problems.append(f"simulation.step: got {describe(step)}; expected at least t_end / {MAX_FIXED_STEPS:.0e} = "
+                        f"{t_end / MAX_FIXED_STEPS:.3g} s (at most {MAX_FIXED_STEPS:.0e} fixed steps)")
 
 
 def _validate_gains(out, mech, problems):

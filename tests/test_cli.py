@@ -209,6 +209,10 @@ BAD_CASES = [
      ["simulation.integrator", "'rk4'", "did you mean 'RK4'?"]),
     ("set_into_a_scalar", MINIMAL + "simulation: 5\n", ["--set", "simulation.t_end=1"],
      ["--set simulation.t_end", "5 (integer)", "expected a mapping"]),
+    ("output_dt_too_fine", MINIMAL + "simulation: {t_end: 5}\noutput: {dt: 1.0e-10}\n", [],
+     ["output.dt", "1e-10", "at most 1e+07 output samples"]),
+    ("rk4_step_too_fine", MINIMAL + "simulation: {t_end: 5, integrator: RK4, step: 1.0e-300}\n", [],
+     ["simulation.step", "1e-300", "fixed steps"]),
 ]
 
 

@@ -43,6 +43,17 @@ def test_every_dataset_has_units(tmp_path, short_result):
             "rad", "rad", "rad"]
 
 
+def test_result_file_mode_follows_the_umask(tmp_path, short_result):
+    import os
+
+    old = os.umask(0o022)
+    try:
+        write_result(tmp_path / "r.h5", short_result)
+    finally:
+        os.umask(old)
+    assert (tmp_path / "r.h5").stat().st_mode & 0o777 == 0o644
+
+
 def test_interrupted_write_leaves_no_file(tmp_path):
     path = tmp_path / "r.h5"
     with pytest.raises(RuntimeError), atomic_h5(path) as fh:

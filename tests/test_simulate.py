@@ -49,6 +49,16 @@ def test_blow_up_is_reported_and_the_partial_result_kept():
     assert np.all(np.isfinite(res.q))
 
 
+def test_interior_samples_catch_zeros_crossed_twice_within_a_step():
+    # at a loose tolerance the steps are long enough to step over the velocity sign's
+    # double zero near the ram's dead centre; checking the dense output inside steps finds them
+    loose = ("simulation.rtol=1e-3", "simulation.atol=1e-3")
+    end_only = run_case(qr_case(*loose, "simulation.event_samples=0"))
+    sampled = run_case(qr_case(*loose))
+    tight = run_case(qr_case())
+    assert len(end_only.event_times) < len(sampled.event_times) <= len(tight.event_times)
+
+
 def test_non_finite_derivatives_fail_at_once():
     res = run_case(qr_case("initial.qd.q1=1e200"))
     assert res.status == "failed" and "non-finite right-hand side at t = 0 s" in res.message

@@ -46,6 +46,12 @@ def atomic_h5(path: str | Path):
     try:
         with h5py.File(tmp, "w") as fh:
             yield fh
+        # durable before it becomes visible; mode as for any new file (mkstemp makes 0600)
+        with open(tmp, "rb+") as raw:
+            os.fsync(raw.fileno())
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):

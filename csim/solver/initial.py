@@ -52,7 +52,7 @@ def consistent_initial_state(model: NumericModel, par: np.ndarray, independent: 
     guess : dict name -> value
         Newton start values of dependent coordinates (missing ones start at 0).
     tol : float
-        Convergence when max |Phi| <= tol (scaled by the size of the mechanism).
+        Convergence when max |Phi| <= tol [unit of Phi].
     max_iter : int
 
     Raises

@@ -71,6 +71,8 @@ class RK4(OdeSolver):
         if t_new >= self.t_bound - 1e-9 * self.h:
             t_new = self.t_bound
         h = t_new - t
+        if not h > 0:
+            return False, f"step {self.h:g} s is below the resolution of t = {t:g} s"
         # y_{n+1} = y_n + h/6 (k1 + 2 k2 + 2 k3 + k4)
         k1 = self.f
         k2 = self.fun(t + h / 2, y + h / 2 * k1)

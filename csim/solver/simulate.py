@@ -52,6 +52,10 @@ class IntegrationSettings:
     max_steps : int
         Stop with a failure after this many accepted steps (a run far too fast or stiff for
         its settings, which would otherwise go on for hours).
+    event_samples : int
+        Interior points of each step at which the switching functions are checked, beside
+        its end (0: the end only; a function that crosses and re-crosses inside a step is
+        then missed).
     output_dt : float
         Output sampling interval [s].
     """
@@ -66,6 +70,7 @@ class IntegrationSettings:
     events: bool = True
     max_events: int = 100_000
     max_steps: int = 1_000_000
+    event_samples: int = 4
     output_dt: float = 0.01
 
 
@@ -162,7 +167,6 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
 
     record(t, y)
     i_out = 1
-    counter = None
     all_nfev = 0
     # blow-ups are detected and reported below; numpy's overflow warnings would only add noise
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
@@ -173,71 +177,71 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
                     fun = lambda t_, y_, frozen=frozen: system.rhs(t_, y_, frozen)  # noqa: E731
                 else:
                     fun = system.rhs_unlocated
-                counter = _Counter(fun)
-                solver = make_integrator(
-                    settings.integrator, counter, t, y, settings.t_end,
-                    rtol=settings.rtol, atol=_atol(settings.atol, system, y),
-                    step=settings.step, max_step=settings.max_step, first_step=settings.first_step,
-                )
+                counter, solver = _Counter(fun), None
                 restarted = False
-                while solver.status == "running":
-                    msg = solver.step()
-                    counters["nsteps"] += 1
-                    if counters["nsteps"] > settings.max_steps:
-                        raise SimulationFailure(
-                            f"more than simulation.max_steps = {settings.max_steps} steps by t = {solver.t:.6g} s: "
-                            f"the motion is too fast or too stiff for these settings (raise max_steps to go on)")
-                    if solver.status == "failed":
-                        raise SimulationFailure(
-                            f"integrator {settings.integrator} failed at t = {solver.t:.6g} s: {msg}")
-                    if not np.all(np.isfinite(solver.y)):
-                        raise SimulationFailure(f"blow-up: non-finite state at t = {solver.t:.6g} s")
-                    t_old, t_new = solver.t_old, solver.t
-                    dense = None
-                    t_stop = t_new
-                    if locate:
-                        g_new = system.switching(solver.y)
-                        disagree = np.flatnonzero(system.loads.mode(g_new) != mode)
-                        if disagree.size:
-                            dense = solver.dense_output()
-                            t_stop, switched = _locate(system, dense, t_old, t_new, disagree, mode)
-                    # sample output times in (t_old, t_stop]
-                    while i_out < len(t_out) and t_out[i_out] <= t_stop:
-                        if t_out[i_out] == t_new and t_stop == t_new:
-                            y_i = solver.y
-                        else:
-                            dense = dense or solver.dense_output()
-                            y_i = dense(t_out[i_out])
-                        record(t_out[i_out], y_i)
-                        i_out += 1
-                    if progress is not None:
-                        progress(t_stop)
-                    if t_stop < t_new or (locate and disagree.size):
-                        # restart from the event state with the switched conditions flipped
-                        y = dense(t_stop) if t_stop < t_new else solver.y.copy()
-                        t = t_stop
-                        for j in switched:
-                            mode[j] = not mode[j]
-                        events_t.append(t)
-                        events_label.append("; ".join(labels[j] for j in switched))
-                        if len(events_t) > settings.max_events:
+                try:
+                    solver = make_integrator(
+                        settings.integrator, counter, t, y, settings.t_end,
+                        rtol=settings.rtol, atol=_atol(settings.atol, system, y),
+                        step=settings.step, max_step=settings.max_step, first_step=settings.first_step,
+                    )
+                    while solver.status == "running":
+                        msg = solver.step()
+                        counters["nsteps"] += 1
+                        if counters["nsteps"] > settings.max_steps:
                             raise SimulationFailure(
-                                f"more than simulation.max_events = {settings.max_events} switching events "
-                                f"by t = {t:.6g} s: the load law chatters"
-                            )
-                        restarted = True
-                        break
-                    t, y = t_new, solver.y.copy()
-                counters["njev"] += solver.njev
-                counters["nlu"] += solver.nlu
-                all_nfev += counter.n
-                counter = None
+                                f"more than simulation.max_steps = {settings.max_steps} steps by t = {solver.t:.6g} s: "
+                                f"the motion is too fast or too stiff for these settings (raise max_steps to go on)")
+                        if solver.status == "failed":
+                            raise SimulationFailure(
+                                f"integrator {settings.integrator} failed at t = {solver.t:.6g} s: {msg}")
+                        if not np.all(np.isfinite(solver.y)):
+                            raise SimulationFailure(f"blow-up: non-finite state at t = {solver.t:.6g} s")
+                        t_new = solver.t
+                        dense, t_stop, switched = None, t_new, []
+                        event = _find_event(system, solver, mode, settings.event_samples) if locate else None
+                        if event is not None:
+                            dense, t_stop, switched = event
+                        # sample output times in (t_old, t_stop]
+                        while i_out < len(t_out) and t_out[i_out] <= t_stop:
+                            if t_out[i_out] == t_new and t_stop == t_new:
+                                y_i = solver.y
+                            else:
+                                dense = dense or solver.dense_output()
+                                y_i = dense(t_out[i_out])
+                            record(t_out[i_out], y_i)
+                            i_out += 1
+                        if progress is not None:
+                            progress(t_stop)
+                        if event is not None:
+                            # restart from the event state with the switched conditions flipped
+                            y = dense(t_stop) if t_stop < t_new else solver.y.copy()
+                            t = t_stop
+                            for j in switched:
+                                mode[j] = not mode[j]
+                            events_t.append(t)
+                            events_label.append("; ".join(labels[j] for j in switched))
+                            if len(events_t) > settings.max_events:
+                                raise SimulationFailure(
+                                    f"more than simulation.max_events = {settings.max_events} switching events "
+                                    f"by t = {t:.6g} s: the load law chatters"
+                                )
+                            restarted = True
+                            break
+                        t, y = t_new, solver.y.copy()
+                finally:  # count the work of every segment, the failed one included
+                    all_nfev += counter.n
+                    if solver is not None:
+                        counters["njev"] += solver.njev
+                        counters["nlu"] += solver.nlu
                 if not restarted:
                     break
         except SimulationFailure as exc:
             status, message = "failed", str(exc)
-    if counter is not None:
-        all_nfev += counter.n
+        except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+            status, message = "failed", f"numerical error after t = {t:.6g} s: {type(exc).__name__}: {exc}"
+        except KeyboardInterrupt:
+            status, message = "failed", f"interrupted by the user after t = {t:.6g} s"
     return Trajectory(
         t=np.array(ts), y=np.array(ys).reshape(len(ts), n_state),
         mode=np.array(modes).reshape(len(ts), len(mode)),
@@ -257,6 +261,29 @@ def _atol(atol: float, system: ConstrainedSystem, y: np.ndarray) -> np.ndarray:
     tol = np.full(y.size, float(atol))
     tol[2 * system.m:] *= scale
     return tol
+
+
+def _find_event(system, solver, mode, n_interior):
+    """The earliest switch inside the integrator's last step, or None.
+
+    The mode is checked at ``n_interior`` equally spaced points of the step's dense output
+    and at its end, so that a switching function that crosses zero and back within one
+    step (a velocity sign near a dead centre) is not missed. Returns
+    ``(dense, t_event, switched)``.
+    """
+    t_old, t_new = solver.t_old, solver.t
+    dense = solver.dense_output() if n_interior else None
+    a = t_old
+    for i in range(1, n_interior + 2):
+        b = t_new if i == n_interior + 1 else t_old + (t_new - t_old) * i / (n_interior + 1)
+        y_b = solver.y if b == t_new else dense(b)
+        disagree = np.flatnonzero(system.loads.mode(system.switching(y_b)) != mode)
+        if disagree.size:
+            dense = dense or solver.dense_output()
+            t_event, switched = _locate(system, dense, a, b, disagree, mode)
+            return dense, t_event, switched
+        a = b
+    return None
 
 
 def _locate(system, dense, t_old, t_new, candidates, mode):
