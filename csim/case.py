@@ -144,6 +144,10 @@ SCHEMA = Section({
         "eps": Field("number", 1e-6, "sliding_mode: boundary-layer width of sat and sqrt", "unit of Phi/s",
                      gt=0.0),
         "c": Field("number", 1e6, "sliding_mode: steepness of tanh and atan", "s/unit of Phi", gt=0.0),
+        "projection_metric": Field("string", "mass", "projection: metric of the Gauss-Newton projection",
+                                   choices=("mass", "minimum_norm")),
+        "projection_tol": Field("number", 1e-13, "projection: target max |Phi|", "unit of Phi", gt=0.0),
+        "projection_max_iter": Field("integer", 10, "projection: Gauss-Newton iteration limit", ge=1),
     }),
     "simulation": Section({
         "t_end": Field("number", 5.0, "end time", "s", gt=0.0),
@@ -319,6 +323,7 @@ def validate_case(data: dict, source: str = "<dict>") -> Case:
     _validate_formulation(out, mech, problems)
     _validate_gains(out, mech, problems)
     _validate_resolution(out, problems)
+    _validate_combination(out, problems)
     if problems:
         raise CaseError(problems)
     return Case(data=out, mechanism=mech, source=source)
@@ -425,6 +430,16 @@ def _validate_resolution(out, problems):
     if step is not None and out["simulation"].get("integrator") == "RK4" and t_end / step > MAX_FIXED_STEPS:
         problems.append(f"simulation.step: got {describe(step)}; expected at least t_end / {MAX_FIXED_STEPS:.0e} = "
                         f"{t_end / MAX_FIXED_STEPS:.3g} s (at most {MAX_FIXED_STEPS:.0e} fixed steps)")
+
+
+def _validate_combination(out, problems):
+    """Reject method combinations that cannot work, saying why."""
+    method, integrator = out["stabilization"].get("method"), out["simulation"].get("integrator")
+    if method == "projection" and integrator == "LSODA":
+        problems.append("stabilization.method: got 'projection' (string) with simulation.integrator 'LSODA'; "
+                        "LSODA keeps its history inside Fortran and cannot take a projected state (restarting "
+                        "it after every step would make it first order); expected another integrator "
+                        "(BDF or Radau for stiff problems, DOP853 or RK45 otherwise)")
 
 
 def _validate_gains(out, mech, problems):

@@ -53,7 +53,8 @@ def test_minimal_case_fills_every_default(tmp_path):
     }
     assert d["formulation"] == {"method": "kkt", "independent": None, "max_condition": 1e8}
     assert d["stabilization"] == {"method": "none", "d": 1.0, "w": 10.0, "Lambda": 10.0, "K": 10.0, "k": 1e-6,
-                                  "switching": "tanh", "eps": 1e-6, "c": 1e6}
+                                  "switching": "tanh", "eps": 1e-6, "c": 1e6, "projection_metric": "mass",
+                                  "projection_tol": 1e-13, "projection_max_iter": 10}
     assert d["output"] == {"dt": 0.01}
     assert d["loads"] == {}
     assert d["initial"]["q"] == {"q1": 3.0020}

@@ -103,3 +103,52 @@ def test_stabilized_quick_return_agrees_with_the_reference_and_drifts_less(metho
     assert res.ok
     assert abs(res.q[-1, 0] - reference["q1"]) < 1e-6
     assert res.max_phi < unstabilized_quick_return.max_phi / 10
+
+
+@pytest.mark.parametrize("integrator", ["DOP853", "RK45", "Radau", "BDF", "RK4"])
+def test_projection_holds_the_constraints_at_round_off_over_a_long_run(integrator):
+    res = run_case(qr_case("stabilization.method=projection", f"simulation.integrator={integrator}",
+                           "simulation.t_end=20" if integrator == "DOP853" else "simulation.t_end=5",
+                           "simulation.rtol=1e-8", "simulation.atol=1e-8", "simulation.step=2e-3",
+                           "output.dt=0.01"))
+    assert res.ok, res.message
+    assert res.max_phi < 1e-10 and res.max_phi_dot < 1e-10
+
+
+@pytest.mark.parametrize("metric", ["mass", "minimum_norm"])
+def test_projected_motion_agrees_with_the_reference(metric, reference):
+    res = run_case(qr_case("stabilization.method=projection", f"stabilization.projection_metric={metric}"))
+    assert res.ok
+    assert abs(res.q[-1, 0] - reference["q1"]) < 1e-6
+    assert res.max_phi < 1e-12
+
+
+def test_projection_with_lsoda_is_rejected_with_the_reason():
+    from csim.errors import CaseError
+
+    with pytest.raises(CaseError, match="LSODA keeps its history inside Fortran"):
+        qr_case("stabilization.method=projection", "simulation.integrator=LSODA")
+
+
+def test_projection_lands_on_the_manifold_from_a_perturbed_start():
+    res = pendulum("stabilization.method=projection")
+    x, y = res.q[:, 0], res.q[:, 1]
+    np.testing.assert_allclose(x**2 + y**2, 1.0, atol=1e-12)  # every recorded sample, t = 0 included
+    assert np.max(np.abs(res.phi_dot)) < 1e-12
+
+
+def test_mass_weighted_projection_is_the_smallest_change_in_the_mass_norm(qr_model, qr_par):
+    from csim.solver.stabilizers import Projection
+
+    rng = np.random.default_rng(3)
+    q = np.array([3.0020, 2.16284271, 2.77513031]) + 1e-4 * rng.normal(size=3)
+    qd = rng.normal(size=3)
+    M = qr_model.mass(q, qr_par)
+    changes = {}
+    for metric in ("mass", "minimum_norm"):
+        qp, qdp = Projection(metric).project(qr_model, qr_par, q, qd)
+        assert np.max(np.abs(qr_model.phi(qp, qr_par))) < 1e-13
+        assert np.max(np.abs(qr_model.phi_q(qp, qr_par) @ qdp)) < 1e-12
+        changes[metric] = ((qdp - qd) @ M @ (qdp - qd), (qdp - qd) @ (qdp - qd))
+    assert changes["mass"][0] <= changes["minimum_norm"][0] * (1 + 1e-9)
+    assert changes["minimum_norm"][1] <= changes["mass"][1] * (1 + 1e-9)

@@ -27,6 +27,7 @@ from csim.solver.system import ConstrainedSystem
 EPS = np.finfo(float).eps
 
 
+
 @dataclass(frozen=True)
 class IntegrationSettings:
     """How to integrate (the validated ``simulation`` section of a case file).
@@ -160,9 +161,11 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
     i_out = 0
     status, message = "success", f"reached t_end = {settings.t_end:g} s"
 
+    projects = system.projects
+
     def record(t_i, y_i):
         ts.append(t_i)
-        ys.append(np.array(y_i))
+        ys.append(system.project(y_i) if projects else np.array(y_i))
         modes.append(mode.copy())
 
     record(t, y)
@@ -216,6 +219,7 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
                         if event is not None:
                             # restart from the event state with the switched conditions flipped
                             y = dense(t_stop) if t_stop < t_new else solver.y.copy()
+                            y = system.project(y) if projects else y
                             t = t_stop
                             for j in switched:
                                 mode[j] = not mode[j]
@@ -229,6 +233,11 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
                             restarted = True
                             break
                         t, y = t_new, solver.y.copy()
+                        if projects:
+                            y = system.project(y)
+                            if not _swap_state(solver, y):
+                                restarted = True  # no way to hand it the projected state: restart
+                                break
                 finally:  # count the work of every segment, the failed one included
                     all_nfev += counter.n
                     if solver is not None:
@@ -261,6 +270,28 @@ def _atol(atol: float, system: ConstrainedSystem, y: np.ndarray) -> np.ndarray:
     tol = np.full(y.size, float(atol))
     tol[2 * system.m:] *= scale
     return tol
+
+
+def _swap_state(solver, y) -> bool:
+    """Hand a (projected) state to a running integrator in place of its own; False if it cannot.
+
+    One-step methods (explicit Runge-Kutta, RK4, Radau) carry (y, f) into the next step
+    (Radau also its last dense output, used only as the Newton start). BDF's history is a
+    difference array whose row 0 is y. LSODA's state is inside Fortran (the case validation
+    rejects projection with LSODA).
+    """
+    from scipy.integrate import BDF, DOP853, RK45, Radau
+
+    from csim.solver.integrators import RK4
+
+    if isinstance(solver, (RK45, DOP853, RK4, Radau)):
+        solver.y, solver.f = y.copy(), solver.fun(solver.t, y)
+        return True
+    if isinstance(solver, BDF):
+        solver.D[0] = y
+        solver.y = y.copy()
+        return True
+    return False
 
 
 def _find_event(system, solver, mode, n_interior):

@@ -101,6 +101,17 @@ class ConstrainedSystem:
         """dy/dt with the load laws evaluated at the state itself (discontinuous in y)."""
         return self.rhs(t, y, self.loads.mode(self.switching(y)))
 
+    @property
+    def projects(self) -> bool:
+        """Whether the stabilizer projects the state after every step."""
+        return hasattr(self.stabilizer, "project")
+
+    def project(self, y: np.ndarray) -> np.ndarray:
+        """The state with (q, qd) projected onto the constraint manifold (a new array)."""
+        q, qd, _ = self.split(y)
+        q, qd = self.stabilizer.project(self.model, self.par, q, qd)
+        return np.concatenate((q, qd, y[2 * self.m:]))
+
     def evaluate(self, t: float, y: np.ndarray, mode: np.ndarray) -> Evaluation:
         """All recorded quantities at one instant."""
         q, qd, _ = self.split(y)
