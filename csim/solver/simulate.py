@@ -162,6 +162,8 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
     status, message = "success", f"reached t_end = {settings.t_end:g} s"
 
     projects = system.projects
+    if projects:  # a projecting method starts on the manifold, as it goes on
+        y = system.project(y)
 
     def record(t_i, y_i):
         ts.append(t_i)
