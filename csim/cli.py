@@ -5,13 +5,14 @@ Exit codes: 0 success; 1 the simulation ran but failed (the result file says why
 """
 from __future__ import annotations
 
+import tempfile
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
 from csim import __version__
-from csim.errors import CaseError, CsimError
+from csim.errors import CaseError, CsimError, ResultFileError
 
 app = typer.Typer(
     add_completion=False,
@@ -39,16 +40,12 @@ def check_writable(out: Path, protect: list[Path] = ()) -> None:
     Creates the output's folder, tries a scratch file in it, and refuses to overwrite the
     input files in ``protect``.
     """
-    from csim.errors import ResultFileError
-
     if out.exists() and any(out.resolve() == p.resolve() for p in protect):
         raise ResultFileError(f"--output {out}: that is an input file; choose another result path")
     if out.is_dir():
         raise ResultFileError(f"--output {out}: cannot write, it is a directory")
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
-        import tempfile
-
         with tempfile.TemporaryFile(dir=out.parent):
             pass
     except OSError as exc:

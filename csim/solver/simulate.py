@@ -18,14 +18,14 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.integrate import BDF, DOP853, RK45, Radau
 from scipy.optimize import brentq
 
 from csim.errors import SimulationFailure
-from csim.solver.integrators import make_integrator
+from csim.solver.integrators import RK4, make_integrator
 from csim.solver.system import ConstrainedSystem
 
 EPS = np.finfo(float).eps
-
 
 
 @dataclass(frozen=True)
@@ -158,7 +158,6 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
 
     t, y = 0.0, np.array(y0, dtype=float)
     mode = system.loads.mode(system.switching(y)) if system.loads.n_switches else np.zeros(0, bool)
-    i_out = 0
     status, message = "success", f"reached t_end = {settings.t_end:g} s"
 
     projects = system.projects
@@ -282,10 +281,6 @@ def _swap_state(solver, y) -> bool:
     difference array whose row 0 is y. LSODA's state is inside Fortran (the case validation
     rejects projection with LSODA).
     """
-    from scipy.integrate import BDF, DOP853, RK45, Radau
-
-    from csim.solver.integrators import RK4
-
     if isinstance(solver, (RK45, DOP853, RK4, Radau)):
         solver.y, solver.f = y.copy(), solver.fun(solver.t, y)
         return True

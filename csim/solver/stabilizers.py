@@ -19,6 +19,8 @@ import inspect
 
 import numpy as np
 
+from csim.errors import SimulationFailure
+
 
 class Stabilizer:
     """Maps (gamma, Phi, dPhi/dt) to gamma*.
@@ -160,8 +162,6 @@ class Projection(Stabilizer):
 
     def project(self, model, par, q, qd):
         """Projected (q, qd); raises SimulationFailure when Gauss-Newton does not converge."""
-        from csim.errors import SimulationFailure
-
         W_inv = np.linalg.inv(model.mass(q, par)) if self.metric == "mass" else None
         q = q.copy()
         for _ in range(self.max_iter + 1):
