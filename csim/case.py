@@ -5,9 +5,10 @@ A case file has these sections (every key but ``mechanism.name`` has a default):
     mechanism:      name, parameters (defaults from the mechanism's table)
     initial:        q, qd (independent coordinates and velocities), guess (dependent)
     loads:          one law per load of the mechanism (absent loads are zero)
-    formulation:    method (kkt | elimination), independent
-    stabilization:  method
-    simulation:     t_end, integrator, rtol, atol, step, max_step, first_step, events, max_events
+    formulation:    method (kkt | elimination), independent, max_condition
+    stabilization:  method and the settings of every method (each reads only its own)
+    simulation:     t_end, integrator, rtol, atol, step, max_step, first_step, events,
+                    max_events, max_steps, event_samples, max_phi, min_step
     output:         dt
 
 Units are SI throughout (m, kg, s, rad, N, N m, J); see ``csim.io.units``.
@@ -40,7 +41,7 @@ from csim.schema import (
     validate_section,
 )
 from csim.solver.formulations import FORMULATIONS
-from csim.solver.integrators import INTEGRATORS
+from csim.solver.integrators import DAE_INTEGRATORS, INTEGRATORS
 from csim.solver.simulate import IntegrationSettings
 from csim.solver.stabilizers import STABILIZERS, SWITCHING_FUNCTIONS
 
@@ -148,6 +149,13 @@ SCHEMA = Section({
                                    choices=("mass", "minimum_norm")),
         "projection_tol": Field("number", 1e-13, "projection: target max |Phi|", "unit of Phi", gt=0.0),
         "projection_max_iter": Field("integer", 10, "projection: Gauss-Newton iteration limit", ge=1),
+        "minimal_tol": Field("number", 1e-13, "minimal: Newton tolerance on max |Phi| for the dependent "
+                             "coordinates", "unit of Phi", gt=0.0),
+        "minimal_max_iter": Field("integer", 20, "minimal: Newton iteration limit per evaluation", ge=1),
+        "minimal_max_condition": Field("number", 20.0, "minimal: choose the partition again when cond(Phi_v) "
+                                       "exceeds this", gt=1.0),
+        "ggl_tol": Field("number", 1e-12, "ggl: largest residual of Phi and Phi_q qd accepted at a step's end",
+                         "unit of Phi", gt=0.0),
     }),
     "simulation": Section({
         "t_end": Field("number", 5.0, "end time", "s", gt=0.0),
@@ -162,6 +170,10 @@ SCHEMA = Section({
         "max_steps": Field("integer", 1_000_000, "fail after this many integration steps", ge=1),
         "event_samples": Field("integer", 4, "interior points of each step where switching functions are checked "
                                "(catches a zero crossed twice within one step)", ge=0),
+        "max_phi": Field("number", 0.1, "fail when max |Phi| exceeds this after a step (joints torn apart)",
+                         "unit of Phi", gt=0.0),
+        "min_step": Field("number", 1e-10, "fail when an adaptive integrator accepts a shorter step "
+                          "(step-size collapse)", "s", gt=0.0),
     }),
     "output": Section({
         "dt": Field("number", 0.01, "output sampling interval", "s", gt=0.0),
@@ -218,7 +230,7 @@ class Case:
             integrator=s["integrator"], t_end=s["t_end"], rtol=s["rtol"], atol=s["atol"], step=s["step"],
             max_step=np.inf if s["max_step"] is None else s["max_step"], first_step=s["first_step"],
             events=s["events"], max_events=s["max_events"], max_steps=s["max_steps"],
-            event_samples=s["event_samples"],
+            event_samples=s["event_samples"], max_phi=s["max_phi"], min_step=s["min_step"],
             output_dt=self.data["output"]["dt"],
         )
 
@@ -435,6 +447,15 @@ def _validate_resolution(out, problems):
 def _validate_combination(out, problems):
     """Reject method combinations that cannot work, saying why."""
     method, integrator = out["stabilization"].get("method"), out["simulation"].get("integrator")
+    formulation = out["formulation"].get("method")
+    if method == "ggl" and integrator is not None and integrator not in DAE_INTEGRATORS:
+        problems.append(f"simulation.integrator: got {describe(integrator)} with stabilization.method 'ggl'; the GGL "
+                        f"equations are an index-2 DAE (Phi = 0 and Phi_q qd = 0 are equations, not derivatives), "
+                        f"which only an implicit DAE integrator solves; expected one of {', '.join(DAE_INTEGRATORS)}")
+    if method == "ggl" and formulation == "elimination":
+        problems.append("formulation.method: got 'elimination' (string) with stabilization.method 'ggl'; GGL solves "
+                        "for the multipliers as unknowns of its DAE, so there is no ODE for the elimination to "
+                        "form; expected 'kkt'")
     if method == "projection" and integrator == "LSODA":
         problems.append("stabilization.method: got 'projection' (string) with simulation.integrator 'LSODA'; "
                         "LSODA keeps its history inside Fortran and cannot take a projected state (restarting "

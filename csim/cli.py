@@ -5,6 +5,7 @@ Exit codes: 0 success; 1 the simulation ran but failed (the result file says why
 """
 from __future__ import annotations
 
+import sys
 import tempfile
 from pathlib import Path
 from typing import Annotated
@@ -117,6 +118,100 @@ def run(
         typer.echo(f"result:            {out}")
     if not result.ok:
         typer.echo(f"csim: simulation failed: {result.message} (partial result in {out})", err=True)
+        raise typer.Exit(EXIT_FAILED)
+
+
+@app.command()
+def compare(
+    case: Annotated[Path, typer.Argument(help="Case file (YAML). Example: configs/quick_return.yaml",
+                                         show_default=False, metavar="CASE.yaml")],
+    methods: Annotated[str | None, typer.Option(
+        "--methods", "-m", metavar="A,B,...",
+        help="Stabilization methods to compare, separated by commas. Default: every registered method "
+             "the case allows. Example: --methods none,baumgarte,sliding_mode,projection")] = None,
+    tolerances: Annotated[str | None, typer.Option(
+        "--tolerances", "-t", metavar="TOL,TOL,...",
+        help="Work-precision study: run each method at each value, which sets simulation.rtol = "
+             "simulation.atol (simulation.step in s for RK4). Example: --tolerances 1e-4,1e-6,1e-8,1e-10")] = None,
+    output: Annotated[Path | None, typer.Option(
+        "--output", "-o", metavar="OUT.h5",
+        help="Comparison file (HDF5), written atomically: one group per method. "
+             "Default: results/CASE_compare.h5")] = None,
+    set_: Annotated[list[str] | None, typer.Option("--set", "-s", metavar="KEY=VALUE", help=SET_HELP)] = None,
+    jobs: Annotated[int | None, typer.Option(
+        "--jobs", "-j", metavar="N",
+        help="Worker processes. Default: one per run, at most one per CPU. 1 runs everything in "
+             "this process.")] = None,
+    reference_method: Annotated[str, typer.Option(
+        "--reference-method", metavar="NAME", help="Stabilization method of the reference run.")] = "projection",
+    reference_tol: Annotated[str, typer.Option(
+        "--reference-tol", metavar="TOL",
+        help="rtol = atol of the reference run (integrator DOP853).")] = "1e-12",
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing but errors.")] = False,
+):
+    """Run one case with several stabilization methods and compare them.
+
+    Each method runs the same case (stabilization.method set to it), in
+    parallel processes. A tight reference run (projection, DOP853,
+    rtol = atol = 1e-12) measures the error of the motion. One row per
+    method: max |Phi|, final |Phi|, max |Phi_q qd|, motion error against
+    the reference, wall time, RHS evaluations and status. With
+    --tolerances, each method runs at each tolerance (work-precision).
+
+    Exit codes: 0 every run succeeded; 1 a run failed (the file is still
+    written); 2 bad input.
+
+    Example: csim compare configs/quick_return.yaml
+    --methods none,baumgarte,projection --tolerances 1e-6,1e-8,1e-10
+    """
+    from csim.compare import ReferenceSettings, parse_methods, parse_tolerances
+    from csim.compare import compare as run_comparison
+
+    problems: list[str] = []
+
+    def attempt(parse):
+        try:
+            return parse()
+        except CaseError as exc:
+            problems.extend(exc.problems)
+            return None
+
+    method_list = attempt(lambda: parse_methods(methods)) if methods is not None else None
+    tol_list = attempt(lambda: parse_tolerances(tolerances)) if tolerances is not None else None
+    ref_tol = attempt(lambda: parse_tolerances(reference_tol, "--reference-tol"))
+    if ref_tol is not None and len(ref_tol) != 1:
+        problems.append(f"--reference-tol: got {reference_tol!r}; expected one positive number, e.g. 1e-12")
+    attempt(lambda: parse_methods(reference_method, "--reference-method"))
+    if jobs is not None and jobs < 1:
+        problems.append(f"--jobs: got {jobs}; expected a whole number >= 1")
+    if problems:
+        _fail_input(CaseError(problems))
+    out = output or Path("results") / f"{case.stem}_compare.h5"
+    progress = None
+    if not quiet and sys.stderr.isatty():
+        def progress(run, done, total):
+            typer.echo(f"[{done}/{total}] {run.method} {run.tolerance:g}: {run.status} "
+                       f"({run.wall_time:.2f} s)", err=True)
+    try:
+        check_writable(out, protect=[case])
+        comparison = run_comparison(case, methods=method_list, tolerances=tol_list, overrides=set_ or [],
+                                    reference=ReferenceSettings(method=reference_method, tol=ref_tol[0]),
+                                    jobs=jobs, progress=progress)
+    except CsimError as exc:
+        _fail_input(exc)
+    try:
+        comparison.write(out)
+    except OSError as exc:
+        typer.echo(f"csim: error: cannot write {out}: {exc}", err=True)
+        raise typer.Exit(EXIT_BAD_INPUT) from None
+    if not quiet:
+        typer.echo(comparison.table())
+        typer.echo(f"\nresult:     {out}")
+    if not comparison.ok:
+        failed = comparison.failed
+        names = ", ".join(comparison.label(r) for r in failed)
+        what = "interrupted" if comparison.interrupted else f"{len(failed)} run(s) failed: {names}"
+        typer.echo(f"csim: comparison incomplete, {what} (results in {out})", err=True)
         raise typer.Exit(EXIT_FAILED)
 
 

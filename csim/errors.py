@@ -26,3 +26,11 @@ class SimulationFailure(CsimError):
 
 class ResultFileError(CsimError):
     """A result file is missing, unreadable or not a csim result."""
+
+
+class PartitionBreakdown(SimulationFailure):
+    """The dependent coordinates cannot be solved with the current coordinate partition.
+
+    Raised inside a right-hand-side evaluation of the minimal-coordinate method; the driver
+    answers by choosing the partition again at the last accepted state and restarting.
+    """

@@ -14,12 +14,19 @@ from csim.errors import SimulationFailure
 from csim.model.numeric import NumericModel, build_numeric_model
 from csim.result import Result
 from csim.solver.formulations import make_formulation
+from csim.solver.ggl import GGLSystem
 from csim.solver.initial import consistent_initial_state
+from csim.solver.partitioned import PartitionedSystem
 from csim.solver.simulate import Trajectory, integrate
 from csim.solver.stabilizers import make_stabilizer
 from csim.solver.system import ConstrainedSystem
 
 _MODELS: dict[str, NumericModel] = {}
+
+#: Stabilizer.system -> the system that integrates it
+SYSTEMS: dict[str, type[ConstrainedSystem]] = {
+    "constrained": ConstrainedSystem, "partitioned": PartitionedSystem, "ggl": GGLSystem,
+}
 
 
 def numeric_model(case: Case) -> NumericModel:
@@ -43,12 +50,13 @@ def build_system(case: Case) -> ConstrainedSystem:
             max_condition=form["max_condition"],
         )
     stab = {k: v for k, v in case.data["stabilization"].items() if k != "method"}
-    return ConstrainedSystem(
+    stabilizer = make_stabilizer(case.data["stabilization"]["method"], stab)
+    return SYSTEMS[stabilizer.system](
         model=model,
         par=model.parameter_vector(case.parameters),
         loads=case.load_set(),
         formulation=make_formulation(form["method"], **settings),
-        stabilizer=make_stabilizer(case.data["stabilization"]["method"], stab),
+        stabilizer=stabilizer,
     )
 
 

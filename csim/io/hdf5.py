@@ -12,12 +12,26 @@ Layout of a single run (a comparison file has one such group per method)::
     event_times
 
 Every dataset carries a ``units`` attribute (see :mod:`csim.io.units`).
+
+A comparison file (``csim compare``, :func:`write_comparison`) has one such group per
+method, named after it, a ``/reference`` group with the reference run, and tables of 1-D
+datasets of equal length (one entry per run)::
+
+    /METHOD ...          one run each (the layout above), e.g. /none /baumgarte /projection
+    /reference           the tight-tolerance reference run
+    /summary/COLUMN      one entry per method: the runs in the method groups
+    /work_precision/COLUMN   one entry per (method, tolerance) of a tolerance study
+    attributes: kind = "comparison", methods, csim_version, format_version, case (YAML),
+    and the comparison settings (see :func:`write_comparison`)
+
+Table columns and their units: :data:`COMPARISON_UNITS`.
 """
 from __future__ import annotations
 
 import os
 import tempfile
 from contextlib import contextmanager
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import h5py
@@ -156,6 +170,185 @@ def read_result(path: str | Path, group: str = "/") -> Result:
         with h5py.File(path, "r") as fh:
             if group not in fh:
                 raise ResultFileError(f"{path}: no group {group!r}; groups: {', '.join(fh.keys())}")
+            if group.strip("/") == "" and _text(fh.attrs.get("kind", "")) == COMPARISON_KIND:
+                runs = [k for k in fh if isinstance(fh[k], h5py.Group) and "t" in fh[k]]
+                raise ResultFileError(f"{path}: a comparison file, with one run per group; read one with "
+                                      f"group=NAME, NAME one of {', '.join(runs)}")
             return read_result_group(fh[group])
+    except OSError as exc:
+        raise ResultFileError(f"{path}: not a readable HDF5 file ({exc})") from None
+
+
+# --------------------------------------------------------------------------- comparison files
+
+#: value of the root attribute ``kind`` of a comparison file (single-run files have none)
+COMPARISON_KIND = "comparison"
+
+#: groups of a comparison file that are not method groups
+COMPARISON_RESERVED = ("reference", "summary", "work_precision")
+
+#: column of a comparison table -> unit (the ``units`` attribute of its dataset). The
+#: tolerance's unit depends on the integrator: see the root attribute ``tolerance_kind``.
+COMPARISON_UNITS: dict[str, str] = {
+    "method": "",
+    "tolerance": "rtol = atol [1] for adaptive integrators, simulation.step [s] for fixed-step ones "
+                 "(root attribute tolerance_kind)",
+    "status": "",
+    "message": "",
+    "max_phi": "unit of the constraint functions: max over the run and the constraints of |Phi_i|",
+    "final_phi": "unit of the constraint functions: max over the constraints of |Phi_i| at the last sample",
+    "max_phi_dot": "unit of the constraint functions per s: max over the run and the constraints of "
+                   "|(Phi_q qd)_i|",
+    "motion_error": "per coordinate: rad or m; max over the output times and the coordinates of "
+                    "|q_i - q_ref_i| (NaN: no reference)",
+    "final_error": "per coordinate: rad or m; max over the coordinates of |q_i - q_ref_i| at t_end "
+                   "(NaN: a run that did not reach t_end, or no reference)",
+    "error_until": "s: last output time that motion_error covers (t_end unless a run stopped early)",
+    "wall_time": "s",
+    "nfev": "count of right-hand-side evaluations",
+    "nsteps": "count of accepted steps",
+}
+
+
+def _attr_value(value):
+    if isinstance(value, (list, tuple)):
+        if all(isinstance(v, str) for v in value):
+            return np.array(value, dtype=_STR)
+        return np.asarray(value, dtype=float)
+    if value is None:
+        return ""
+    return value
+
+
+def _write_table(group: h5py.Group, table: dict[str, np.ndarray | list], units: dict[str, str]) -> None:
+    lengths = {len(v) for v in table.values()}
+    if len(lengths) > 1:
+        raise ValueError(f"table columns of different lengths: { {k: len(v) for k, v in table.items()} }")
+    for name, values in table.items():
+        values = list(values)
+        if any(isinstance(v, str) for v in values):
+            data = np.array([str(v) for v in values], dtype=_STR)
+        else:
+            data = np.asarray(values, dtype=float if not all(isinstance(v, (int, np.integer)) for v in values)
+                              else np.int64)
+        ds = group.create_dataset(name, data=data)
+        ds.attrs["units"] = units.get(name, "")
+
+
+def write_comparison(path: str | Path, runs: dict[str, Result], reference: Result | None, attrs: dict,
+                     tables: dict[str, dict[str, np.ndarray | list]],
+                     coordinate_units: list[str] | None = None) -> None:
+    """Write a comparison of methods to ``path`` atomically.
+
+    Parameters
+    ----------
+    path : str or Path
+    runs : dict
+        Method name -> its run; each is written as the group ``/NAME`` with the layout of a
+        single-run file (:func:`write_result_group`).
+    reference : Result or None
+        The reference run, written as ``/reference``.
+    attrs : dict
+        Root attributes besides ``kind``, ``csim_version`` and ``format_version`` (lists of
+        strings become string arrays, lists of numbers float arrays, None an empty string).
+    tables : dict
+        Table name (``summary``, ``work_precision``) -> column name -> 1-D values of equal
+        length; each column becomes the dataset ``/TABLE/COLUMN`` with the unit from
+        :data:`COMPARISON_UNITS`.
+    coordinate_units : list of str, optional
+        Units of the coordinates (the ``units`` attribute of each group's ``q``).
+    """
+    clash = [name for name in runs if name in COMPARISON_RESERVED or name in tables]
+    if clash:
+        raise ValueError(f"method group name(s) {clash} clash with the comparison's own groups")
+    with atomic_h5(path) as fh:
+        fh.attrs["kind"] = COMPARISON_KIND
+        fh.attrs["csim_version"] = __version__
+        fh.attrs["format_version"] = FORMAT_VERSION
+        fh.attrs["methods"] = np.array(list(runs), dtype=_STR)
+        for key, value in attrs.items():
+            fh.attrs[key] = _attr_value(value)
+        for name, result in runs.items():
+            write_result_group(fh.create_group(name), result, coordinate_units)
+        if reference is not None:
+            write_result_group(fh.create_group("reference"), reference, coordinate_units)
+        for name, table in tables.items():
+            _write_table(fh.create_group(name), table, COMPARISON_UNITS)
+
+
+@dataclass
+class ComparisonFile:
+    """What :func:`read_comparison` reads from a comparison file.
+
+    Attributes
+    ----------
+    path : Path
+    methods : list of str
+        The method groups, in the order compared.
+    attrs : dict
+        Root attributes (strings decoded, arrays as lists or numpy arrays).
+    summary : dict of str -> ndarray (n_methods,)
+        One entry per method: the runs in the method groups (see :data:`COMPARISON_UNITS`).
+    work_precision : dict of str -> ndarray (n_runs,), or None
+        One entry per (method, tolerance) of a tolerance study; None without one.
+    has_reference : bool
+        Whether the file holds the ``/reference`` group.
+    """
+
+    path: Path
+    methods: list[str]
+    attrs: dict
+    summary: dict[str, np.ndarray]
+    work_precision: dict[str, np.ndarray] | None = None
+    has_reference: bool = False
+    units: dict[str, str] = field(default_factory=dict)
+
+    def run(self, method: str) -> Result:
+        """The full run of ``method`` (or ``"reference"``), read from its group."""
+        return read_result(self.path, group=method)
+
+
+def _read_table(group: h5py.Group, units: dict[str, str]) -> dict[str, np.ndarray]:
+    table = {}
+    for name, ds in group.items():
+        if ds.dtype.kind in "OS":
+            table[name] = np.array(ds.asstr()[()], dtype=object)
+        else:
+            table[name] = ds[()]
+        units[f"{group.name.strip('/')}/{name}"] = _text(ds.attrs.get("units", ""))
+    return table
+
+
+def read_comparison(path: str | Path) -> ComparisonFile:
+    """Read the tables and settings of a comparison file written by :func:`write_comparison`.
+
+    Raises
+    ------
+    ResultFileError
+        When ``path`` is missing, unreadable, or not a comparison file.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ResultFileError(f"{path}: no such comparison file")
+    try:
+        with h5py.File(path, "r") as fh:
+            if _text(fh.attrs.get("kind", "")) != COMPARISON_KIND:
+                raise ResultFileError(f"{path}: not a comparison file (no attribute kind = {COMPARISON_KIND!r}); "
+                                      f"read a single run with read_result")
+            attrs = {}
+            for key, value in fh.attrs.items():
+                if isinstance(value, np.ndarray) and value.dtype.kind in "OS":
+                    attrs[key] = [_text(v) for v in value]
+                elif isinstance(value, (bytes, str)):
+                    attrs[key] = _text(value)
+                else:
+                    attrs[key] = value
+            units: dict[str, str] = {}
+            if "summary" not in fh:
+                raise ResultFileError(f"{path}: a comparison file without its /summary table")
+            summary = _read_table(fh["summary"], units)
+            work = _read_table(fh["work_precision"], units) if "work_precision" in fh else None
+            return ComparisonFile(path=path, methods=list(attrs.get("methods", [])), attrs=attrs, summary=summary,
+                                  work_precision=work, has_reference="reference" in fh, units=units)
     except OSError as exc:
         raise ResultFileError(f"{path}: not a readable HDF5 file ({exc})") from None

@@ -9,6 +9,9 @@ paper's eqs. 8-10) premultiplies by the null-space matrix R and solves an m x m 
 """
 from __future__ import annotations
 
+import itertools
+import math
+
 import numpy as np
 import scipy.linalg
 
@@ -69,15 +72,42 @@ class KKT(Formulation):
         return x[:m], x[m:]
 
 
+#: above this many candidate partitions, choose by pivoted QR instead of trying them all
+MAX_ENUMERATED_PARTITIONS = 500
+
+
 def choose_independent(phi_q: np.ndarray) -> np.ndarray:
     """Indices of the independent coordinates u for a Jacobian ``phi_q`` (r, m).
 
-    QR with column pivoting orders the columns by how much each adds to the rank; the
-    first r pivots form the best-conditioned dependent block Phi_v, the rest are u.
+    The dependent block Phi_v is the one with the smallest condition
+    :func:`dependent_block_inverse`, found by trying every choice of r of the m columns
+    when there are at most :data:`MAX_ENUMERATED_PARTITIONS` of them. Beyond that, QR with
+    column pivoting (which orders the columns by how much each adds to the rank) picks its
+    first r pivots, a good block though not always the best.
     """
-    r = phi_q.shape[0]
+    r, m = phi_q.shape
+    if math.comb(m, r) <= MAX_ENUMERATED_PARTITIONS:
+        best = min(itertools.combinations(range(m), r),
+                   key=lambda v: dependent_block_inverse(phi_q, list(v))[1])
+        return np.setdiff1d(np.arange(m), best)
     _, _, piv = scipy.linalg.qr(phi_q, pivoting=True, mode="economic")
     return np.sort(piv[r:])
+
+
+def dependent_block_inverse(phi_q: np.ndarray, dependent: np.ndarray) -> tuple[np.ndarray | None, float]:
+    """Phi_v^-1 (r, r) and how badly Phi_v determines v, ||Phi_q||_1 ||Phi_v^-1||_1.
+
+    The condition is measured against the whole Jacobian, not Phi_v alone, so that it also
+    grows for a single constraint (a 1 x 1 block, whose own condition number is always 1):
+    it is 1 for the best-placed block of an orthogonal Jacobian and infinite (with no
+    inverse, None) where Phi_v is singular.
+    """
+    try:
+        inv = np.linalg.inv(phi_q[:, dependent])
+    except np.linalg.LinAlgError:
+        return None, np.inf
+    # 1-norm: the largest absolute column sum
+    return inv, float(np.abs(phi_q).sum(axis=0).max() * np.abs(inv).sum(axis=0).max())
 
 
 class Elimination(Formulation):
@@ -95,7 +125,7 @@ class Elimination(Formulation):
         pivoted QR at the first evaluation and re-chooses them whenever the condition
         number of Phi_v exceeds ``max_condition``.
     max_condition : float
-        Largest acceptable condition number of Phi_v (1-norm).
+        Largest acceptable condition of Phi_v, ||Phi_q||_1 ||Phi_v^-1||_1.
     """
 
     name = "elimination"
@@ -113,17 +143,10 @@ class Elimination(Formulation):
         self.dependent = None  # set from the Jacobian's width at the next evaluation
 
     def _inverse_block(self, phi_q):
-        """Dependent indices v, Phi_v^-1 and its 1-norm condition number."""
+        """Dependent indices v, Phi_v^-1 and its condition (:func:`dependent_block_inverse`)."""
         if self.dependent is None:
             self.dependent = np.setdiff1d(np.arange(phi_q.shape[1]), self.independent)
-        v = self.dependent
-        phi_v = phi_q[:, v]
-        try:
-            inv = np.linalg.inv(phi_v)
-        except np.linalg.LinAlgError:
-            return v, None, np.inf
-        # cond_1 = ||Phi_v||_1 ||Phi_v^-1||_1 (largest absolute column sum)
-        return v, inv, np.abs(phi_v).sum(axis=0).max() * np.abs(inv).sum(axis=0).max()
+        return (self.dependent, *dependent_block_inverse(phi_q, self.dependent))
 
     def _partition(self, phi_q):
         if self.independent is None:

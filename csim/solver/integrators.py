@@ -110,11 +110,24 @@ INTEGRATORS: dict[str, IntegratorInfo] = {
 }
 
 
-def make_integrator(name, fun, t0, y0, t_bound, *, rtol, atol, step=None, max_step=np.inf, first_step=None):
+#: integrators that also solve DAEs ``D y' = F(t, y)`` (their DAE version)
+DAE_INTEGRATORS = {"Radau": "Radau IIA for semi-explicit DAEs of index up to 2 (csim.solver.dae)"}
+
+
+def _check_dae(name):
+    if name not in DAE_INTEGRATORS:
+        raise ValueError(f"integrator {name!r} cannot solve a DAE; DAE integrators: {', '.join(DAE_INTEGRATORS)}")
+
+
+def make_integrator(name, fun, t0, y0, t_bound, *, rtol, atol, step=None, max_step=np.inf, first_step=None,
+                    dae=None):
     """Start the integrator ``name`` on ``y' = fun(t, y)`` from (t0, y0) towards ``t_bound``.
 
     ``rtol``, ``atol`` (scalar or (n,)), ``max_step`` and ``first_step`` apply to the
-    adaptive integrators, ``step`` [s] to the fixed-step ones.
+    adaptive integrators, ``step`` [s] to the fixed-step ones. ``dae`` (a dict with
+    ``differential``, the bool mask of the differential rows, and solver options) makes
+    ``fun`` the right-hand side F of the DAE ``D y' = F(t, y)``; only the integrators of
+    :data:`DAE_INTEGRATORS` accept it.
     """
     try:
         info = INTEGRATORS[name]
@@ -124,5 +137,12 @@ def make_integrator(name, fun, t0, y0, t_bound, *, rtol, atol, step=None, max_st
         options = dict(rtol=rtol, atol=atol, max_step=max_step)
         if first_step is not None:
             options["first_step"] = min(first_step, t_bound - t0)
+        if dae is not None:
+            _check_dae(name)
+            from csim.solver.dae import RadauDAE
+
+            return RadauDAE(fun, t0, y0, t_bound, **dae, **options)
         return info.cls(fun, t0, y0, t_bound, **options)
+    if dae is not None:
+        _check_dae(name)
     return info.cls(fun, t0, y0, t_bound, step=step)

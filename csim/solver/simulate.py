@@ -21,8 +21,8 @@ import numpy as np
 from scipy.integrate import BDF, DOP853, RK45, Radau
 from scipy.optimize import brentq
 
-from csim.errors import SimulationFailure
-from csim.solver.integrators import RK4, make_integrator
+from csim.errors import PartitionBreakdown, SimulationFailure
+from csim.solver.integrators import INTEGRATORS, RK4, make_integrator
 from csim.solver.system import ConstrainedSystem
 
 EPS = np.finfo(float).eps
@@ -57,6 +57,11 @@ class IntegrationSettings:
         Interior points of each step at which the switching functions are checked, beside
         its end (0: the end only; a function that crosses and re-crosses inside a step is
         then missed).
+    max_phi : float
+        Stop with a failure when max |Phi| exceeds this after a step [unit of Phi].
+    min_step : float
+        Stop with a failure when an adaptive integrator accepts a step shorter than this
+        [s] (step-size collapse).
     output_dt : float
         Output sampling interval [s].
     """
@@ -72,6 +77,8 @@ class IntegrationSettings:
     max_events: int = 100_000
     max_steps: int = 1_000_000
     event_samples: int = 4
+    max_phi: float = 0.1
+    min_step: float = 1e-10
     output_dt: float = 0.01
 
 
@@ -157,16 +164,16 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
     locate = settings.events and system.loads.n_switches > 0
 
     t, y = 0.0, np.array(y0, dtype=float)
-    mode = system.loads.mode(system.switching(y)) if system.loads.n_switches else np.zeros(0, bool)
     status, message = "success", f"reached t_end = {settings.t_end:g} s"
 
-    projects = system.projects
-    if projects:  # a projecting method starts on the manifold, as it goes on
-        y = system.project(y)
+    # the system's own state: projected onto the manifold, reduced, or extended by multipliers
+    y = system.start(y)
+    adaptive = INTEGRATORS[settings.integrator].adaptive
+    mode = system.loads.mode(system.switching(y)) if system.loads.n_switches else np.zeros(0, bool)
 
     def record(t_i, y_i):
         ts.append(t_i)
-        ys.append(system.project(y_i) if projects else np.array(y_i))
+        ys.append(system.output_state(y_i))
         modes.append(mode.copy())
 
     record(t, y)
@@ -188,6 +195,7 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
                         settings.integrator, counter, t, y, settings.t_end,
                         rtol=settings.rtol, atol=_atol(settings.atol, system, y),
                         step=settings.step, max_step=settings.max_step, first_step=settings.first_step,
+                        dae=system.dae_options(),
                     )
                     while solver.status == "running":
                         msg = solver.step()
@@ -199,8 +207,7 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
                         if solver.status == "failed":
                             raise SimulationFailure(
                                 f"integrator {settings.integrator} failed at t = {solver.t:.6g} s: {msg}")
-                        if not np.all(np.isfinite(solver.y)):
-                            raise SimulationFailure(f"blow-up: non-finite state at t = {solver.t:.6g} s")
+                        _check_step(system, solver, settings, adaptive)
                         t_new = solver.t
                         dense, t_stop, switched = None, t_new, []
                         event = _find_event(system, solver, mode, settings.event_samples) if locate else None
@@ -220,7 +227,7 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
                         if event is not None:
                             # restart from the event state with the switched conditions flipped
                             y = dense(t_stop) if t_stop < t_new else solver.y.copy()
-                            y = system.project(y) if projects else y
+                            y, _ = system.after_step(t_stop, y)  # restarting anyway
                             t = t_stop
                             for j in switched:
                                 mode[j] = not mode[j]
@@ -234,11 +241,14 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
                             restarted = True
                             break
                         t, y = t_new, solver.y.copy()
-                        if projects:
-                            y = system.project(y)
-                            if not _swap_state(solver, y):
-                                restarted = True  # no way to hand it the projected state: restart
-                                break
+                        y, action = system.after_step(t, y)
+                        if action == "restart" or (action == "swap" and not _swap_state(solver, y)):
+                            restarted = True  # e.g. a new partition, or a state the solver cannot take
+                            break
+                except PartitionBreakdown as exc:
+                    # minimal coordinates: a stage left the region of the current partition
+                    y = system.repartition(y, exc)
+                    restarted = True
                 finally:  # count the work of every segment, the failed one included
                     all_nfev += counter.n
                     if solver is not None:
@@ -266,11 +276,29 @@ def _atol(atol: float, system: ConstrainedSystem, y: np.ndarray) -> np.ndarray:
     The work states are integrated only for the energy balance; they are measured in J,
     so their absolute tolerance is atol times the system's energy scale.
     """
-    q, qd, _ = system.split(y)
+    q, qd, _ = system.split(system.to_full(y))
     scale = max(1.0, abs(system.model.kinetic_energy(q, qd, system.par)))
     tol = np.full(y.size, float(atol))
-    tol[2 * system.m:] *= scale
+    tol[system.work_slice] *= scale
     return tol
+
+
+def _check_step(system: ConstrainedSystem, solver, settings: IntegrationSettings, adaptive: bool) -> None:
+    """Stop a run that has diverged: non-finite state, constraints torn apart, step collapse."""
+    t = solver.t
+    if not np.all(np.isfinite(solver.y)):
+        raise SimulationFailure(f"blow-up: non-finite state at t = {t:.6g} s")
+    phi = system.max_phi(solver.y)
+    if not phi <= settings.max_phi:
+        raise SimulationFailure(
+            f"constraint violation: max |Phi| = {phi:.3g} at t = {t:.6g} s exceeds simulation.max_phi = "
+            f"{settings.max_phi:g}; the joints have drifted apart (stabilize, or tighten the tolerances)")
+    h = t - solver.t_old
+    # a step cut short by the end of the interval is no collapse
+    if adaptive and t != solver.t_bound and h < settings.min_step:
+        raise SimulationFailure(
+            f"step-size collapse: an accepted step of {h:.3g} s at t = {t:.6g} s is below simulation.min_step "
+            f"= {settings.min_step:g} s (a singular configuration, or stiffness beyond this integrator)")
 
 
 def _swap_state(solver, y) -> bool:

@@ -10,6 +10,19 @@ gamma* is chosen (``stabilization.method`` in a case file):
 ``sliding_mode``
     s = Phi' + Lambda Phi with s' = -K s - k sw(s), so
     gamma* = gamma - Lambda Phi' - K s - k sw(s), where sw is sgn or a smooth replacement.
+``projection``
+    gamma* = gamma, and the state is projected onto Phi = 0, Phi_q qd = 0 after every step.
+
+Two methods change what is integrated, not gamma*; their classes here hold the settings and
+the system that does the work is named by ``system``:
+
+``minimal``
+    coordinate partitioning: only the independent coordinates are integrated, the
+    dependent ones are solved from Phi = 0 at every evaluation
+    (:class:`csim.solver.partitioned.PartitionedSystem`).
+``ggl``
+    the stabilized index-2 DAE of Gear, Gupta and Leimkuhler, solved by Radau IIA for DAEs
+    (:class:`csim.solver.ggl.GGLSystem`).
 
 Gains are scalars (the same for every constraint) or one value per constraint, in 1/s.
 """
@@ -29,6 +42,8 @@ class Stabilizer:
     """
 
     name = "abstract"
+    #: which system integrates the method: "constrained", "partitioned" or "ggl"
+    system = "constrained"
 
     def gamma_star(self, gamma: np.ndarray, phi: np.ndarray, phi_dot: np.ndarray) -> np.ndarray:
         """gamma* (r,) from gamma (r,), Phi (r,) and dPhi/dt = Phi_q qd (r,)."""
@@ -180,9 +195,70 @@ class Projection(Stabilizer):
         return q, qd
 
 
+class Minimal(Stabilizer):
+    """Minimal coordinates by coordinate partitioning (Wehage and Haug).
+
+    The independent coordinates u and their rates are integrated; at every evaluation the
+    dependent coordinates v are solved from Phi(u, v) = 0 by Newton-Raphson and their rates
+    from Phi_v vd = -Phi_u ud, so the constraints hold to the Newton tolerance by
+    construction. The partition is chosen by pivoted QR and chosen again (the integration
+    restarts) when cond(Phi_v) exceeds ``minimal_max_condition``.
+
+    Parameters
+    ----------
+    minimal_tol : float
+        Newton tolerance on max |Phi| [unit of Phi].
+    minimal_max_iter : int
+        Newton iteration limit per evaluation.
+    minimal_max_condition : float
+        Look for a better partition when ||Phi_q||_1 ||Phi_v^-1||_1 exceeds this (the
+        factor by which errors in u are amplified in v, about). The default 20 is above
+        the quick-return mechanism's worst value with the crank independent (11.9), so the
+        crank stays independent there, and switches a Cartesian pendulum's independent
+        coordinate when |y| falls below about L / 20.
+    """
+
+    name = "minimal"
+    system = "partitioned"
+
+    def __init__(self, minimal_tol=1e-13, minimal_max_iter=20, minimal_max_condition=20.0):
+        self.tol = float(minimal_tol)
+        self.max_iter = int(minimal_max_iter)
+        self.max_condition = float(minimal_max_condition)
+
+    def gamma_star(self, gamma, phi, phi_dot):
+        return gamma
+
+
+class GGL(Stabilizer):
+    """The stabilized index-2 formulation of Gear, Gupta and Leimkuhler.
+
+        q' = v - Phi_q^T mu,   M v' = p - Phi_q^T lambda,   0 = Phi(q),   0 = Phi_q v
+
+    Both the position and the velocity constraints are equations of the DAE, solved at
+    every stage of the implicit Radau IIA integrator: no drift and no post-step
+    correction. mu vanishes on the exact solution.
+
+    Parameters
+    ----------
+    ggl_tol : float
+        Largest residual of Phi and Phi_q v accepted at the end of a step [unit of Phi,
+        and per second].
+    """
+
+    name = "ggl"
+    system = "ggl"
+
+    def __init__(self, ggl_tol=1e-12):
+        self.tol = float(ggl_tol)
+
+    def gamma_star(self, gamma, phi, phi_dot):
+        return gamma
+
+
 #: name -> class; each class is built from the validated ``stabilization`` section
 STABILIZERS: dict[str, type[Stabilizer]] = {
-    cls.name: cls for cls in (NoStabilization, Baumgarte, SlidingMode, Projection)
+    cls.name: cls for cls in (NoStabilization, Baumgarte, SlidingMode, Projection, GGL, Minimal)
 }
 
 

@@ -37,6 +37,11 @@ class Evaluation:
 class ConstrainedSystem:
     """Right-hand side of the constrained equations of motion.
 
+    The driver (:mod:`csim.solver.simulate`) integrates the system's own state y and
+    records the full state [q, qd, W] from :meth:`output_state`. Here the two are the
+    same; :class:`csim.solver.partitioned.PartitionedSystem` integrates fewer states and
+    :class:`csim.solver.ggl.GGLSystem` more (a DAE, with ``differential`` set).
+
     Parameters
     ----------
     model : NumericModel
@@ -58,18 +63,58 @@ class ConstrainedSystem:
         self.r = model.n_constraints
         self.k = model.n_loads
 
+    #: None for an ODE; for a DAE, a bool array (n_state,), True on differential rows
+    differential = None
+
     @property
     def n_state(self) -> int:
         return 2 * self.m + self.k
 
+    @property
+    def work_slice(self) -> slice:
+        """Where the work states W sit in the integrated state."""
+        return slice(2 * self.m, 2 * self.m + self.k)
+
     def split(self, y):
-        """(q, qd, W) views of a state vector."""
+        """(q, qd, W) views of a full state vector [q, qd, W]."""
         m = self.m
-        return y[:m], y[m:2 * m], y[2 * m:]
+        return y[:m], y[m:2 * m], y[2 * m:2 * m + self.k]
+
+    def to_full(self, y: np.ndarray) -> np.ndarray:
+        """The full state [q, qd, W] (2 m + k,) of an integrated state y."""
+        return y
+
+    def start(self, y_full: np.ndarray) -> np.ndarray:
+        """The integrated state to start from, given a full initial state [q0, qd0, W0]."""
+        return self.project(y_full) if self.projects else np.array(y_full, dtype=float)
+
+    def output_state(self, y: np.ndarray) -> np.ndarray:
+        """The full state recorded for an integrated state y (projected, for projection)."""
+        return self.project(y) if self.projects else np.array(self.to_full(y))
+
+    def dae_options(self) -> dict | None:
+        """Options of a DAE integrator for this system (None: it is an ODE)."""
+        return None
+
+    def after_step(self, t: float, y: np.ndarray) -> tuple[np.ndarray, str]:
+        """What the driver does after an accepted step ending in state y.
+
+        Returns the state to go on from and how: ``"keep"`` (y unchanged), ``"swap"``
+        (hand the new state to the running integrator) or ``"restart"`` (start the
+        integrator afresh from it).
+        """
+        if self.projects:
+            return self.project(y), "swap"
+        return y, "keep"
+
+    def max_phi(self, y: np.ndarray) -> float:
+        """max |Phi(q)| at an integrated state y [unit of Phi]."""
+        q, _, _ = self.split(self.to_full(y))
+        return float(np.max(np.abs(self.model.phi(q, self.par)), initial=0.0))
 
     def switching(self, y: np.ndarray) -> np.ndarray:
         """Switching functions of the load laws at state y (n_switches,)."""
-        q, qd, _ = self.split(y)
+        q, qd, _ = self.split(self.to_full(y))
         s = self.model.load_coordinates(q, self.par)
         sdot = self.model.load_matrix(q, self.par).T @ qd
         return self.loads.switching(s, sdot)
@@ -113,7 +158,7 @@ class ConstrainedSystem:
         return np.concatenate((q, qd, y[2 * self.m:]))
 
     def evaluate(self, t: float, y: np.ndarray, mode: np.ndarray) -> Evaluation:
-        """All recorded quantities at one instant."""
+        """All recorded quantities at one instant, from a full state y = [q, qd, W]."""
         q, qd, _ = self.split(y)
         u = self.loads.values(mode)
         qdd, lam, phi, phi_dot, Q, _ = self._solve(q, qd, u)

@@ -1,0 +1,71 @@
+"""The stabilized index-2 formulation of Gear, Gupta and Leimkuhler (GGL).
+
+The position constraint is kept as an equation beside the velocity constraint, with a
+second multiplier mu that makes the system solvable:
+
+    q' = v - Phi_q^T mu                     (m)
+    v' = M^-1 (p - Phi_q^T lambda)          (m)
+    W' = u * B^T v                          (k, work of the loads)
+    0  = Phi(q)                             (r)
+    0  = Phi_q v                            (r)
+
+State x = [q, v, W, mu, lambda] (2 m + k + 2 r). On the exact solution mu = 0 and v = q'.
+This is a DAE of index 2; :class:`csim.solver.dae.RadauDAE` solves it with both constraints
+enforced at every stage, so Phi and Phi_q v stay at the Newton tolerance without drift and
+without any correction after the step.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from csim.errors import SimulationFailure
+from csim.solver.stabilizers import Projection
+from csim.solver.system import ConstrainedSystem
+
+
+class GGLSystem(ConstrainedSystem):
+    """The GGL DAE ``D x' = F(t, x)`` of a mechanism (``differential`` marks the rows of D).
+
+    Parameters are those of :class:`ConstrainedSystem`; the stabilizer is a
+    :class:`csim.solver.stabilizers.GGL` and carries the constraint tolerance.
+    """
+
+    @property
+    def n_state(self) -> int:
+        return 2 * self.m + self.k + 2 * self.r
+
+    @property
+    def differential(self) -> np.ndarray:
+        return np.arange(self.n_state) < 2 * self.m + self.k
+
+    def dae_options(self) -> dict:
+        return dict(differential=self.differential, algebraic_tol=self.stabilizer.tol)
+
+    def to_full(self, x: np.ndarray) -> np.ndarray:
+        return x[:2 * self.m + self.k]
+
+    def start(self, y_full: np.ndarray) -> np.ndarray:
+        """Consistent DAE state: (q, v) projected onto the manifold, mu = 0, lambda from the KKT system."""
+        q, qd, W = self.split(np.asarray(y_full, dtype=float))
+        q, v = Projection(projection_metric="mass").project(self.model, self.par, q, qd)
+        full = np.concatenate((q, v, W))
+        mode = self.loads.mode(self.switching(full)) if self.loads.n_switches else np.zeros(0, bool)
+        _, lam, *_ = self._solve(q, v, self.loads.values(mode))
+        return np.concatenate((full, np.zeros(self.r), lam))
+
+    def rhs(self, t: float, x: np.ndarray, mode: np.ndarray) -> np.ndarray:
+        """F(t, x) (n_state,): the differential right-hand sides, then Phi and Phi_q v."""
+        model, par, m, k, r = self.model, self.par, self.m, self.k, self.r
+        q, v = x[:m], x[m:2 * m]
+        mu, lam = x[2 * m + k:2 * m + k + r], x[2 * m + k + r:]
+        u = self.loads.values(mode)
+        M = model.mass(q, par)
+        phi_q = model.phi_q(q, par)
+        B = model.load_matrix(q, par)
+        # p = B u - C v - h
+        p = B @ u - model.velocity_terms(q, v, par) - model.gravity(q, par)
+        try:
+            v_dot = np.linalg.solve(M, p - phi_q.T @ lam)
+        except np.linalg.LinAlgError:
+            raise SimulationFailure("ggl: singular mass matrix") from None
+        return np.concatenate((v - phi_q.T @ mu, v_dot, u * (B.T @ v), model.phi(q, par), phi_q @ v))

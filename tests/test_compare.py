@@ -1,0 +1,320 @@
+"""``csim compare``: one case with several stabilization methods, measured against a reference run."""
+from __future__ import annotations
+
+import contextlib
+import math
+import pickle
+import signal
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+import csim.compare as compare_module
+from csim.cli import app
+from csim.compare import INTERRUPTED, ReferenceSettings, compare
+from csim.errors import CaseError, ResultFileError
+from csim.io.hdf5 import read_comparison, read_result
+from csim.solver.stabilizers import STABILIZERS
+
+CONFIGS = Path(__file__).resolve().parents[1] / "configs"
+QR = CONFIGS / "quick_return.yaml"
+PENDULUM = CONFIGS / "pendulum.yaml"
+
+#: a short, loose quick-return case: every run takes a fraction of a second
+SHORT = ["simulation.t_end=0.5", "output.dt=0.01", "simulation.rtol=1e-6", "simulation.atol=1e-6"]
+METHODS = ["none", "baumgarte", "sliding_mode", "projection"]
+#: Baumgarte with w h = 100, far beyond RK4's stability bound (about 2.8): it blows up at once
+BLOW_UP = ["stabilization.w=1e5", "simulation.integrator=RK4", "simulation.step=1e-3"]
+
+
+def invoke(*args):
+    return CliRunner().invoke(app, [str(a) for a in args])
+
+
+def sets(overrides):
+    return [x for item in overrides for x in ("--set", item)]
+
+
+def assert_clean_exit(result, code: int) -> None:
+    assert result.exit_code == code, result.output
+    assert result.exception is None or isinstance(result.exception, SystemExit), result.exc_info
+    assert "Traceback" not in result.output
+
+
+def row(stdout: str, method: str) -> list[str]:
+    """The fields of the first table row of ``method``."""
+    return next(line.split() for line in stdout.splitlines() if line.split()[:1] == [method])
+
+
+def text(value) -> str:
+    return value.decode() if isinstance(value, bytes) else str(value)
+
+
+# --------------------------------------------------------------------------- end to end
+
+
+@pytest.fixture(scope="module")
+def compared(tmp_path_factory):
+    """``csim compare`` of four methods on the short quick-return case (default jobs)."""
+    out = tmp_path_factory.mktemp("compare") / "qr_compare.h5"
+    result = invoke("compare", QR, "--methods", ",".join(METHODS), "-o", out, *sets(SHORT))
+    return out, result
+
+
+def test_cli_writes_a_group_per_method_and_prints_a_row_each(compared):
+    out, result = compared
+    assert_clean_exit(result, 0)
+    assert out.is_file()
+    with h5py.File(out, "r") as fh:
+        assert text(fh.attrs["kind"]) == "comparison"
+        assert [text(m) for m in fh.attrs["methods"]] == METHODS
+        assert {"csim_version", "format_version", "case", "reference_method", "reference_tol"} <= set(fh.attrs)
+        assert set(fh) == {*METHODS, "reference", "summary"}  # no /work_precision without --tolerances
+        for name, ds in fh["summary"].items():
+            assert ds.shape == (len(METHODS),), name
+            assert "units" in ds.attrs, name
+    for method in METHODS:
+        run = read_result(out, group=method)
+        assert run.status == "success", (method, run.message)
+        assert run.t.size == 51 and run.t[-1] == pytest.approx(0.5)
+        assert run.q.shape == (51, 3) and run.phi.shape == (51, 2)
+        assert yaml.safe_load(run.case_yaml)["stabilization"]["method"] == method
+        assert row(result.stdout, method)[1] == "success"
+    ref = read_result(out, group="reference")
+    ref_case = yaml.safe_load(ref.case_yaml)
+    assert ref.status == "success" and ref.t.size == 51
+    assert ref_case["stabilization"]["method"] == "projection"
+    assert ref_case["simulation"]["integrator"] == "DOP853"
+    assert ref_case["simulation"]["rtol"] == ref_case["simulation"]["atol"] == 1e-12
+    stdout = result.stdout
+    for label in ("reference:  projection, DOP853, rtol = atol = 1e-12: success", "rtol = atol = 1e-06",
+                  "max|Phi|", "final|Phi|", "max|Phi_q qd|", "motion err", "wall [s]", "RHS evals", "jobs = ",
+                  f"result:     {out}"):
+        assert label in stdout, label
+    with pytest.raises(ResultFileError, match="a comparison file.*group=NAME"):
+        read_result(out)  # the root is not a run
+
+
+def test_motion_error_is_max_abs_q_minus_reference_from_the_file(compared):
+    out, result = compared
+    assert_clean_exit(result, 0)
+    table = read_comparison(out)
+    assert table.methods == METHODS and table.has_reference and table.work_precision is None
+    assert list(table.summary["method"]) == METHODS
+    ref = read_result(out, group="reference")
+    for i, method in enumerate(METHODS):
+        run = read_result(out, group=method)
+        error = np.max(np.abs(run.q - ref.q))
+        assert 0 < error < 1e-3
+        assert table.summary["motion_error"][i] == pytest.approx(error, rel=1e-12)
+        assert table.summary["final_error"][i] == pytest.approx(np.max(np.abs(run.q[-1] - ref.q[-1])), rel=1e-12)
+        assert table.summary["max_phi"][i] == pytest.approx(np.max(np.abs(run.phi)), rel=1e-12)
+        assert table.summary["max_phi_dot"][i] == pytest.approx(np.max(np.abs(run.phi_dot)), rel=1e-12)
+        assert table.summary["nfev"][i] == run.nfev > 0
+        assert table.summary["wall_time"][i] == run.wall_time > 0
+        fields = row(result.stdout, method)
+        assert fields[2] == f"{np.max(np.abs(run.phi)):.2e}"
+        assert fields[5] == f"{error:.2e}"
+        assert fields[8] == str(run.nfev)
+    # projection keeps the constraints to its tolerance; no stabilization does not
+    assert table.summary["max_phi"][METHODS.index("projection")] < 1e-12
+    assert table.summary["max_phi"][METHODS.index("none")] > 1e-8
+
+
+def test_jobs_1_and_2_give_the_same_numbers():
+    kw = dict(methods=["none", "projection"], overrides=["simulation.t_end=0.5"])
+    serial, parallel = compare(PENDULUM, jobs=1, **kw), compare(PENDULUM, jobs=2, **kw)
+    assert (serial.jobs, parallel.jobs) == (1, 2)
+    for a, b in zip([serial.reference_run, *serial.runs], [parallel.reference_run, *parallel.runs], strict=True):
+        for name in ("method", "tolerance", "status", "nfev", "nsteps"):
+            assert getattr(a, name) == getattr(b, name), name
+        for name in ("max_phi", "final_phi", "max_phi_dot", "motion_error", "final_error", "error_until"):
+            assert getattr(a, name) == pytest.approx(getattr(b, name), rel=1e-12, nan_ok=True), name
+        np.testing.assert_allclose(a.result.q, b.result.q, rtol=1e-12, atol=0)
+        assert b.wall_time > 0
+    assert all(r.ok and math.isfinite(r.motion_error) for r in parallel.runs)
+    back = pickle.loads(pickle.dumps(serial.runs[0].result))  # what a worker sends back
+    np.testing.assert_array_equal(back.q, serial.runs[0].result.q)
+
+
+def test_a_method_that_blows_up_is_a_failed_row_and_the_others_finish(tmp_path):
+    out = tmp_path / "blow_up.h5"
+    result = invoke("compare", QR, "--methods", "none,baumgarte,projection", "-o", out, "--jobs", "1",
+                    *sets([*SHORT, *BLOW_UP]))
+    assert_clean_exit(result, 1)
+    assert "1 run(s) failed: baumgarte" in result.stderr and str(out) in result.stderr
+    assert row(result.stdout, "baumgarte")[1] == "failed"
+    assert "baumgarte: failed: " in result.stdout
+    assert row(result.stdout, "none")[1] == row(result.stdout, "projection")[1] == "success"
+    table = read_comparison(out)
+    status = dict(zip(table.summary["method"], table.summary["status"]))
+    assert status == {"none": "success", "baumgarte": "failed", "projection": "success"}
+    failed = read_result(out, group="baumgarte")
+    assert failed.status == "failed" and failed.message
+    assert failed.t[-1] < 0.5  # stopped at the blow-up
+    assert yaml.safe_load(failed.case_yaml)["simulation"]["step"] == 1e-3
+    for i, method in enumerate(table.summary["method"]):
+        finite = math.isfinite(table.summary["final_error"][i])
+        assert finite == (method != "baumgarte")  # no final error for a run that did not reach t_end
+
+
+def test_an_exception_in_a_run_is_a_failed_row(monkeypatch, tmp_path):
+    real = compare_module.run_case
+
+    def run_case(case):
+        if case.data["stabilization"]["method"] == "baumgarte":
+            raise RuntimeError("boom")
+        return real(case)
+
+    monkeypatch.setattr(compare_module, "run_case", run_case)
+    c = compare(PENDULUM, methods=["none", "baumgarte"], overrides=["simulation.t_end=0.2"], jobs=1)
+    by_method = {r.method: r for r in c.runs}
+    assert by_method["none"].ok and math.isfinite(by_method["none"].motion_error)
+    assert not by_method["baumgarte"].ok and by_method["baumgarte"].message == "RuntimeError: boom"
+    assert not c.ok and "baumgarte: failed: RuntimeError: boom" in c.table()
+    c.write(tmp_path / "c.h5")
+    assert read_result(tmp_path / "c.h5", group="baumgarte").status == "failed"
+
+
+@pytest.mark.parametrize("how", ["raised", "caught_by_the_driver"])
+def test_ctrl_c_stops_the_comparison(monkeypatch, how):
+    real, calls = compare_module.run_case, []
+
+    def run_case(case):
+        calls.append(case.data["stabilization"]["method"])
+        if len(calls) == 2:  # during the first method, after the reference
+            if how == "raised":
+                raise KeyboardInterrupt
+            with contextlib.suppress(KeyboardInterrupt):  # as the driver: Ctrl-C makes a failed run
+                signal.raise_signal(signal.SIGINT)
+        return real(case)
+
+    monkeypatch.setattr(compare_module, "run_case", run_case)
+    c = compare(PENDULUM, methods=["none", "baumgarte", "projection"], overrides=["simulation.t_end=0.2"], jobs=1)
+    assert c.interrupted and not c.ok
+    assert len(calls) == 2  # nothing ran after the interrupt
+    assert c.reference_run.ok
+    assert [r.message for r in c.runs[1:]] == [INTERRUPTED, INTERRUPTED]
+    assert "interrupted" in c.table()
+
+
+def test_reference_failure_leaves_errors_unavailable():
+    bad_reference = ReferenceSettings(method="baumgarte", integrator="RK4", tol=1e-3)
+    c = compare(QR, methods=["none"], overrides=[*SHORT, *BLOW_UP], reference=bad_reference, jobs=1)
+    assert not c.reference_run.ok and c.runs[0].ok
+    assert math.isnan(c.runs[0].motion_error) and math.isnan(c.runs[0].final_error)
+    assert "reference run failed" in c.runs[0].error_note
+    assert "reference: failed:" in c.table() and "motion errors are unavailable" in c.table()
+
+
+# --------------------------------------------------------------------------- work-precision study
+
+
+def test_tolerance_study_records_work_against_precision(tmp_path):
+    out = tmp_path / "wp.h5"
+    result = invoke("compare", QR, "--methods", "none,projection", "--tolerances", "1e-8,1e-4,1e-6", "-o", out,
+                    "--jobs", "1", *sets(SHORT))
+    assert_clean_exit(result, 0)
+    wp = read_comparison(out).work_precision
+    columns = ("method", "tolerance", "wall_time", "nfev", "nsteps", "motion_error", "final_error", "max_phi",
+               "max_phi_dot", "status")
+    assert set(columns) <= set(wp)
+    assert {len(v) for v in wp.values()} == {6}
+    assert all(read_comparison(out).units[f"work_precision/{c}"] is not None for c in columns)
+    assert list(wp["method"]) == ["none"] * 3 + ["projection"] * 3
+    np.testing.assert_array_equal(wp["tolerance"], [1e-4, 1e-6, 1e-8] * 2)  # loosest first
+    assert set(wp["status"]) == {"success"}
+    for method in ("none", "projection"):
+        sel = wp["method"] == method
+        assert np.all(np.diff(wp["motion_error"][sel]) < 0), method  # tighter is more accurate ...
+        assert np.all(np.diff(wp["nfev"][sel]) > 0), method  # ... and costs more
+    assert "work-precision (rtol = atol = 1e-04, 1e-06, 1e-08)" in result.stdout
+    wp_lines = [line for line in result.stdout.split("work-precision")[1].splitlines() if line.split()[:1] in
+                (["none"], ["projection"])]
+    assert len(wp_lines) == 6
+    # the method groups hold the tightest run
+    assert yaml.safe_load(read_result(out, group="none").case_yaml)["simulation"]["rtol"] == 1e-8
+    with h5py.File(out) as fh:
+        assert text(fh.attrs["tolerance_kind"]) == "rtol=atol"
+        assert fh["work_precision/motion_error"].attrs["units"]
+
+
+def test_tolerances_of_a_fixed_step_integrator_are_steps():
+    c = compare(PENDULUM, methods=["none"], tolerances=[1e-2, 5e-3],
+                overrides=["simulation.t_end=0.5", "simulation.integrator=RK4", "initial.q_offset={}"], jobs=1)
+    assert c.tolerance_kind == "step"
+    assert [r.nsteps for r in c.runs] == [50, 100]
+    assert [yaml.safe_load(r.result.case_yaml)["simulation"]["step"] for r in c.runs] == [1e-2, 5e-3]
+    assert c.runs[1].motion_error < c.runs[0].motion_error
+
+
+def test_default_methods_are_every_registered_one_the_case_allows():
+    c = compare(PENDULUM, overrides=["simulation.t_end=0.1"], jobs=1)
+    assert set(c.methods) | set(c.skipped) == set(STABILIZERS)
+    assert c.methods == [m for m in STABILIZERS if m in c.methods]  # registry order
+    assert all(reason for reason in c.skipped.values())
+    assert {"none", "baumgarte", "sliding_mode", "projection"} <= set(c.methods)
+
+
+# --------------------------------------------------------------------------- bad input
+
+
+BAD = [
+    ("unknown_method", ["--methods", "none,bogus"],
+     ["--methods: unknown method 'bogus'", "valid names: " + ", ".join(STABILIZERS)]),
+    ("duplicate_method", ["--methods", "none,baumgarte,none"], ["--methods: method 'none' given twice"]),
+    ("empty_methods", ["--methods", ""], ["--methods"]),
+    ("tolerance_not_a_number", ["--tolerances", "1e-6,abc"], ["--tolerances: got 'abc'", "positive numbers"]),
+    ("tolerance_negative", ["--tolerances", "-1"], ["--tolerances: got '-1'", "positive numbers"]),
+    ("tolerance_twice", ["--tolerances", "1e-6,1e-6"], ["--tolerances: 1e-06 given twice"]),
+    ("tolerance_below_the_validator_limit", ["--tolerances", "1e-20"], ["simulation.rtol", "1e-20"]),
+    ("jobs_zero", ["--jobs", "0"], ["--jobs: got 0", ">= 1"]),
+    ("reference_method", ["--reference-method", "bogus"], ["--reference-method: unknown method 'bogus'"]),
+    ("reference_tol", ["--reference-tol", "0"], ["--reference-tol: got '0'"]),
+    ("combination_the_case_rejects", ["--methods", "none,projection", "--set", "simulation.integrator=LSODA"],
+     ["method projection: ", "LSODA"]),
+    ("bad_set", ["--set", "simulation.tend=3"], ["--set simulation.tend: unknown key"]),
+]
+
+
+@pytest.mark.parametrize("extra, fragments", [b[1:] for b in BAD], ids=[b[0] for b in BAD])
+def test_bad_input_exits_2_before_running(tmp_path, extra, fragments):
+    out = tmp_path / "out.h5"
+    result = invoke("compare", QR, "-o", out, *extra)
+    assert_clean_exit(result, 2)
+    assert result.stderr.startswith("csim: error:")
+    assert result.stdout == ""
+    for fragment in fragments:
+        assert fragment in result.stderr, (fragment, result.stderr)
+    assert not out.exists()
+
+
+def test_missing_case_file_and_unwritable_output(tmp_path):
+    result = invoke("compare", tmp_path / "nope.yaml")
+    assert_clean_exit(result, 2)
+    assert "no such case file" in result.stderr
+    (tmp_path / "adir").mkdir()
+    result = invoke("compare", QR, "-o", tmp_path / "adir", "--methods", "none")
+    assert_clean_exit(result, 2)
+    assert "cannot write, it is a directory" in result.stderr
+
+
+def test_library_rejects_bad_input_before_running():
+    with pytest.raises(CaseError, match="unknown method 'nope'"):
+        compare(PENDULUM, methods=["none", "nope"])
+    with pytest.raises(CaseError, match="jobs: got 0"):
+        compare(PENDULUM, methods=["none"], jobs=0)
+    with pytest.raises(CaseError, match=r"tolerances: got -1\.0"):
+        compare(PENDULUM, methods=["none"], tolerances=[1e-6, -1.0])
+
+
+def test_help_has_an_example():
+    result = invoke("compare", "--help")
+    assert_clean_exit(result, 0)
+    for fragment in ("Example", "--methods", "--tolerances", "--jobs", "--reference-method", "--reference-tol",
+                     "--set", "--quiet", "--output"):
+        assert fragment in result.stdout, fragment
