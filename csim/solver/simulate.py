@@ -166,22 +166,25 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
     t, y = 0.0, np.array(y0, dtype=float)
     status, message = "success", f"reached t_end = {settings.t_end:g} s"
 
-    # the system's own state: projected onto the manifold, reduced, or extended by multipliers
-    y = system.start(y)
     adaptive = INTEGRATORS[settings.integrator].adaptive
-    mode = system.loads.mode(system.switching(y)) if system.loads.n_switches else np.zeros(0, bool)
+    mode = np.zeros(system.loads.n_switches, bool)
 
     def record(t_i, y_i):
+        y_full = system.output_state(y_i)  # may raise: nothing is appended then
         ts.append(t_i)
-        ys.append(system.output_state(y_i))
+        ys.append(y_full)
         modes.append(mode.copy())
 
-    record(t, y)
     i_out = 1
     all_nfev = 0
     # blow-ups are detected and reported below; numpy's overflow warnings would only add noise
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         try:
+            # the system's own state: projected onto the manifold, reduced, or extended by multipliers
+            y = system.start(y)
+            if system.loads.n_switches:
+                mode[:] = system.loads.mode(system.switching(y))
+            record(t, y)
             while t < settings.t_end and i_out <= len(t_out):
                 if locate:
                     frozen = mode.copy()

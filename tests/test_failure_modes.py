@@ -1,0 +1,127 @@
+"""Where the methods fail, with numbers, and how csim reports it.
+
+Each test states the mechanism of the failure and checks the figure that shows it:
+drift growth without stabilization, Baumgarte turning the ODE stiff, chattering of the
+exact sgn against its smooth replacements, and the singular dependent block of the
+elimination. Measured values (this machine) are quoted in the comments.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import CONFIGS, qr_case
+
+from csim.case import load_case
+from csim.pipeline import build_system, run_case
+from csim.solver.formulations import dependent_block_inverse
+
+
+def pendulum(*overrides):
+    return run_case(load_case(CONFIGS / "pendulum.yaml", list(overrides)))
+
+
+def test_drift_without_stabilization_grows_over_a_long_run():
+    # 100 s of the pendulum at rtol = 1e-6 from a consistent start: integration error feeds
+    # Phi'' = 0 with nothing to pull it back (measured: 8.7e-6 in [0, 10] s, 6.2e-4 in [90, 100] s)
+    res = pendulum("stabilization.method=none", "initial.q_offset={}", "simulation.t_end=100",
+                   "simulation.rtol=1e-6", "simulation.atol=1e-6", "output.dt=0.1")
+    assert res.ok
+    phi = np.abs(res.phi[:, 0])
+    early, late = phi[res.t <= 10].max(), phi[res.t >= 90].max()
+    assert late > 20 * early
+    # and Baumgarte holds it down over the same run
+    held = pendulum("stabilization.method=baumgarte", "initial.q_offset={}", "simulation.t_end=100",
+                    "simulation.rtol=1e-6", "simulation.atol=1e-6", "output.dt=0.1")
+    assert np.abs(held.phi[held.t >= 90]).max() < late / 100
+
+
+@pytest.mark.slow
+def test_quick_return_drift_grows_over_100_s():
+    # the paper's mechanism: max |Phi| per 10 s window rises through the run
+    res = run_case(qr_case("simulation.t_end=100", "simulation.rtol=1e-8", "simulation.atol=1e-8", "output.dt=0.05"))
+    assert res.ok
+    phi = np.abs(res.phi).max(axis=1)
+    windows = [phi[(res.t >= a) & (res.t < a + 10)].max() for a in range(0, 100, 10)]
+    assert windows[-1] > 10 * windows[0]
+
+
+def test_baumgarte_beyond_rk4s_stability_bound_blows_up():
+    # d = 1 puts both constraint eigenvalues at -w; RK4 is stable on the negative real axis
+    # up to w h = 2.785 for a simple root. Measured with w = 100: w h = 2.0 decays (|Phi| in
+    # the last second 3.9e-4 from 8.7e-3), 2.5 barely holds (9.5e-3), 2.7 and 3.0 diverge (the
+    # double root and the coupling with the pendulum's own motion pull the bound below 2.785).
+    w = 100.0
+    stable = pendulum(f"stabilization.w={w}", "simulation.integrator=RK4", "simulation.step=0.02", "simulation.t_end=3")
+    assert stable.ok
+    assert np.abs(stable.phi[stable.t > 2]).max() < np.abs(stable.phi[0]).max() / 10
+    unstable = pendulum(f"stabilization.w={w}", "simulation.integrator=RK4", "simulation.step=0.03",
+                        "simulation.t_end=3")
+    assert unstable.status == "failed"
+    assert "simulation.max_phi" in unstable.message
+    assert unstable.t[-1] < 0.5  # caught within a few steps, partial result kept
+    assert unstable.t.size > 1
+
+
+def test_large_baumgarte_gain_makes_an_explicit_integrator_crawl():
+    # RK45's step is bounded by stability, h ~ 3.3 / w, not by accuracy: the work grows with w
+    # (measured: 536 evaluations at w = 10, 19,094 at w = 1e3)
+    soft = pendulum("stabilization.w=10", "simulation.integrator=RK45", "simulation.rtol=1e-6", "simulation.atol=1e-8")
+    stiff = pendulum("stabilization.w=1e3", "simulation.integrator=RK45", "simulation.rtol=1e-6",
+                     "simulation.atol=1e-8")
+    assert soft.ok and stiff.ok
+    assert stiff.nfev > 20 * soft.nfev
+    # the steps are held below RK45's stability bound on the real axis (about 3.3 / w)
+    assert stiff.t[-1] / stiff.nsteps < 3.3 / 1e3 < soft.t[-1] / soft.nsteps
+
+
+SLIDING = ["stabilization.method=sliding_mode", "stabilization.k=1", "stabilization.c=1e3", "stabilization.eps=1e-3",
+           "simulation.t_end=2", "output.dt=0.001"]
+
+
+def _late_s(res):
+    s = res.phi_dot[:, 0] + 10.0 * res.phi[:, 0]  # Lambda = 10
+    return s[res.t > 1.0]
+
+
+def test_exact_sgn_chatters_where_its_smooth_replacements_do_not():
+    # fixed step h = 1e-3, k = 1: with sgn each step kicks s by about k h, so s rattles at
+    # that size instead of settling (measured max |s| after 1 s: 1.7e-4 with sgn, 4.8e-7 with
+    # tanh(c s) and s / sqrt(s^2 + eps^2), whose slope k c h = 1 is inside RK4's stability)
+    rk4 = ["simulation.integrator=RK4", "simulation.step=1e-3"]
+    sgn = pendulum(*SLIDING, "stabilization.switching=sgn", *rk4)
+    for smooth in ("tanh", "sqrt"):
+        res = pendulum(*SLIDING, f"stabilization.switching={smooth}", *rk4)
+        assert res.ok
+        assert np.abs(_late_s(sgn)).max() > 100 * np.abs(_late_s(res)).max()
+
+
+def test_exact_sgn_stalls_an_adaptive_integrator():
+    # the right-hand side jumps by 2 k wherever s crosses zero: RK45 halves its step at every
+    # crossing and crawls (measured: > 50,000 steps for 1.5 s), the smooth tanh needs 6,704
+    # evaluations for the 2 s; max_steps turns the crawl into a clear failure
+    sgn = pendulum(*SLIDING, "stabilization.switching=sgn", "simulation.integrator=RK45", "simulation.rtol=1e-6",
+                   "simulation.atol=1e-8", "simulation.max_steps=3000")
+    assert sgn.status == "failed" and "simulation.max_steps" in sgn.message
+    assert sgn.t[-1] < 1.0
+    smooth = pendulum(*SLIDING, "stabilization.switching=tanh", "simulation.integrator=RK45", "simulation.rtol=1e-6",
+                      "simulation.atol=1e-8", "simulation.max_steps=3000")
+    assert smooth.ok and smooth.nsteps < 3000
+
+
+def test_fixed_partition_meets_the_rocker_dead_point():
+    # With the rocker angle q2 independent, Phi_v = d Phi / d(q1, q3) is singular where the
+    # rocker reverses (dq2/dq1 = 0): ||Phi_q|| ||Phi_v^-1|| passes 1e8 at t = 0.11 s and the
+    # run stops, naming the cause. Chosen automatically, the crank stays independent and the
+    # condition never exceeds 12.
+    fixed = run_case(qr_case("formulation.method=elimination", "formulation.independent=[q2]", "simulation.t_end=1"))
+    assert fixed.status == "failed"
+    assert "dependent block Phi_v" in fixed.message and "formulation.independent" in fixed.message
+    assert 0.05 < fixed.t[-1] < 0.2
+
+    auto = run_case(qr_case("formulation.method=elimination", "simulation.t_end=1"))
+    assert auto.ok
+    system = build_system(qr_case())
+    cond = {tuple(v): max(dependent_block_inverse(system.model.phi_q(q, system.par), list(v))[1] for q in auto.q)
+            for v in ([1, 2], [0, 2])}
+    assert cond[(1, 2)] < 15  # crank independent: well conditioned throughout
+    assert cond[(0, 2)] > 100  # rocker independent: near-singular within the first second
