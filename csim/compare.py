@@ -343,19 +343,46 @@ def check_methods(methods: Sequence[str], option: str = "methods") -> list[str]:
         problems.append(f"{option}: got {','.join(names)!r}; expected method names separated by commas, "
                         f"e.g. {','.join(list(STABILIZERS)[:2])}")
     seen = set()
-    for name in names:
-        if not name:
+    for spec in names:
+        if not spec:
             continue
-        if name in seen:
-            problems.append(f"{option}: method {name!r} given twice")
-        seen.add(name)
+        if spec in seen:
+            problems.append(f"{option}: method {spec!r} given twice")
+        seen.add(spec)
+        name, integrator = split_method(spec)
         if name not in STABILIZERS:
-            problems.append(f"{option}: unknown method {name!r}; valid names: {', '.join(STABILIZERS)}")
+            problems.append(f"{option}: unknown method {name!r}; valid names: {', '.join(STABILIZERS)} "
+                            f"(each optionally as METHOD:INTEGRATOR)")
         elif name in COMPARISON_RESERVED:
             problems.append(f"{option}: method {name!r} has the name of a group of the comparison file")
+        if integrator is not None and integrator not in INTEGRATORS:
+            problems.append(f"{option}: unknown integrator {integrator!r} in {spec!r}; valid names: "
+                            f"{', '.join(INTEGRATORS)}")
     if problems:
         raise CaseError(list(dict.fromkeys(problems)))
     return names
+
+
+def split_method(spec: str) -> tuple[str, str | None]:
+    """``"ggl:Radau"`` -> ``("ggl", "Radau")``; ``"none"`` -> ``("none", None)``.
+
+    A method may name its own integrator, for methods that the case's integrator cannot
+    run (GGL, an index-2 DAE, needs Radau) or to compare integrators side by side.
+    """
+    name, _, integrator = spec.partition(":")
+    return name.strip(), integrator.strip() or None
+
+
+def default_methods(integrator: str) -> list[str]:
+    """Every registered method; one that ``integrator`` cannot run gets its own, as ``METHOD:INTEGRATOR``."""
+    return [name if cls.integrators is None or integrator in cls.integrators else f"{name}:{cls.integrators[0]}"
+            for name, cls in STABILIZERS.items()]
+
+
+def _method_sets(spec: str) -> list[str]:
+    """``--set`` overrides that select the method (and its integrator) of ``spec``."""
+    name, integrator = split_method(spec)
+    return [f"stabilization.method={name}", *([f"simulation.integrator={integrator}"] if integrator else [])]
 
 
 def parse_methods(text: str, option: str = "--methods") -> list[str]:
@@ -596,7 +623,7 @@ def compare(case: str | Path | dict | Case, methods: Sequence[str] | None = None
     if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1):
         problems.append(f"jobs: got {jobs!r}; expected a whole number >= 1")
     try:
-        chosen = check_methods(methods) if methods is not None else list(STABILIZERS)
+        chosen = check_methods(methods) if methods is not None else None
     except CaseError as exc:
         problems += exc.problems
         chosen = []
@@ -615,9 +642,13 @@ def compare(case: str | Path | dict | Case, methods: Sequence[str] | None = None
 
     base = _make_case(case, overrides)
     integrator = base.data["simulation"]["integrator"]
+    chosen = chosen if chosen is not None else default_methods(integrator)
     own = (base.data["simulation"]["rtol"] if INTEGRATORS[integrator].adaptive else base.data["simulation"]["step"])
     values = tols if tols is not None else [float(own)]
-    sets = {value: _tolerance_sets(integrator, value) if tols is not None else [] for value in values}
+
+    def value_sets(method, value):
+        # the tolerance (or step) of a method's own integrator, when it names one
+        return _tolerance_sets(split_method(method)[1] or integrator, value) if tols is not None else []
 
     # every (method, tolerance) case, validated before anything runs
     cases: dict[tuple[str, float], Case] = {}
@@ -625,7 +656,7 @@ def compare(case: str | Path | dict | Case, methods: Sequence[str] | None = None
     for method in chosen:
         for value in values:
             try:
-                cases[method, value] = _make_case(case, [*overrides, f"stabilization.method={method}", *sets[value]])
+                cases[method, value] = _make_case(case, [*overrides, *_method_sets(method), *value_sets(method, value)])
             except CaseError as exc:
                 for p in exc.problems:
                     failures.setdefault(p, {}).setdefault(method, []).append(value)

@@ -15,7 +15,7 @@ from typer.testing import CliRunner
 
 import csim.compare as compare_module
 from csim.cli import app
-from csim.compare import INTERRUPTED, ReferenceSettings, compare
+from csim.compare import INTERRUPTED, ReferenceSettings, compare, split_method
 from csim.errors import CaseError, ResultFileError
 from csim.io.hdf5 import read_comparison, read_result
 from csim.solver.stabilizers import STABILIZERS
@@ -252,12 +252,23 @@ def test_tolerances_of_a_fixed_step_integrator_are_steps():
     assert c.runs[1].motion_error < c.runs[0].motion_error
 
 
-def test_default_methods_are_every_registered_one_the_case_allows():
+def test_default_methods_are_every_registered_one_each_with_an_integrator_that_runs_it():
     c = compare(PENDULUM, overrides=["simulation.t_end=0.1"], jobs=1)
-    assert set(c.methods) | set(c.skipped) == set(STABILIZERS)
-    assert c.methods == [m for m in STABILIZERS if m in c.methods]  # registry order
-    assert all(reason for reason in c.skipped.values())
-    assert {"none", "baumgarte", "sliding_mode", "projection"} <= set(c.methods)
+    assert [split_method(m)[0] for m in c.methods] == list(STABILIZERS)  # registry order
+    # the case integrates with DOP853; GGL is a DAE and gets the Radau it needs
+    assert "ggl:Radau" in c.methods and not c.skipped
+    assert all(r.ok for r in c.runs)
+    assert c.method_runs["ggl:Radau"].result.max_phi < 1e-10
+
+
+def test_a_method_may_name_its_own_integrator():
+    c = compare(PENDULUM, methods=["none", "none:RK45"], overrides=["simulation.t_end=0.1"], jobs=1)
+    integrators = [yaml.safe_load(r.result.case_yaml)["simulation"]["integrator"] for r in c.runs]
+    assert integrators == ["DOP853", "RK45"]
+    with pytest.raises(CaseError, match="unknown integrator 'Euler'"):
+        compare(PENDULUM, methods=["none:Euler"], jobs=1)
+    with pytest.raises(CaseError, match="ggl"):
+        compare(PENDULUM, methods=["ggl"], jobs=1)  # named without an integrator: strict
 
 
 # --------------------------------------------------------------------------- bad input

@@ -30,6 +30,10 @@ class GGLSystem(ConstrainedSystem):
     :class:`csim.solver.stabilizers.GGL` and carries the constraint tolerance.
     """
 
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._projection = Projection(projection_metric="mass")
+
     @property
     def n_state(self) -> int:
         return 2 * self.m + self.k + 2 * self.r
@@ -44,10 +48,21 @@ class GGLSystem(ConstrainedSystem):
     def to_full(self, x: np.ndarray) -> np.ndarray:
         return x[:2 * self.m + self.k]
 
+    def output_state(self, x: np.ndarray) -> np.ndarray:
+        """The recorded [q, qd, W]: on the manifold, as every step ends.
+
+        Samples between step ends come from the integrator's dense output, a polynomial
+        that satisfies the constraints only to the interpolation error; they are projected
+        (mass metric) before they are recorded. The integration itself is never corrected.
+        """
+        q, v, W = self.split(self.to_full(x))
+        q, v = self._projection.project(self.model, self.par, q, v)
+        return np.concatenate((q, v, W))
+
     def start(self, y_full: np.ndarray) -> np.ndarray:
         """Consistent DAE state: (q, v) projected onto the manifold, mu = 0, lambda from the KKT system."""
         q, qd, W = self.split(np.asarray(y_full, dtype=float))
-        q, v = Projection(projection_metric="mass").project(self.model, self.par, q, qd)
+        q, v = self._projection.project(self.model, self.par, q, qd)
         full = np.concatenate((q, v, W))
         mode = self.loads.mode(self.switching(full)) if self.loads.n_switches else np.zeros(0, bool)
         _, lam, *_ = self._solve(q, v, self.loads.values(mode))

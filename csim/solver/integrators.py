@@ -13,6 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.integrate import BDF, DOP853, LSODA, RK45, DenseOutput, OdeSolver, Radau
 
+from csim.solver.dae import RadauDAE
+
 
 class CubicHermite(DenseOutput):
     """Cubic Hermite interpolant from the values and derivatives at both ends of a step."""
@@ -139,8 +141,6 @@ def make_integrator(name, fun, t0, y0, t_bound, *, rtol, atol, step=None, max_st
             options["first_step"] = min(first_step, t_bound - t0)
         if dae is not None:
             _check_dae(name)
-            from csim.solver.dae import RadauDAE
-
             return RadauDAE(fun, t0, y0, t_bound, **dae, **options)
         return info.cls(fun, t0, y0, t_bound, **options)
     if dae is not None:

@@ -44,6 +44,8 @@ class Stabilizer:
     name = "abstract"
     #: which system integrates the method: "constrained", "partitioned" or "ggl"
     system = "constrained"
+    #: the integrators that can run the method (None: every one)
+    integrators: tuple[str, ...] | None = None
 
     def gamma_star(self, gamma: np.ndarray, phi: np.ndarray, phi_dot: np.ndarray) -> np.ndarray:
         """gamma* (r,) from gamma (r,), Phi (r,) and dPhi/dt = Phi_q qd (r,)."""
@@ -248,6 +250,7 @@ class GGL(Stabilizer):
 
     name = "ggl"
     system = "ggl"
+    integrators = ("Radau",)  # the DAE integrators of csim.solver.integrators
 
     def __init__(self, ggl_tol=1e-12):
         self.tol = float(ggl_tol)
