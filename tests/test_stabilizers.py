@@ -165,3 +165,13 @@ def test_mass_weighted_projection_is_the_smallest_change_in_the_mass_norm(qr_mod
         changes[metric] = ((qdp - qd) @ M @ (qdp - qd), (qdp - qd) @ (qdp - qd))
     assert changes["mass"][0] <= changes["minimum_norm"][0] * (1 + 1e-9)
     assert changes["minimum_norm"][1] <= changes["mass"][1] * (1 + 1e-9)
+
+
+def test_projection_converges_at_round_off_after_many_crank_turns(qr_model, qr_par):
+    # after ~100 s the crank angle is ~600 rad: Phi carries a round-off of about eps * 600,
+    # above projection_tol = 1e-13, and the iteration must still end (found in a 100 s run)
+    from csim.solver.stabilizers import Projection
+
+    q = np.array([3.0020, 2.1628, 2.7751]) + np.array([2 * np.pi * 100, 0.0, 0.0])
+    q_p, qd_p = Projection().project(qr_model, qr_par, q + 1e-6, np.zeros(3))
+    assert np.abs(qr_model.phi(q_p, qr_par)).max() < 1e-12

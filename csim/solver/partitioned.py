@@ -20,6 +20,7 @@ import numpy as np
 
 from csim.errors import PartitionBreakdown, SimulationFailure
 from csim.solver.formulations import choose_independent, dependent_block_inverse
+from csim.solver.stabilizers import at_round_off
 from csim.solver.system import ConstrainedSystem
 
 
@@ -88,9 +89,13 @@ class PartitionedSystem(ConstrainedSystem):
             if np.max(np.abs(phi)) <= tol:
                 break
             try:
-                q[v] -= np.linalg.solve(phi_q[:, v], phi)
+                dv = np.linalg.solve(phi_q[:, v], phi)
             except np.linalg.LinAlgError:
                 raise PartitionBreakdown(f"minimal: the dependent block Phi_v is singular at q = {q}") from None
+            q[v] -= dv
+            if at_round_off(dv, q):  # converged to the round-off of Phi at these coordinates
+                phi_q = model.phi_q(q, par)
+                break
         else:
             raise PartitionBreakdown(
                 f"minimal: Newton-Raphson for the dependent coordinates did not reach max |Phi| <= {tol:g} in "

@@ -35,6 +35,16 @@ import numpy as np
 from csim.errors import SimulationFailure
 
 
+def at_round_off(dq: np.ndarray, q: np.ndarray) -> bool:
+    """Whether a Newton correction dq is down to the round-off of q (nothing left to gain).
+
+    Phi evaluated at large angles (a crank after many turns) carries a round-off of about
+    eps |q|, so a fixed tolerance on |Phi| can become unreachable; the size of the step
+    tells when the iteration has converged anyway.
+    """
+    return bool(np.max(np.abs(dq), initial=0.0) <= 8 * np.finfo(float).eps * max(1.0, np.max(np.abs(q))))
+
+
 class Stabilizer:
     """Maps (gamma, Phi, dPhi/dt) to gamma*.
 
@@ -186,9 +196,12 @@ class Projection(Stabilizer):
             if np.max(np.abs(phi)) <= self.tol:
                 break
             try:
-                q -= self._correction(model.phi_q(q, par), W_inv, phi)
+                dq = self._correction(model.phi_q(q, par), W_inv, phi)
             except np.linalg.LinAlgError:
                 raise SimulationFailure("projection: singular constraint Jacobian") from None
+            q -= dq
+            if at_round_off(dq, q):  # |Phi| cannot go lower: its round-off grows with |q|
+                break
         else:
             raise SimulationFailure(f"projection: Gauss-Newton did not reach max |Phi| <= {self.tol:g} in "
                                     f"{self.max_iter} iterations (max |Phi| = {np.max(np.abs(phi)):.3e})")
