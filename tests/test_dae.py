@@ -39,9 +39,15 @@ def oscillator(t, y):
     return np.array([y[1], -y[0]])
 
 
+def prothero_robinson(t, y):
+    # stiff and non-autonomous: y' = -1000 (y - cos t) - sin t,  y = cos t
+    return -1000.0 * (y - np.cos(t)) - np.sin(t)
+
+
 @pytest.mark.parametrize("fun, y0, t_end, exact", [
     (decay, [1.0], 5.0, lambda t: np.exp(-t)),
     (oscillator, [1.0, 0.0], 2 * np.pi, lambda t: np.cos(t)),
+    (prothero_robinson, [1.0], 5.0, lambda t: np.cos(t)),
 ])
 @pytest.mark.parametrize("tol", [1e-4, 1e-7, 1e-9])
 def test_ode_matches_exact_solution_and_scipy_radau(fun, y0, t_end, exact, tol):
