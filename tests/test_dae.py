@@ -233,7 +233,7 @@ def test_ggl_pendulum_multipliers(pendulum_run, reference):
     assert np.max(np.abs(mu)) < 1e-5
     # lam = tension = g cos(theta) + theta'^2
     theta, theta_dot = reference(ts)
-    np.testing.assert_allclose(lam, G * np.cos(theta) + theta_dot**2, atol=1e-5)
+    np.testing.assert_allclose(lam, G * np.cos(theta) + theta_dot**2, atol=1e-4)  # measured 6e-6
 
 
 def pendulum_with_jac(tol, t_end=T_END, **options):
@@ -294,6 +294,15 @@ def test_non_finite_right_hand_side_shrinks_then_fails():
     assert s.status == "failed"
     assert "non-finite right-hand side" in msg
     assert 0.49 < s.t <= 0.5
+
+
+def test_inconsistent_start_fails_with_a_hint():
+    y0 = consistent_start()
+    y0[:2] *= 1.001  # |q| = 1.001: Phi = 1e-3
+    s = RadauDAE(pendulum, 0.0, y0, 1.0, DIFF, rtol=1e-8, atol=1e-8)
+    _, _, msg = run(s)
+    assert s.status == "failed" and s.t == 0.0
+    assert "Is the initial state consistent" in msg and "max |F_alg(t0, y0)| = 0.001" in msg
 
 
 @pytest.mark.parametrize("options, message", [
