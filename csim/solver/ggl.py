@@ -64,8 +64,7 @@ class GGLSystem(ConstrainedSystem):
         q, qd, W = self.split(np.asarray(y_full, dtype=float))
         q, v = self._projection.project(self.model, self.par, q, qd)
         full = np.concatenate((q, v, W))
-        mode = self.loads.mode(self.switching(full)) if self.loads.n_switches else np.zeros(0, bool)
-        _, lam, *_ = self._solve(q, v, self.loads.values(mode))
+        _, lam, *_ = self._solve(q, v, self.loads.values(self.mode_at(full)))
         return np.concatenate((full, np.zeros(self.r), lam))
 
     def rhs(self, t: float, x: np.ndarray, mode: np.ndarray) -> np.ndarray:

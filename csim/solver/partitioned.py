@@ -55,7 +55,7 @@ class PartitionedSystem(ConstrainedSystem):
         return slice(2 * self.n, 2 * self.n + self.k)
 
     def _partition(self, q: np.ndarray) -> None:
-        """Choose u and v at coordinates q (pivoted QR of Phi_q)."""
+        """Choose u and v at coordinates q (:func:`choose_independent`)."""
         u = choose_independent(self.model.phi_q(q, self.par))
         self.independent, self.dependent = u, np.setdiff1d(np.arange(self.m), u)
         self._q = np.array(q, dtype=float)
@@ -117,6 +117,15 @@ class PartitionedSystem(ConstrainedSystem):
         qdd, _, _, _, _, B = self._solve(q, qd, loads)
         return np.concatenate((qd[self.independent], qdd[self.independent], loads * (B.T @ qd)))
 
+    def _choose_again(self) -> bool:
+        """Choose the best partition at the last solved coordinates; True if it changed."""
+        old = self.independent
+        self._partition(self._q)
+        if np.array_equal(old, self.independent):
+            return False
+        self.repartitions += 1
+        return True
+
     def repartition(self, y: np.ndarray, cause: Exception) -> np.ndarray:
         """Choose the partition again at the accepted state y after a breakdown at a later stage.
 
@@ -124,11 +133,8 @@ class PartitionedSystem(ConstrainedSystem):
         is the current one (then no partition can carry the integration on).
         """
         full = self.to_full(y)
-        old = self.independent
-        self._partition(self._q)
-        if np.array_equal(old, self.independent):
+        if not self._choose_again():
             raise SimulationFailure(f"{cause} (no better coordinate partition exists at the last accepted state)")
-        self.repartitions += 1
         return self._reduce(full)
 
     def after_step(self, t: float, y: np.ndarray) -> tuple[np.ndarray, str]:
@@ -138,11 +144,6 @@ class PartitionedSystem(ConstrainedSystem):
         current one is the best there is, it goes on.
         """
         full = self.to_full(y)
-        if self.condition(self._q) <= self.stabilizer.max_condition:
+        if self.condition(self._q) <= self.stabilizer.max_condition or not self._choose_again():
             return y, "keep"
-        old = self.independent
-        self._partition(self._q)
-        if np.array_equal(old, self.independent):
-            return y, "keep"
-        self.repartitions += 1
         return self._reduce(full), "restart"

@@ -182,8 +182,7 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
         try:
             # the system's own state: projected onto the manifold, reduced, or extended by multipliers
             y = system.start(y)
-            if system.loads.n_switches:
-                mode[:] = system.loads.mode(system.switching(y))
+            mode[:] = system.mode_at(y)
             record(t, y)
             while t < settings.t_end and i_out <= len(t_out):
                 if locate:
@@ -336,7 +335,7 @@ def _find_event(system, solver, mode, n_interior):
     for i in range(1, n_interior + 2):
         b = t_new if i == n_interior + 1 else t_old + (t_new - t_old) * i / (n_interior + 1)
         y_b = solver.y if b == t_new else dense(b)
-        disagree = np.flatnonzero(system.loads.mode(system.switching(y_b)) != mode)
+        disagree = np.flatnonzero(system.mode_at(y_b) != mode)
         if disagree.size:
             dense = dense or solver.dense_output()
             t_event, switched = _locate(system, dense, a, b, disagree, mode)

@@ -112,6 +112,10 @@ class ConstrainedSystem:
         q, _, _ = self.split(self.to_full(y))
         return float(np.max(np.abs(self.model.phi(q, self.par)), initial=0.0))
 
+    def mode_at(self, y: np.ndarray) -> np.ndarray:
+        """The load-law conditions (n_switches,) bool that hold at state y."""
+        return self.loads.mode(self.switching(y))
+
     def switching(self, y: np.ndarray) -> np.ndarray:
         """Switching functions of the load laws at state y (n_switches,)."""
         q, qd, _ = self.split(self.to_full(y))
@@ -144,7 +148,7 @@ class ConstrainedSystem:
 
     def rhs_unlocated(self, t: float, y: np.ndarray) -> np.ndarray:
         """dy/dt with the load laws evaluated at the state itself (discontinuous in y)."""
-        return self.rhs(t, y, self.loads.mode(self.switching(y)))
+        return self.rhs(t, y, self.mode_at(y))
 
     @property
     def projects(self) -> bool:
