@@ -168,7 +168,7 @@ def test_mass_weighted_projection_is_the_smallest_change_in_the_mass_norm(qr_mod
 
 
 def test_projection_converges_at_round_off_after_many_crank_turns(qr_model, qr_par):
-    # after ~100 s the crank angle is ~600 rad: Phi carries a round-off of about eps * 600,
+    # after about 60 s the crank angle is ~600 rad (11 rad/s): Phi carries a round-off of about eps * 600,
     # above projection_tol = 1e-13, and the iteration must still end (found in a 100 s run)
     from csim.solver.stabilizers import Projection
 
