@@ -325,3 +325,21 @@ def test_bad_options_are_rejected(options, message):
     kwargs.update(options)
     with pytest.raises(ValueError, match=message):
         RadauDAE(index1, 0.0, [1.0, 1.0], 1.0, **kwargs)
+
+
+@pytest.mark.parametrize("tol", [1e-8, 1e-10, 1e-11])
+def test_moving_start_at_tight_tolerances_with_the_difference_jacobian(tol):
+    # mu starts at 0: a difference step of sqrt(eps) atol did not change F at all, the
+    # Jacobian's mu columns came out zero and the iteration matrix singular for every h
+    # (this failed at t = 0 for tol <= 1e-10 before the algebraic threshold floor)
+    theta, w = 0.3, 2.0
+    x, y = np.sin(theta), -np.cos(theta)
+    vx, vy = w * np.cos(theta), w * np.sin(theta)  # tangential, |v| = w
+    lam = vx * vx + vy * vy - G * y  # d/dt (Phi_q v) = v.v - lam |q|^2 - g y = 0, |q| = 1
+    s = RadauDAE(pendulum, 0.0, np.array([x, y, vx, vy, 0.0, lam]), 1.0, DIFF, rtol=tol, atol=tol)
+    J = s.jac(0.0, s.y, s.f)
+    np.testing.assert_allclose(J[:, 4:], pendulum_jac(0.0, s.y)[:, 4:], rtol=1e-5, atol=1e-5)
+    while s.status == "running":
+        s.step()
+    assert s.status == "finished"
+    assert abs((s.y[:2] @ s.y[:2] - 1) / 2) < 1e-10

@@ -51,3 +51,26 @@ def test_ggl_needs_a_dae_integrator_and_the_kkt_form():
         qr_case("stabilization.method=ggl", "simulation.integrator=DOP853")
     with pytest.raises(CaseError, match="expected 'kkt'"):
         qr_case(*GGL, "formulation.method=elimination")
+
+
+def test_ggl_restarts_a_switching_event_with_the_new_modes_multipliers():
+    case = qr_case(*GGL)
+    system = build_system(case)
+    x = system.start(initial_state(case, system))
+    m, k, r = system.m, system.k, system.r
+    old = system.mode_at(x)
+    flipped = np.ones_like(old) if not old.all() else np.r_[False, old[1:]]  # the cutting force on or off
+    assert not np.allclose(system.loads.values(old), system.loads.values(flipped))  # the cutting force jumps
+    x_old_lam = x.copy()
+    x_old_lam[2 * m + k:2 * m + k + r] = 1e-3  # some mu left over from the step
+    x_new = system.restart(1.0, x_old_lam, flipped)
+    q, v = x_new[:m], x_new[m:2 * m]
+    # lambda solves the KKT system of the new mode: M qdd + Phi_q^T lambda = p, Phi_q qdd = gamma
+    M, phi_q = system.model.mass(q, system.par), system.model.phi_q(q, system.par)
+    p = system.model.load_matrix(q, system.par) @ system.loads.values(flipped) \
+        - system.model.velocity_terms(q, v, system.par) - system.model.gravity(q, system.par)
+    lam = x_new[2 * m + k + r:]
+    qdd = np.linalg.solve(M, p - phi_q.T @ lam)
+    np.testing.assert_allclose(phi_q @ qdd, system.model.gamma(q, v, system.par), atol=1e-9)
+    assert not np.allclose(lam, x[2 * m + k + r:])  # the old mode's lambda would not do
+    assert np.all(x_new[2 * m + k:2 * m + k + r] == 0.0)  # mu = 0

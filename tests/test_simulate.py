@@ -89,3 +89,36 @@ def test_nfev_counts_every_evaluation():
                            "loads.cutting_force=0"))
     # one initial evaluation plus four per step, ten steps
     assert res.nfev == 1 + 4 * 10
+
+
+def _poisoned(n_bad):
+    """y' = -y, except that evaluation number ``n_bad`` returns NaN (a wild trial iterate)."""
+    calls = []
+
+    def fun(t, y):
+        calls.append(t)
+        return np.full_like(y, np.nan) if len(calls) == n_bad else -y
+    return fun
+
+
+def test_implicit_integrators_step_past_a_non_finite_trial_evaluation():
+    from csim.solver.integrators import make_integrator
+    from csim.solver.simulate import _Counter
+    for name in ("Radau", "BDF"):
+        counter = _Counter(_poisoned(6), implicit=True)
+        solver = make_integrator(name, counter, 0.0, np.array([1.0]), 1.0, rtol=1e-8, atol=1e-10)
+        while solver.status == "running":
+            solver.step()
+        assert solver.status == "finished", name
+        assert counter.non_finite_at is not None  # the NaN was seen, and rejected
+        np.testing.assert_allclose(solver.y, [np.exp(-1.0)], rtol=1e-6, err_msg=name)
+
+
+def test_explicit_integrators_stop_at_a_non_finite_evaluation():
+    import pytest
+
+    from csim.errors import SimulationFailure
+    from csim.solver.simulate import _Counter
+    counter = _Counter(_poisoned(1), implicit=False)
+    with pytest.raises(SimulationFailure, match="blow-up: non-finite right-hand side at t = 0"):
+        counter(0.0, np.array([1.0]))

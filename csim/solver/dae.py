@@ -86,6 +86,10 @@ NEWTON_MAXITER = 6  # Newton iterations per attempt, the polishing of the constr
 MIN_FACTOR = 0.2  # largest decrease of the step after an error-test failure
 MAX_FACTOR = 10  # largest increase of the step
 MAX_SINGULAR = 5  # singular iteration matrices in a row (within one step) before giving up
+# Smallest finite-difference threshold of an algebraic variable. Multipliers start at 0, and
+# a difference step of sqrt(eps) atol would fall below the resolution of F: a zero Jacobian
+# column makes MU/h D - J singular for every h (RADAU5 floors |y| at 1e-5 for the same reason).
+JAC_ALGEBRAIC_THRESHOLD = 1e-3
 # Absolute residual an algebraic row can be driven to in floating point: this many eps
 # times the size of its terms, |J_alg| |y| (used where that is above `algebraic_tol`).
 ROUNDOFF_FACTOR = 100
@@ -284,6 +288,8 @@ class RadauDAE(OdeSolver):
         if jac is not None and not callable(jac):
             raise ValueError("`jac` must be None or a callable jac(t, y).")
         self.rtol, self.atol = float(rtol), atol
+        # num_jac's difference step is about sqrt(eps) max(|y|, threshold) per variable
+        self._jac_threshold = np.where(self.algebraic, np.maximum(atol, JAC_ALGEBRAIC_THRESHOLD), atol)
         self.max_step = max_step
         self.algebraic_tol = float(algebraic_tol)
 
@@ -320,7 +326,7 @@ class RadauDAE(OdeSolver):
             self.nfev += Y.shape[1]
             return self.fun_vectorized(t_, Y)
 
-        J, self.jac_factor = num_jac(fun_columns, t, y, f, self.atol, self.jac_factor)
+        J, self.jac_factor = num_jac(fun_columns, t, y, f, self._jac_threshold, self.jac_factor)
         return J
 
     def _lu(self, A):
@@ -504,9 +510,14 @@ class RadauDAE(OdeSolver):
                 if LU_real is None or LU_complex is None:
                     # iteration matrices MU_REAL/h D - J and MU_COMPLEX/h D - J
                     LU_real = self._lu(MU_REAL / h * np.diag(self.d) - J)
-                    LU_complex = self._lu(MU_COMPLEX / h * np.diag(self.d) - J)
+                    LU_complex = None if LU_real is None else self._lu(MU_COMPLEX / h * np.diag(self.d) - J)
                 if LU_real is None or LU_complex is None:
                     converged, reason = False, "singular iteration matrix"
+                    zero = np.flatnonzero(self.algebraic & ~J.any(axis=0))
+                    if current_jac and zero.size:  # singular for every h: halving cannot help
+                        return False, (f"Newton iteration did not converge at t = {t:.9g}; singular iteration "
+                                       f"matrix: dF/dy is zero in the columns {zero.tolist()} of algebraic "
+                                       f"variables (they do not enter F)")
                     n_singular += 1
                     if n_singular >= MAX_SINGULAR:
                         return False, (f"Newton iteration did not converge at t = {t:.9g}; singular "

@@ -60,12 +60,24 @@ class GGLSystem(ConstrainedSystem):
         return np.concatenate((q, v, W))
 
     def start(self, y_full: np.ndarray) -> np.ndarray:
-        """Consistent DAE state: (q, v) projected onto the manifold, mu = 0, lambda from the KKT system."""
-        q, qd, W = self.split(np.asarray(y_full, dtype=float))
+        """Consistent DAE state at t = 0 from a full state [q, qd, W]; see :meth:`_consistent`."""
+        y_full = np.asarray(y_full, dtype=float)
+        return self._consistent(y_full, self.mode_at(y_full))
+
+    def restart(self, t: float, x: np.ndarray, mode: np.ndarray) -> np.ndarray:
+        """Consistent DAE state at a switching event, with the multipliers of the new ``mode``.
+
+        A load that jumps changes lambda at once; restarting with the old mode's lambda
+        would hand Radau an inconsistent algebraic variable.
+        """
+        return self._consistent(self.to_full(x), mode)
+
+    def _consistent(self, y_full: np.ndarray, mode: np.ndarray) -> np.ndarray:
+        """(q, v) projected onto the manifold (mass metric), mu = 0, lambda from the KKT system."""
+        q, qd, W = self.split(y_full)
         q, v = self._projection.project(self.model, self.par, q, qd)
-        full = np.concatenate((q, v, W))
-        _, lam, *_ = self._solve(q, v, self.loads.values(self.mode_at(full)))
-        return np.concatenate((full, np.zeros(self.r), lam))
+        _, lam, *_ = self._solve(q, v, self.loads.values(mode))
+        return np.concatenate((q, v, W, np.zeros(self.r), lam))
 
     def rhs(self, t: float, x: np.ndarray, mode: np.ndarray) -> np.ndarray:
         """F(t, x) (n_state,): the differential right-hand sides, then Phi and Phi_q v."""

@@ -99,14 +99,16 @@ class IntegratorInfo:
     cls: type
     adaptive: bool
     description: str
+    #: solves a Newton iteration per step: a non-finite trial iterate only makes it shrink the step
+    implicit: bool = False
 
 
 #: name -> integrator (``simulation.integrator`` in a case file)
 INTEGRATORS: dict[str, IntegratorInfo] = {
     "RK45": IntegratorInfo(RK45, True, "explicit Runge-Kutta 5(4), Dormand-Prince"),
     "DOP853": IntegratorInfo(DOP853, True, "explicit Runge-Kutta 8(5,3), Dormand-Prince"),
-    "Radau": IntegratorInfo(Radau, True, "implicit Runge-Kutta Radau IIA, order 5 (stiff)"),
-    "BDF": IntegratorInfo(BDF, True, "implicit multistep BDF, orders 1-5 (stiff)"),
+    "Radau": IntegratorInfo(Radau, True, "implicit Runge-Kutta Radau IIA, order 5 (stiff)", implicit=True),
+    "BDF": IntegratorInfo(BDF, True, "implicit multistep BDF, orders 1-5 (stiff)", implicit=True),
     "LSODA": IntegratorInfo(LSODA, True, "Adams/BDF with automatic stiffness switching"),
     "RK4": IntegratorInfo(RK4, False, "classic Runge-Kutta 4, fixed step `simulation.step`"),
 }

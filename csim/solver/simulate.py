@@ -132,17 +132,26 @@ def output_times(t_end: float, dt: float) -> np.ndarray:
 class _Counter:
     """Wraps the right-hand side to count every evaluation and stop on a non-finite one.
 
-    (An integrator fed NaN derivatives shrinks its step forever instead of failing.)
+    An explicit integrator fed NaN derivatives shrinks its step forever instead of failing,
+    so a non-finite value stops the run at once. An implicit integrator evaluates trial
+    Newton iterates that may leave the region where the model is finite; it rejects the
+    iteration and shrinks the step itself, so with ``implicit`` the value is passed on and
+    only remembered (``non_finite_at``) for the message should the integrator fail later.
     """
 
-    def __init__(self, fun: Callable):
+    def __init__(self, fun: Callable, implicit: bool = False):
         self.fun = fun
+        self.implicit = implicit
         self.n = 0
+        self.non_finite_at: float | None = None
 
     def __call__(self, t, y):
         self.n += 1
         f = self.fun(t, y)
         if not np.all(np.isfinite(f)):
+            if self.implicit:
+                self.non_finite_at = t
+                return f
             raise SimulationFailure(f"blow-up: non-finite right-hand side at t = {t:.6g} s "
                                     f"(max |y| = {np.max(np.abs(y)):.3g})")
         return f
@@ -190,7 +199,8 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
                     fun = lambda t_, y_, frozen=frozen: system.rhs(t_, y_, frozen)  # noqa: E731
                 else:
                     fun = system.rhs_unlocated
-                counter, solver = _Counter(fun), None
+                implicit = INTEGRATORS[settings.integrator].implicit or system.dae_options() is not None
+                counter, solver = _Counter(fun, implicit), None
                 restarted = False
                 try:
                     solver = make_integrator(
@@ -207,6 +217,9 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
                                 f"more than simulation.max_steps = {settings.max_steps} steps by t = {solver.t:.6g} s: "
                                 f"the motion is too fast or too stiff for these settings (raise max_steps to go on)")
                         if solver.status == "failed":
+                            if counter.non_finite_at is not None:
+                                msg += (f" (the right-hand side was non-finite at trial states, last at "
+                                        f"t = {counter.non_finite_at:.6g} s)")
                             raise SimulationFailure(
                                 f"integrator {settings.integrator} failed at t = {solver.t:.6g} s: {msg}")
                         _check_step(system, solver, settings, adaptive)
@@ -229,10 +242,10 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
                         if event is not None:
                             # restart from the event state with the switched conditions flipped
                             y = dense(t_stop) if t_stop < t_new else solver.y.copy()
-                            y, _ = system.after_step(t_stop, y)  # restarting anyway
                             t = t_stop
                             for j in switched:
                                 mode[j] = not mode[j]
+                            y = system.restart(t, y, mode)
                             events_t.append(t)
                             events_label.append("; ".join(labels[j] for j in switched))
                             if len(events_t) > settings.max_events:

@@ -107,6 +107,15 @@ class ConstrainedSystem:
             return self.project(y), "swap"
         return y, "keep"
 
+    def restart(self, t: float, y: np.ndarray, mode: np.ndarray) -> np.ndarray:
+        """The state to restart from at a switching event: y at the event, ``mode`` the new conditions.
+
+        By default the state after a step (projected, for projection); a system whose
+        state holds quantities that depend on the loads (GGL's multipliers) makes them
+        consistent with the new mode here.
+        """
+        return self.after_step(t, y)[0]
+
     def max_phi(self, y: np.ndarray) -> float:
         """max |Phi(q)| at an integrated state y [unit of Phi]."""
         q, _, _ = self.split(self.to_full(y))
