@@ -33,6 +33,7 @@ import threading
 from collections.abc import Callable, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from itertools import product
 from pathlib import Path
 
 import numpy as np
@@ -71,8 +72,19 @@ class ReferenceSettings:
     integrator: str = "DOP853"
     tol: float = 1e-12
 
+    @property
+    def run_method(self) -> str:
+        """The stabilization method (``method`` may be given as ``METHOD:INTEGRATOR``)."""
+        return split_method(self.method)[0]
+
+    @property
+    def run_integrator(self) -> str:
+        """The integrator: the one ``method`` names, else ``integrator``."""
+        return split_method(self.method)[1] or self.integrator
+
     def describe(self) -> str:
-        return f"{self.method}, {self.integrator}, {_tolerance_label(self.integrator)} = {tol_text(self.tol)}"
+        integrator = self.run_integrator
+        return f"{self.run_method}, {integrator}, {_tolerance_label(integrator)} = {tol_text(self.tol)}"
 
 
 @dataclass
@@ -82,9 +94,13 @@ class Run:
     Attributes
     ----------
     method : str
-        Stabilization method.
+        Stabilization method (``METHOD:INTEGRATOR`` when it names its own integrator).
     tolerance : float
-        rtol = atol of the run, or its step [s] for a fixed-step integrator.
+        rtol (= atol) of the run, or its step [s] for a fixed-step integrator; see
+        ``tolerance_kind``.
+    tolerance_kind : {"rtol=atol", "rtol", "step"}
+        What ``tolerance`` is for this run's integrator (``"rtol"``: atol differs, see the
+        run's case).
     result : Result or None
         The full run (None when it raised before producing one, or never ran).
     status : {"success", "failed"}
@@ -114,6 +130,7 @@ class Run:
 
     method: str
     tolerance: float
+    tolerance_kind: str = "rtol=atol"
     result: Result | None = None
     status: str = "failed"
     message: str = INTERRUPTED
@@ -247,13 +264,14 @@ class Comparison:
             return "reference"
         if self.tolerances is None:
             return run.method
-        return f"{run.method} ({self.tolerance_kind} {tol_text(run.tolerance)})"
+        return f"{run.method} ({_run_setting(run)})"
 
     def table_columns(self, runs: Sequence[Run]) -> dict[str, list]:
         """The columns of a table of ``runs`` (see :data:`csim.io.hdf5.COMPARISON_UNITS`)."""
         return {
             "method": [r.method for r in runs],
             "tolerance": [float(r.tolerance) for r in runs],
+            "tolerance_kind": [r.tolerance_kind for r in runs],
             "status": [r.status for r in runs],
             "message": [r.message for r in runs],
             "max_phi": [r.max_phi for r in runs],
@@ -302,15 +320,19 @@ class Comparison:
         if self.interrupted:
             lines.append("interrupted: Ctrl-C stopped the comparison; unfinished runs are marked failed")
         per_method = list(self.method_runs.values())
-        label = _tolerance_label(self.integrator)
-        if self.tolerances is None:
+        label = _TOLERANCE_LABELS[self.tolerance_kind]
+        # a method that names its own integrator may run at another setting than the case's
+        own_settings = self.tolerances is None and len({_run_setting(r) for r in per_method}) > 1
+        if own_settings:
+            lines += ["", f"per method (the case: {self.setting}; a method's own integrator: its own setting):"]
+        elif self.tolerances is None:
             lines += ["", f"per method ({self.setting}, as in the case):"]
         else:
             lines += ["", f"per method (the tightest {label}: the runs in the file's method groups):"]
-        lines += _format_rows(per_method, with_tol=self.tolerances is not None, tol_label=self.tolerance_kind)
+        lines += _format_rows(per_method, with_tol=self.tolerances is not None or own_settings)
         if self.tolerances is not None:
             lines += ["", f"work-precision ({label} = " + ", ".join(tol_text(t) for t in self.tolerances) + "):",
-                      *_format_rows(self.runs, with_tol=True, tol_label=self.tolerance_kind)]
+                      *_format_rows(self.runs, with_tol=True)]
         notes = []
         if not ref.ok:
             notes.append(f"reference: failed: {_short(ref.message, 200)}; motion errors are unavailable (-)")
@@ -438,12 +460,30 @@ def tol_text(value: float) -> str:
     return short if float(short) == value else f"{value:.6g}"
 
 
-def _tolerance_label(integrator: str) -> str:
-    return "rtol = atol" if INTEGRATORS[integrator].adaptive else "step"
+#: tolerance kind -> how text names it
+_TOLERANCE_LABELS = {"rtol=atol": "rtol = atol", "rtol": "rtol", "step": "step"}
 
 
 def _tolerance_kind(integrator: str) -> str:
+    """What a study's tolerance sets for ``integrator``: ``"rtol=atol"`` or ``"step"`` [s]."""
     return "rtol=atol" if INTEGRATORS[integrator].adaptive else "step"
+
+
+def _tolerance_label(integrator: str) -> str:
+    return _TOLERANCE_LABELS[_tolerance_kind(integrator)]
+
+
+def _own_tolerance(case: Case) -> tuple[float, str]:
+    """A case's own (tolerance, tolerance kind): its rtol, or its step for a fixed-step integrator."""
+    sim = case.data["simulation"]
+    if not INTEGRATORS[sim["integrator"]].adaptive:
+        return float(sim["step"]), "step"
+    return float(sim["rtol"]), "rtol=atol" if sim["rtol"] == sim["atol"] else "rtol"
+
+
+def _run_setting(run: Run) -> str:
+    """A run's setting as short text: ``rtol=atol 1e-08``, ``step 1e-03``."""
+    return f"{run.tolerance_kind} {tol_text(run.tolerance)}"
 
 
 def _setting_text(case: Case) -> str:
@@ -497,15 +537,16 @@ def _result_or_empty(run: Run, comparison: Comparison) -> Result:
     )
 
 
-def _format_rows(runs: Sequence[Run], with_tol: bool, tol_label: str) -> list[str]:
+def _format_rows(runs: Sequence[Run], with_tol: bool) -> list[str]:
     width = max([6, *(len(r.method) for r in runs)])
+    tol_width = max([7, *(len(_run_setting(r)) for r in runs)])
     cols = [("max|Phi|", "max_phi"), ("final|Phi|", "final_phi"), ("max|Phi_q qd|", "max_phi_dot"),
             ("motion err", "motion_error"), ("final err", "final_error"), ("wall [s]", "wall_time")]
-    head = f"{'method':<{width}}" + (f"  {tol_label:>9}" if with_tol else "") + f"  {'status':<7}"
+    head = f"{'method':<{width}}" + (f"  {'setting':<{tol_width}}" if with_tol else "") + f"  {'status':<7}"
     head += "".join(f"  {label:>{max(len(label), 9)}}" for label, _ in cols) + f"  {'RHS evals':>9}  {'steps':>8}"
     lines = [head, "-" * len(head)]
     for r in runs:
-        line = f"{r.method:<{width}}" + (f"  {r.tolerance:>9.2e}" if with_tol else "") + f"  {r.status:<7}"
+        line = f"{r.method:<{width}}" + (f"  {_run_setting(r):<{tol_width}}" if with_tol else "") + f"  {r.status:<7}"
         for label, attr in cols:
             value = getattr(r, attr)
             text = "-" if math.isnan(value) else f"{value:.2e}"
@@ -632,19 +673,34 @@ def compare(case: str | Path | dict | Case, methods: Sequence[str] | None = None
     except CaseError as exc:
         problems += exc.problems
         tols = None
-    try:
-        check_tolerances([reference.tol], "reference tolerance")
-        check_methods([reference.method], "reference method")
-    except CaseError as exc:
-        problems += exc.problems
+    for check, value, option in ((check_tolerances, reference.tol, "reference tolerance"),
+                                 (check_methods, reference.method, "reference method")):
+        try:
+            check([value], option)
+        except CaseError as exc:
+            problems += exc.problems
     if problems:
         raise CaseError(problems)
 
     base = _make_case(case, overrides)
     integrator = base.data["simulation"]["integrator"]
     chosen = chosen if chosen is not None else default_methods(integrator)
-    own = (base.data["simulation"]["rtol"] if INTEGRATORS[integrator].adaptive else base.data["simulation"]["step"])
-    values = tols if tols is not None else [float(own)]
+    skipped = {}
+    if tols is not None:
+        # one study sets one kind of value: tolerances of adaptive integrators, or steps [s]
+        kind = _tolerance_kind(integrator)
+        other = {m: i for m in chosen if _tolerance_kind(i := split_method(m)[1] or integrator) != kind}
+        if other and methods is None:
+            for m, i in other.items():
+                skipped[m] = (f"its integrator {i} takes {_tolerance_label(i)}, the case's {integrator} "
+                              f"{_tolerance_label(integrator)}: one study sets one kind")
+            chosen = [m for m in chosen if m not in other]
+        elif other:
+            same = [m for m in chosen if m not in other]
+            raise CaseError([f"tolerances: the values set {_tolerance_label(integrator)} for "
+                             f"{', '.join(same) or integrator} but the step or tolerance of another kind for "
+                             f"{', '.join(other)}; compare adaptive and fixed-step integrators in separate studies"])
+    values = tols if tols is not None else [_own_tolerance(base)[0]]
 
     def value_sets(method, value):
         # the tolerance (or step) of a method's own integrator, when it names one
@@ -660,7 +716,6 @@ def compare(case: str | Path | dict | Case, methods: Sequence[str] | None = None
             except CaseError as exc:
                 for p in exc.problems:
                     failures.setdefault(p, {}).setdefault(method, []).append(value)
-    skipped = {}
     if failures and methods is None:
         # a default comparison leaves out the methods this case does not allow
         bad = {m for per_method in failures.values() for m in per_method}
@@ -673,15 +728,16 @@ def compare(case: str | Path | dict | Case, methods: Sequence[str] | None = None
         raise CaseError([_prefix(per_method, chosen, values, tols is not None, integrator) + p
                          for p, per_method in failures.items()])
     try:
-        ref_case = _make_case(case, [*overrides, f"stabilization.method={reference.method}",
-                                     f"simulation.integrator={reference.integrator}",
-                                     *_tolerance_sets(reference.integrator, reference.tol)])
+        ref_case = _make_case(case, [*overrides, f"stabilization.method={reference.run_method}",
+                                     f"simulation.integrator={reference.run_integrator}",
+                                     *_tolerance_sets(reference.run_integrator, reference.tol)])
     except CaseError as exc:
         raise CaseError([f"reference run ({reference.describe()}): {p}" for p in exc.problems]) from None
 
-    ref_run = Run(method=reference.method, tolerance=reference.tol, case_yaml=ref_case.to_yaml())
-    runs = [Run(method=m, tolerance=v, case_yaml=cases[m, v].to_yaml()) for m in chosen for v in values]
-    tasks = [(ref_run, ref_case), *((r, cases[r.method, r.tolerance]) for r in runs)]
+    ref_run = Run(reference.method, *_own_tolerance(ref_case), case_yaml=ref_case.to_yaml())
+    # each run's own setting: the study's value, or the case's (or its own integrator's) setting
+    runs = [Run(m, *_own_tolerance(cases[m, v]), case_yaml=cases[m, v].to_yaml()) for m in chosen for v in values]
+    tasks = [(ref_run, ref_case), *((run, cases[m, v]) for run, (m, v) in zip(runs, product(chosen, values)))]
     n_jobs = min(jobs, len(tasks)) if jobs is not None else max(1, min(len(tasks), os.cpu_count() or 1))
     with _InterruptFlag() as flag:
         interrupted = (_run_serial if n_jobs == 1 else _run_parallel)(tasks, n_jobs, progress, flag)
@@ -691,7 +747,8 @@ def compare(case: str | Path | dict | Case, methods: Sequence[str] | None = None
     return Comparison(
         source=base.source, case_yaml=base.to_yaml(), mechanism=base.mechanism.name,
         coordinate_units=list(base.mechanism.coordinate_units), methods=chosen,
-        tolerances=tols, tolerance_kind=_tolerance_kind(integrator), integrator=integrator,
+        tolerances=tols, tolerance_kind=_own_tolerance(base)[1] if tols is None else _tolerance_kind(integrator),
+        integrator=integrator,
         reference=reference, reference_run=ref_run, runs=runs, jobs=n_jobs, skipped=skipped,
         interrupted=interrupted, setting=_setting_text(base),
     )
@@ -779,6 +836,9 @@ def _run_parallel(tasks, n_jobs, progress, flag) -> bool:
             if progress is not None:
                 progress(run, done, total)
     except KeyboardInterrupt:
+        for future, run in futures.items():  # runs that finished before the interrupt keep their results
+            if run.result is None and future.done() and not future.cancelled() and future.exception() is None:
+                run.set_result(*future.result())
         processes = list((getattr(executor, "_processes", None) or {}).values())
         executor.shutdown(wait=False, cancel_futures=True)
         for process in processes:

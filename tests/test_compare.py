@@ -271,6 +271,38 @@ def test_a_method_may_name_its_own_integrator():
         compare(PENDULUM, methods=["ggl"], jobs=1)  # named without an integrator: strict
 
 
+def test_each_row_records_the_setting_its_own_integrator_ran_at(tmp_path):
+    # an RK4 case: the RK4 rows ran at the step, the Radau row at the case's rtol and atol
+    out = tmp_path / "c.h5"
+    c = compare(PENDULUM, methods=["none", "none:Radau"], jobs=1,
+                overrides=["simulation.t_end=0.1", "simulation.integrator=RK4", "simulation.step=1e-2",
+                           "simulation.rtol=1e-6", "simulation.atol=1e-9"])
+    assert [(r.tolerance, r.tolerance_kind) for r in c.runs] == [(1e-2, "step"), (1e-6, "rtol")]
+    assert "rtol 1e-06" in c.table() and "step 1e-02" in c.table()
+    c.write(out)
+    table = read_comparison(out).summary
+    assert [text(k) for k in table["tolerance_kind"]] == ["step", "rtol"]
+    np.testing.assert_array_equal(table["tolerance"], [1e-2, 1e-6])
+
+
+def test_a_study_does_not_mix_steps_and_tolerances():
+    with pytest.raises(CaseError, match="separate studies"):
+        compare(PENDULUM, methods=["none", "none:RK4"], tolerances=[1e-3], jobs=1)
+    # by default, the methods of the other kind are left out, and say why
+    c = compare(PENDULUM, tolerances=[1e-4], jobs=1,
+                overrides=["simulation.t_end=0.05", "simulation.integrator=RK4"])
+    assert "ggl:Radau" in c.skipped and "one study sets one kind" in c.skipped["ggl:Radau"]
+    assert {r.tolerance_kind for r in c.runs} == {"step"}
+
+
+def test_the_reference_may_name_its_own_integrator():
+    c = compare(PENDULUM, methods=["none"], overrides=["simulation.t_end=0.1"], jobs=1,
+                reference=ReferenceSettings(method="projection:Radau", tol=1e-10))
+    assert c.reference_run.ok
+    assert yaml.safe_load(c.reference_run.result.case_yaml)["simulation"]["integrator"] == "Radau"
+    assert "projection, Radau, rtol = atol = 1e-10" in c.table()
+
+
 # --------------------------------------------------------------------------- bad input
 
 

@@ -188,11 +188,13 @@ COMPARISON_KIND = "comparison"
 COMPARISON_RESERVED = ("reference", "summary", "work_precision")
 
 #: column of a comparison table -> unit (the ``units`` attribute of its dataset). The
-#: tolerance's unit depends on the integrator: see the root attribute ``tolerance_kind``.
+#: tolerance's unit depends on the run's integrator: see the column ``tolerance_kind``.
 COMPARISON_UNITS: dict[str, str] = {
     "method": "",
-    "tolerance": "rtol = atol [1] for adaptive integrators, simulation.step [s] for fixed-step ones "
-                 "(root attribute tolerance_kind)",
+    "tolerance": "rtol (= atol) [1] for adaptive integrators, simulation.step [s] for fixed-step ones "
+                 "(column tolerance_kind)",
+    "tolerance_kind": "what tolerance is for the run: rtol=atol, rtol (atol differs: see the run's case) "
+                      "or step [s]",
     "status": "",
     "message": "",
     "max_phi": "unit of the constraint functions: max over the run and the constraints of |Phi_i|",
