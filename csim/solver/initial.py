@@ -1,11 +1,8 @@
 """Consistent initial conditions: Phi(q0) = 0 and Phi_q(q0) qd0 = 0.
 
 Given the independent coordinates u and velocities ud, Newton-Raphson solves Phi(u, v) = 0
-for the dependent coordinates v,
-
-    Phi_v(q_i) (v_{i+1} - v_i) = -Phi(q_i),
-
-and a linear solve gives the dependent velocities, Phi_v vd = -Phi_u ud.
+for the dependent coordinates v, and a linear solve gives the dependent velocities,
+Phi_v vd = -Phi_u ud (:mod:`csim.solver.newton`).
 """
 from __future__ import annotations
 
@@ -15,6 +12,10 @@ import numpy as np
 
 from csim.errors import SimulationFailure
 from csim.model.numeric import NumericModel
+from csim.solver.newton import DependentSolveError, dependent_velocities, solve_dependent
+
+#: the dependent block Phi_v counts as singular beyond this 2-norm condition number
+MAX_CONDITION = 1e12
 
 
 @dataclass
@@ -70,40 +71,32 @@ def consistent_initial_state(model: NumericModel, par: np.ndarray, independent: 
         q[i] = independent.get(name, guess.get(name, 0.0))
     dep_names = ", ".join(names[i] for i in v)
 
-    def phi_v_at(q_):
-        phi_v = model.phi_q(q_, par)[:, v]
-        if np.linalg.cond(phi_v) > 1e12:
-            raise SimulationFailure(
-                f"initial conditions: the constraint Jacobian with respect to the dependent "
-                f"coordinates ({dep_names}) is singular at q = {_fmt(names, q_)}; the given "
-                f"independent coordinates cannot drive the mechanism here, or the guess is poor"
-            )
-        return phi_v
+    def singular(q_):
+        return SimulationFailure(
+            f"initial conditions: the constraint Jacobian with respect to the dependent "
+            f"coordinates ({dep_names}) is singular at q = {_fmt(names, q_)}; the given "
+            f"independent coordinates cannot drive the mechanism here, or the guess is poor")
 
-    residual = np.inf
-    for iteration in range(max_iter + 1):
-        phi = model.phi(q, par)
-        residual = float(np.max(np.abs(phi))) if phi.size else 0.0
-        if residual <= tol:
-            break
-        if iteration == max_iter:
-            per_eq = ", ".join(f"Phi[{i}] = {val:.3e}" for i, val in enumerate(phi))
-            raise SimulationFailure(
-                f"initial conditions: Newton-Raphson did not converge in {max_iter} iterations "
-                f"(residuals {per_eq}; last q = {_fmt(names, q)}); the mechanism may not "
-                f"assemble at the given independent coordinates, or initial.guess is poor"
-            )
-        # Newton step on the dependent coordinates
-        q[v] -= np.linalg.solve(phi_v_at(q), phi)
-        if not np.all(np.isfinite(q)):
-            raise SimulationFailure("initial conditions: Newton-Raphson diverged (non-finite coordinates)")
+    try:
+        solution = solve_dependent(model, par, q, v, tol, max_iter, max_condition=MAX_CONDITION)
+    except DependentSolveError as exc:
+        if exc.reason == "singular":
+            raise singular(exc.q) from None
+        if exc.reason == "non_finite":
+            raise SimulationFailure("initial conditions: Newton-Raphson diverged (non-finite coordinates)") from None
+        per_eq = ", ".join(f"Phi[{i}] = {val:.3e}" for i, val in enumerate(exc.phi))
+        raise SimulationFailure(
+            f"initial conditions: Newton-Raphson did not converge in {max_iter} iterations "
+            f"(residuals {per_eq}; last q = {_fmt(names, exc.q)}); the mechanism may not "
+            f"assemble at the given independent coordinates, or initial.guess is poor") from None
+    q, phi_q = solution.q, solution.phi_q
+    if np.linalg.cond(phi_q[:, v]) > MAX_CONDITION:
+        raise singular(q)
     qd = np.zeros(m)
     for name, value in velocities.items():
         qd[names.index(name)] = value
-    # Phi_v vd = -Phi_u ud
-    phi_q = model.phi_q(q, par)
-    qd[v] = np.linalg.solve(phi_v_at(q), -phi_q[:, u] @ qd[u])
-    return InitialState(q=q, qd=qd, iterations=iteration, residual=residual)
+    qd = dependent_velocities(phi_q, qd, v)  # Phi_v vd = -Phi_u ud
+    return InitialState(q=q, qd=qd, iterations=solution.iterations, residual=solution.residual)
 
 
 def _fmt(names, q):

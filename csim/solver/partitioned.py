@@ -20,7 +20,7 @@ import numpy as np
 
 from csim.errors import PartitionBreakdown, SimulationFailure
 from csim.solver.formulations import choose_independent, dependent_block_inverse
-from csim.solver.stabilizers import at_round_off
+from csim.solver.newton import DependentSolveError, dependent_velocities, solve_dependent
 from csim.solver.system import ConstrainedSystem
 
 
@@ -76,38 +76,29 @@ class PartitionedSystem(ConstrainedSystem):
 
     def to_full(self, y: np.ndarray) -> np.ndarray:
         """[q, qd, W] with v solved from Phi(u, v) = 0 and vd from Phi_q qd = 0."""
-        model, par, tol = self.model, self.par, self.stabilizer.tol
         n, u, v = self.n, self.independent, self.dependent
         q = self._q.copy()
         q[u] = y[:n]
-        # Newton-Raphson on v: Phi_v dv = -Phi(u, v)
-        for _ in range(self.stabilizer.max_iter + 1):
-            phi = model.phi(q, par)
-            phi_q = model.phi_q(q, par)
-            if not np.all(np.isfinite(phi)):
-                break
-            if np.max(np.abs(phi)) <= tol:
-                break
-            try:
-                dv = np.linalg.solve(phi_q[:, v], phi)
-            except np.linalg.LinAlgError:
-                raise PartitionBreakdown(f"minimal: the dependent block Phi_v is singular at q = {q}") from None
-            q[v] -= dv
-            if at_round_off(dv, q):  # converged to the round-off of Phi at these coordinates
-                phi_q = model.phi_q(q, par)
-                break
-        else:
+        try:
+            solution = solve_dependent(self.model, self.par, q, v, self.stabilizer.tol, self.stabilizer.max_iter)
+        except DependentSolveError as exc:
+            if exc.reason == "non_finite":
+                raise SimulationFailure(f"blow-up: non-finite constraint residual at independent coordinates "
+                                        f"{y[:n]}") from None
+            if exc.reason == "singular":
+                raise PartitionBreakdown(f"minimal: the dependent block Phi_v is singular at q = {exc.q}") from None
             raise PartitionBreakdown(
-                f"minimal: Newton-Raphson for the dependent coordinates did not reach max |Phi| <= {tol:g} in "
-                f"{self.stabilizer.max_iter} iterations (max |Phi| = {np.max(np.abs(phi)):.3e}); the mechanism "
-                f"cannot be assembled at the independent coordinates {y[:n]}")
-        if not np.all(np.isfinite(phi)):
-            raise SimulationFailure(f"blow-up: non-finite constraint residual at independent coordinates {y[:n]}")
-        self._q = q
-        # Phi_v vd = -Phi_u ud
-        qd = np.empty(self.m)
+                f"minimal: Newton-Raphson for the dependent coordinates did not reach max |Phi| <= "
+                f"{self.stabilizer.tol:g} in {self.stabilizer.max_iter} iterations (max |Phi| = "
+                f"{np.max(np.abs(exc.phi)):.3e}); the mechanism cannot be assembled at the independent "
+                f"coordinates {y[:n]}") from None
+        self._q = q = solution.q
+        qd = np.zeros(self.m)
         qd[u] = y[n:2 * n]
-        qd[v] = -np.linalg.solve(phi_q[:, v], phi_q[:, u] @ y[n:2 * n])
+        try:
+            qd = dependent_velocities(solution.phi_q, qd, v)  # Phi_v vd = -Phi_u ud
+        except np.linalg.LinAlgError:
+            raise PartitionBreakdown(f"minimal: the dependent block Phi_v is singular at q = {q}") from None
         return np.concatenate((q, qd, y[2 * n:]))
 
     def rhs(self, t: float, y: np.ndarray, mode: np.ndarray) -> np.ndarray:

@@ -33,16 +33,7 @@ import inspect
 import numpy as np
 
 from csim.errors import SimulationFailure
-
-
-def at_round_off(dq: np.ndarray, q: np.ndarray) -> bool:
-    """Whether a Newton correction dq is down to the round-off of q (nothing left to gain).
-
-    Phi evaluated at large angles (a crank after many turns) carries a round-off of about
-    eps |q|, so a fixed tolerance on |Phi| can become unreachable; the size of the step
-    tells when the iteration has converged anyway.
-    """
-    return bool(np.max(np.abs(dq), initial=0.0) <= 8 * np.finfo(float).eps * max(1.0, np.max(np.abs(q))))
+from csim.solver.newton import at_round_off
 
 
 class Stabilizer:
