@@ -14,7 +14,15 @@ from __future__ import annotations
 
 import sympy as sp
 
-from csim.model.definition import Drawing, MechanismDefinition, Observable, Parameter, PlanarBody
+from csim.model.definition import (
+    DeclaredFigure,
+    Drawing,
+    MechanismDefinition,
+    Observable,
+    Panel,
+    Parameter,
+    PlanarBody,
+)
 
 PARAMETERS = [
     Parameter("m", 1.0, "kg", "bob mass", strictly_positive=True),
@@ -45,4 +53,10 @@ def definition() -> MechanismDefinition:
         default_independent={"x": 0.5},
         default_independent_velocities={"x": 0.0},
         default_guess={"y": -1.0},
+        figures=[
+            DeclaredFigure("angle", "Pendulum angle and angular velocity",
+                           panels=(Panel(("observable:angle",), ylabel="angle from the downward vertical"),
+                                   Panel(("observable_rate:angle",), ylabel="angular velocity"))),
+            DeclaredFigure("configurations", "The pendulum at six instants", snapshots=6),
+        ],
     )

@@ -146,6 +146,67 @@ class Observable:
     description: str
 
 
+@dataclass(frozen=True)
+class Panel:
+    """One axes of a declared figure: curves that share a y axis.
+
+    Parameters
+    ----------
+    series : tuple of str
+        What to plot against time, each a series name ``KIND:NAME`` of
+        :mod:`csim.plot.series`: ``q:NAME``, ``qd:NAME``, ``qdd:NAME`` (a coordinate, its
+        velocity or acceleration), ``observable:NAME``, ``observable_rate:NAME``,
+        ``phi:I`` / ``phi_dot:I`` / ``lambda:I`` (constraint I, counted from 1; ``phi:max``
+        and ``phi_dot:max`` are the largest magnitude over the constraints), ``load:NAME``,
+        ``work:NAME``, ``energy:kinetic|potential|balance_error``. The prefix ``change:``
+        plots the change since t = 0 (``change:observable:ram_x``).
+    labels : tuple of str
+        Legend labels, one per series (empty: automatic; no legend for a single series).
+    ylabel : str
+        Name of the plotted quantity for the y-axis label; its unit is appended from the
+        series (e.g. ``"crank angular velocity"`` becomes ``crank angular velocity [rad/s]``).
+    log : bool
+        Logarithmic y axis (magnitudes are plotted, e.g. of constraint errors).
+    """
+
+    series: tuple[str, ...]
+    labels: tuple[str, ...] = ()
+    ylabel: str = ""
+    log: bool = False
+
+
+@dataclass(frozen=True)
+class DeclaredFigure:
+    """A figure a mechanism asks for (e.g. a figure of its paper), built by ``csim plot``.
+
+    Either time histories (``panels``, stacked, sharing the time axis) or the mechanism
+    drawn at several instants (``snapshots`` > 0).
+
+    Parameters
+    ----------
+    name : str
+        File name stem and ``--only`` name, e.g. ``"crank_velocity"``.
+    title : str
+        Figure title, e.g. ``"Crank angular velocity"``.
+    panels : tuple of Panel
+    snapshots : int
+        Draw the mechanism at this many instants (0: a time-history figure).
+    cycle : str
+        For snapshots: a coordinate whose first full turn (2 pi) is the cycle the instants
+        are spread over (the crank of a linkage); empty, or no full turn in the run: the
+        whole run.
+    reference : str
+        Where the figure comes from, shown in the title (e.g. ``"paper fig. H.2"``).
+    """
+
+    name: str
+    title: str
+    panels: tuple[Panel, ...] = ()
+    snapshots: int = 0
+    cycle: str = ""
+    reference: str = ""
+
+
 @dataclass
 class MechanismDefinition:
     """A holonomic, scleronomic mechanism in redundant coordinates.
@@ -175,6 +236,9 @@ class MechanismDefinition:
         ``default_independent_velocities``) for ``initial`` in a case file.
     default_guess : dict name -> float
         Newton start values for the dependent coordinates (select the assembly branch).
+    figures : list of DeclaredFigure
+        Mechanism-specific figures of ``csim plot`` (e.g. the paper's), besides the ones
+        every mechanism gets (coordinates, velocities, constraints, energy, multipliers).
     """
 
     name: str
@@ -192,6 +256,7 @@ class MechanismDefinition:
     default_independent: dict[str, float] = field(default_factory=dict)
     default_independent_velocities: dict[str, float] = field(default_factory=dict)
     default_guess: dict[str, float] = field(default_factory=dict)
+    figures: list[DeclaredFigure] = field(default_factory=list)
 
     @property
     def coordinate_names(self) -> list[str]:

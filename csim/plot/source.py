@@ -1,0 +1,260 @@
+"""What a figure needs from a result file: the run, its mechanism, parameters and units.
+
+A result file (``csim run``) holds one run; a comparison file (``csim compare``) one run
+per method plus a reference run. Each run stores its validated case as YAML, from which
+the mechanism definition (drawing, declared figures, units) and the parameter values are
+rebuilt here; no model code is generated.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import h5py
+import numpy as np
+import sympy as sp
+
+from csim.case import parse_yaml, validate_case
+from csim.errors import CsimError, ResultFileError
+from csim.io.hdf5 import COMPARISON_KIND, ComparisonFile, read_comparison, read_result
+from csim.mechanisms import MECHANISMS, get_mechanism
+from csim.model.definition import MechanismDefinition
+from csim.result import Result
+
+#: kinds of result file
+RUN, COMPARISON = "run", "comparison"
+
+
+def file_kind(path: str | Path) -> str:
+    """``"run"`` for a ``csim run`` file, ``"comparison"`` for a ``csim compare`` file.
+
+    Raises
+    ------
+    ResultFileError
+        When ``path`` is missing or not a readable HDF5 file.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ResultFileError(f"{path}: no such result file")
+    try:
+        with h5py.File(path, "r") as fh:
+            kind = fh.attrs.get("kind", "")
+    except OSError as exc:
+        raise ResultFileError(f"{path}: not a readable HDF5 file ({exc})") from None
+    kind = kind.decode() if isinstance(kind, bytes) else str(kind)
+    return COMPARISON if kind == COMPARISON_KIND else RUN
+
+
+@dataclass
+class RunData:
+    """One run and what is needed to label and draw it.
+
+    Attributes
+    ----------
+    result : Result
+    path : Path
+        The file it was read from.
+    group : str
+        Its group in a comparison file (``""`` for a single-run file).
+    definition : MechanismDefinition or None
+        The mechanism (None when the file names a mechanism this csim does not know).
+    parameters : dict of str -> float
+        Parameter values of the run (SI units).
+    case : dict
+        The run's case as stored in the file (empty when it cannot be read).
+    coordinate_units : list of str, length m
+    constraint_units : list of str, length r
+        Unit of each constraint function (``""`` for a dimensionless one).
+    """
+
+    result: Result
+    path: Path
+    group: str = ""
+    definition: MechanismDefinition | None = None
+    parameters: dict[str, float] = field(default_factory=dict)
+    case: dict = field(default_factory=dict)
+    coordinate_units: list[str] = field(default_factory=list)
+    constraint_units: list[str] = field(default_factory=list)
+
+    @property
+    def method(self) -> str:
+        """The stabilization method of the run (``""`` when unknown)."""
+        return str(self.case.get("stabilization", {}).get("method", ""))
+
+    def describe(self) -> str:
+        """One line naming the run: mechanism, method, integrator and tolerance, status."""
+        parts = [self.result.mechanism]
+        sim = self.case.get("simulation", {})
+        if self.method:
+            parts.append(f"stabilization: {self.method}")
+        if sim.get("integrator"):
+            integ = sim["integrator"]
+            if integ == "RK4":
+                parts.append(f"RK4, h = {sim.get('step', float('nan')):g} s")
+            elif sim.get("rtol") == sim.get("atol"):
+                parts.append(f"{integ}, rtol = atol = {sim.get('rtol', float('nan')):g}")
+            else:
+                parts.append(f"{integ}, rtol = {sim.get('rtol', float('nan')):g}, "
+                             f"atol = {sim.get('atol', float('nan')):g}")
+        text = ", ".join(parts)
+        if not self.result.ok:
+            message = self.result.message
+            text += f" (failed: {message[:60] + '...' if len(message) > 60 else message})"
+        return text
+
+
+def _coordinate_units(path: Path, group: str, m: int, definition: MechanismDefinition | None) -> list[str]:
+    try:
+        with h5py.File(path, "r") as fh:
+            units = fh[group or "/"]["q"].attrs.get("units")
+        if units is not None and np.ndim(units) == 1 and len(units) == m:
+            return [u.decode() if isinstance(u, bytes) else str(u) for u in units]
+    except (OSError, KeyError):
+        pass
+    if definition is not None and len(definition.coordinate_units) == m:
+        return list(definition.coordinate_units)
+    return [""] * m
+
+
+def constraint_units(definition: MechanismDefinition, parameters: dict[str, float]) -> list[str]:
+    """Unit of each constraint function, found by dimensional analysis.
+
+    Lengths (parameters and coordinates in m) are doubled at a generic configuration: a
+    constraint that doubles is in m, one that does not change is dimensionless, one that
+    grows by 2^k is in m^k. A constraint that scales otherwise gets ``""``.
+
+    Returns
+    -------
+    list of str, length r
+    """
+    q_syms, p_syms = definition.coordinates, definition.parameter_symbols
+    try:
+        f = sp.lambdify([q_syms, p_syms], list(definition.constraints), modules="math")
+    except Exception:  # an expression lambdify cannot print: no units rather than no figures
+        return [""] * len(definition.constraints)
+    par = np.array([float(parameters.get(p.name, p.default)) for p in definition.parameters])
+    is_length_par = np.array([p.unit == "m" for p in definition.parameters], dtype=bool)
+    is_length_q = np.array([u == "m" for u in definition.coordinate_units], dtype=bool)
+    units = []
+    for i in range(len(definition.constraints)):
+        unit = ""
+        for trial in range(3):
+            q = 0.37 + 0.29 * np.arange(len(q_syms)) + 0.11 * trial
+            try:
+                base = f(list(q), list(par))[i]
+                scaled = f(list(np.where(is_length_q, 2 * q, q)), list(np.where(is_length_par, 2 * par, par)))[i]
+            except (ValueError, ZeroDivisionError, OverflowError, TypeError):
+                continue
+            if not (math.isfinite(base) and math.isfinite(scaled)) or abs(base) < 1e-9:
+                continue
+            ratio = scaled / base
+            k = math.log2(ratio) if ratio > 0 else float("nan")
+            if math.isfinite(k) and abs(k - round(k)) < 1e-9:
+                k = round(k)
+                unit = "" if k == 0 else "m" if k == 1 else f"m^{k}"
+            break
+        units.append(unit)
+    return units
+
+
+def _definition(result: Result) -> tuple[MechanismDefinition | None, dict[str, float], dict]:
+    """The run's mechanism and parameters, from the case stored in the file."""
+    case: dict = {}
+    try:
+        data = parse_yaml(result.case_yaml, "case") if result.case_yaml else None
+        case = data if isinstance(data, dict) else {}
+    except CsimError:
+        case = {}
+    if result.mechanism not in MECHANISMS:
+        return None, {}, case
+    try:
+        validated = validate_case(case, source="case stored in the result file")
+        return validated.mechanism, validated.parameters, validated.data
+    except CsimError:  # a case from another csim version: the mechanism's defaults
+        definition = get_mechanism(result.mechanism)
+        given = (case.get("mechanism") or {}).get("parameters") or {}
+        params = {p.name: float(given.get(p.name, p.default)) if isinstance(given.get(p.name, p.default),
+                                                                           (int, float)) else p.default
+                  for p in definition.parameters}
+        return definition, params, case
+
+
+def run_data(result: Result, path: str | Path, group: str = "") -> RunData:
+    """Wrap a run read from ``path`` (group ``group`` of a comparison file)."""
+    path = Path(path)
+    definition, parameters, case = _definition(result)
+    m, r = result.q.shape[1], result.phi.shape[1]
+    c_units = [""] * r
+    if definition is not None and len(definition.constraints) == r:
+        c_units = constraint_units(definition, parameters)
+    return RunData(result=result, path=path, group=group, definition=definition, parameters=parameters, case=case,
+                   coordinate_units=_coordinate_units(path, group, m, definition), constraint_units=c_units)
+
+
+def load_run(path: str | Path, group: str | None = None) -> RunData:
+    """Read one run: a single-run file, or the group ``group`` of a comparison file.
+
+    Raises
+    ------
+    ResultFileError
+        Missing or unreadable file, missing group, or a comparison file without ``group``.
+    """
+    group = group or ""
+    result = read_result(path, group=group or "/")
+    return run_data(result, path, group.strip("/"))
+
+
+@dataclass
+class ComparisonData:
+    """A comparison file: its tables and settings, and every run in it.
+
+    Attributes
+    ----------
+    file : ComparisonFile
+        Tables (``summary``, ``work_precision``) and root attributes.
+    runs : dict of str -> RunData
+        Method -> its run (the file's method groups, in the order compared).
+    reference : RunData or None
+    """
+
+    file: ComparisonFile
+    runs: dict[str, RunData]
+    reference: RunData | None = None
+
+    @property
+    def path(self) -> Path:
+        return self.file.path
+
+    @property
+    def tolerances(self) -> list[float]:
+        """The tolerances of the study (empty without one)."""
+        return [float(t) for t in np.atleast_1d(self.file.attrs.get("tolerances", []))]
+
+    def describe(self) -> str:
+        """One line: mechanism, integrator, and the setting of the runs in the method groups
+        (the case's own, or the tightest of a tolerance study)."""
+        a = self.file.attrs
+        parts = [str(a.get("mechanism", "")), str(a.get("integrator", ""))]
+        if self.tolerances:
+            kind = str(a.get("tolerance_kind", "rtol=atol")).replace("=", " = ")
+            parts.append(f"{kind} = {min(self.tolerances):g}")
+        elif a.get("setting"):
+            parts.append(str(a["setting"]))
+        return ", ".join(p for p in parts if p)
+
+
+def load_comparison(path: str | Path) -> ComparisonData:
+    """Read a comparison file: its tables and the run of every method and the reference.
+
+    Raises
+    ------
+    ResultFileError
+        Missing or unreadable file, or not a comparison file.
+    """
+    cmp = read_comparison(path)
+    runs = {m: run_data(read_result(cmp.path, group=m), cmp.path, m) for m in cmp.methods}
+    reference = None
+    if cmp.has_reference:
+        reference = run_data(read_result(cmp.path, group="reference"), cmp.path, "reference")
+    return ComparisonData(file=cmp, runs=runs, reference=reference)
