@@ -74,3 +74,21 @@ def test_ggl_restarts_a_switching_event_with_the_new_modes_multipliers():
     np.testing.assert_allclose(phi_q @ qdd, system.model.gamma(q, v, system.par), atol=1e-9)
     assert not np.allclose(lam, x[2 * m + k + r:])  # the old mode's lambda would not do
     assert np.all(x_new[2 * m + k:2 * m + k + r] == 0.0)  # mu = 0
+
+
+def test_ggl_converges_where_the_constraints_round_off_exceeds_atol():
+    # a 1 km pendulum: Phi = (x^2 + y^2 - L^2) / (2 L) carries a round-off of about eps L =
+    # 2e-13 m, which the multipliers' Newton increments turn into noise of 2e-3 in units of
+    # atol = 1e-10; the iteration took that noise for divergence and the step collapsed
+    # (at t = 5.9 s) until increments at the round-off of F counted as converged
+    L = 1000.0
+    case = load_case(CONFIGS / "pendulum.yaml", [*GGL, "simulation.rtol=1e-10", "simulation.atol=1e-10",
+                                                  "simulation.t_end=20", f"mechanism.parameters={{L: {L}}}",
+                                                  "initial.q_offset={}", f"initial.q={{x: {0.5 * L}}}",
+                                                  f"initial.guess={{y: {-L}}}"])
+    res = run_case(case)
+    assert res.ok, res.message
+    assert res.max_phi < 1e-9  # |Phi| at its round-off, 1e-12 relative to L
+    # the period of a 1 km pendulum swinging 30 degrees is about 66 s: 20 s is a third of it
+    theta = np.arctan2(res.q[:, 0], -res.q[:, 1])
+    assert theta[0] == pytest.approx(np.pi / 6, abs=1e-12) and theta[-1] < theta[0]

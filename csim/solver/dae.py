@@ -93,6 +93,9 @@ JAC_ALGEBRAIC_THRESHOLD = 1e-3
 # Absolute residual an algebraic row can be driven to in floating point: this many eps
 # times the size of its terms, |J_alg| |y| (used where that is above `algebraic_tol`).
 ROUNDOFF_FACTOR = 100
+# Round-off of F, in eps times the size of its terms |J| |y|, for the Newton increments it
+# alone produces (below which the iteration cannot tell convergence from noise).
+NOISE_FACTOR = 8
 
 
 def _rms(x: np.ndarray) -> np.float64:
@@ -396,6 +399,13 @@ class RadauDAE(OdeSolver):
         alg = self.algebraic
         check_alg = alg.any()
 
+        # the increments that the round-off of F alone produces, |(MU_REAL/h D - J)^-1 r| with
+        # r = NOISE_FACTOR eps |J| |y|: an iteration whose increment is down to them has
+        # converged as far as floating point allows (with tight tolerances, the round-off of
+        # Phi at large coordinates turns into multiplier increments of about r / (h atol))
+        noise = np.abs(lu_solve(LU_real, NOISE_FACTOR * EPS * (np.abs(self.J) @ np.abs(y)), check_finite=False))
+        noise_norm = _rms(noise / scale)
+
         W = TI @ Z0
         Z = Z0
         F = np.empty((3, n))
@@ -429,14 +439,15 @@ class RadauDAE(OdeSolver):
                 return False, k + 1, Z, rate, None, "non-finite Newton increment"
             # divergence, or convergence too slow to reach newton_tol within the limit
             # (scipy's test; not applied while polishing, where the increments are tiny)
-            if not polishing and rate is not None and (
+            at_noise = dW_norm <= noise_norm
+            if not polishing and not at_noise and rate is not None and (
                     rate >= 1 or rate ** (NEWTON_MAXITER - k) / (1 - rate) * dW_norm > self.newton_tol):
                 return False, k + 1, Z, rate, None, "iteration diverged" if rate >= 1 else "slow convergence"
 
             W += dW
             Z = T @ W
 
-            if polishing or dW_norm == 0 or (rate is not None and rate / (1 - rate) * dW_norm < self.newton_tol):
+            if polishing or at_noise or (rate is not None and rate / (1 - rate) * dW_norm < self.newton_tol):
                 if not check_alg:
                     return True, k + 1, Z, rate, None, None
                 polishing = True
