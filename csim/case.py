@@ -20,7 +20,7 @@ import re
 from collections.abc import Hashable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import yaml
@@ -44,6 +44,9 @@ from csim.solver.formulations import FORMULATIONS
 from csim.solver.integrators import DAE_INTEGRATORS, INTEGRATORS
 from csim.solver.simulate import IntegrationSettings
 from csim.solver.stabilizers import STABILIZERS, SWITCHING_FUNCTIONS
+
+if TYPE_CHECKING:
+    from csim.linkage.model import Linkage
 
 EPS = float(np.finfo(float).eps)
 
@@ -104,9 +107,19 @@ def _gain_check(value):
 #: The case-file schema (mechanism-specific parts are checked by :func:`validate_case`).
 SCHEMA = Section({
     "mechanism": Section({
-        "name": Field("string", REQUIRED, "registered mechanism", choices=lambda: sorted(MECHANISMS)),
+        # Either a registered mechanism (name), or a link-coupling description (links,
+        # couplings; see csim/linkage/ and the README), checked by csim.linkage.tables.
+        "name": Field("string", None, "registered mechanism", choices=lambda: sorted(MECHANISMS)),
         "parameters": Field("mapping", {}, "parameter values overriding the mechanism's defaults",
                              nullable=True),
+        "label": Field("string", None, "link coupling: the mechanism's name in results", nullable=True),
+        "links": Field("list", None, "link coupling: the links table, one row per link (0 = fixed)",
+                       nullable=True),
+        "couplings": Field("list", None, "link coupling: the couplings table, rows [i, k, j, m]", nullable=True),
+        "gravity": Field("list", None, "link coupling: gravity [gx, gy, gz] in the fixed frame", "m/s^2",
+                         nullable=True),
+        "drive": Field("mapping", None, "link coupling: prescribed driving joint variables, joint: value or "
+                       "expression of t (a kinematic analysis)", nullable=True),
     }, "the mechanism and its parameters"),
     "initial": Section({
         "q": Field("mapping", None, "independent coordinates, name: value [rad or m]", nullable=True),
@@ -174,6 +187,9 @@ SCHEMA = Section({
                          "unit of Phi", gt=0.0),
         "min_step": Field("number", 1e-10, "fail when an adaptive integrator accepts a shorter step "
                           "(step-size collapse)", "s", gt=0.0),
+        "backend": Field("string", "auto", "compiled (numba kernels), python (the reference path) or auto "
+                         "(compiled where supported, python otherwise); see csim.fast.support",
+                         choices=("auto", "python", "compiled")),
     }),
     "output": Section({
         "dt": Field("number", 0.01, "output sampling interval", "s", gt=0.0),
@@ -202,11 +218,19 @@ class Case:
     mechanism : MechanismDefinition
     source : str
         Where it came from (a path, or ``"<dict>"``).
+    linkage : csim.linkage.model.Linkage or None
+        What was derived from a link-coupling description (None for a registered mechanism).
     """
 
     data: dict
     mechanism: MechanismDefinition
     source: str = "<dict>"
+    linkage: Linkage | None = None
+
+    @property
+    def kinematic(self) -> bool:
+        """True for a link-coupling case with prescribed drives (a kinematic analysis)."""
+        return self.linkage is not None and bool(self.linkage.drive)
 
     @property
     def parameters(self) -> dict[str, float]:
@@ -325,10 +349,30 @@ def validate_case(data: dict, source: str = "<dict>") -> Case:
     """Validate a case given as a dict (as read from YAML); see :func:`load_case`."""
     problems: list[str] = []
     out = validate_section("", data, SCHEMA, problems)
-    name = out.get("mechanism", {}).get("name")
-    if name is None or name not in MECHANISMS:
+    section = out.get("mechanism", {})
+    name = section.get("name")
+    linkage = None
+    if name is None and not _is_linkage(section):
+        raw = data.get("mechanism")
+        if raw is None or (isinstance(raw, dict) and "name" not in raw):
+            problems.append(f"mechanism.name: missing; expected one of {', '.join(sorted(MECHANISMS))}")
         raise CaseError(problems)
-    mech = get_mechanism(name)
+    if name is not None:
+        for key in LINKAGE_KEYS:
+            if section.get(key) is not None:
+                problems.append(f"mechanism.{key}: given with mechanism.name {name!r}; expected either a registered "
+                                f"mechanism (name, parameters) or a link-coupling description (links, couplings, "
+                                f"...), not both")
+            section.pop(key, None)
+        if name not in MECHANISMS:
+            raise CaseError(problems)
+        mech = get_mechanism(name)
+    else:
+        section.pop("name", None)
+        if problems:
+            raise CaseError(problems)
+        linkage = _build_linkage(out, problems)
+        mech = linkage.definition
     _validate_parameters(out, mech, problems)
     _validate_initial(out, mech, problems)
     _validate_loads(out, mech, problems)
@@ -338,7 +382,53 @@ def validate_case(data: dict, source: str = "<dict>") -> Case:
     _validate_combination(out, problems)
     if problems:
         raise CaseError(problems)
-    return Case(data=out, mechanism=mech, source=source)
+    return Case(data=out, mechanism=mech, source=source, linkage=linkage)
+
+
+#: Keys of ``mechanism`` that belong to a link-coupling description.
+LINKAGE_KEYS = ("label", "links", "couplings", "gravity", "drive")
+
+
+def _is_linkage(section: dict) -> bool:
+    return section.get("links") is not None or section.get("couplings") is not None
+
+
+def _build_linkage(out: dict, problems: list[str]) -> Linkage:
+    """Derive the model of a link-coupling description; check what it needs to run.
+
+    With ``mechanism.drive`` the run is a kinematic analysis: ``initial.q`` and ``qd`` come
+    from the drive at t = 0 and may not be given. Without it the run is a simulation,
+    which needs mass on some link.
+    """
+    from csim.linkage.model import build_linkage
+
+    ini = out["initial"]
+    linkage = build_linkage(out["mechanism"], ini, tol=ini.get("tol") or 1e-12, max_iter=ini.get("max_iter") or 50)
+    mech = linkage.definition
+    if linkage.drive:
+        u, ud, _ = linkage.drive_function(linkage.tables.parameters)(0.0)
+        at_start = {"q": dict(zip(linkage.drive, u.tolist())), "qd": dict(zip(linkage.drive, ud.tolist()))}
+        for key in ("q", "qd"):
+            given = ini.get(key)
+            # the drive's own values at t = 0 are what a validated (stored) case holds: they may stay
+            if given is not None and not _same_values(given, at_start[key]):
+                problems.append(f"initial.{key}: got {describe(ini[key])} with mechanism.drive; the driving joint "
+                                f"variables ({', '.join(linkage.drive)}) set the motion; expected initial.{key} left "
+                                f"out (initial.guess chooses the assembly branch)")
+        mech.default_independent_velocities = at_start["qd"]
+    elif not any(link.has_mass for link in linkage.tables.links.values() if link.number != 0):
+        problems.append("mechanism.links: no link has mass or inertia, and there is no mechanism.drive; expected "
+                        "mechanism.drive (a kinematic analysis) or mass and inertia on the moving links (dynamics)")
+    return linkage
+
+
+def _same_values(given, expected: dict[str, float]) -> bool:
+    """Whether a mapping ``given`` holds exactly the keys of ``expected``, with equal values (to 1e-12)."""
+    if not isinstance(given, dict) or set(map(str, given)) != set(expected):
+        return False
+    return all(isinstance(v, (int, float)) and not isinstance(v, bool)
+               and abs(float(v) - expected[str(k)]) <= 1e-12 * max(1.0, abs(expected[str(k)]))
+               for k, v in given.items())
 
 
 def _validate_parameters(out, mech, problems):
@@ -456,6 +546,12 @@ def _validate_combination(out, problems):
         problems.append("formulation.method: got 'elimination' (string) with stabilization.method 'ggl'; GGL solves "
                         "for the multipliers as unknowns of its DAE, so there is no ODE for the elimination to "
                         "form; expected 'kkt'")
+    if out["simulation"].get("backend") == "compiled":
+        from csim.fast.support import unsupported
+
+        for reason in unsupported(out):
+            problems.append(f"simulation.backend: got 'compiled' (string) with {reason}; or set "
+                            f"simulation.backend to 'python' or 'auto'")
     if method == "projection" and integrator == "LSODA":
         problems.append("stabilization.method: got 'projection' (string) with simulation.integrator 'LSODA'; "
                         "LSODA keeps its history inside Fortran and cannot take a projected state (restarting "

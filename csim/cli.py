@@ -297,6 +297,32 @@ def animate(
         typer.echo(f"wrote {out} ({len(animation)} frames at {fps:g} fps, {animation.speed:.3g}x real time)")
 
 
+@app.command()
+def describe(
+    case: Annotated[Path, typer.Argument(help="Link-coupling case file (YAML). Example: configs/rrr3_planar.yaml",
+                                         show_default=False, metavar="CASE.yaml")],
+    latex: Annotated[bool, typer.Option("--latex", help="Print transforms and equations as LaTeX.")] = False,
+    json_: Annotated[bool, typer.Option("--json", help="Print everything as JSON (joint_variables, "
+                                        "constraints, dof, cut_joints, ...).")] = False,
+    link: Annotated[list[int] | None, typer.Option("--link", "-l", metavar="N",
+                                                   help="Show the global transform of link N; repeatable. "
+                                                        "Default: every moving link.")] = None,
+    set_: Annotated[list[str] | None, typer.Option("--set", "-s", metavar="KEY=VALUE", help=SET_HELP)] = None,
+):
+    """Show what csim derives from a link-coupling description: substructures, cut joints,
+    joint variables, global transforms, independent constraint equations, DOF, reactions.
+
+    Example: csim describe configs/rrr3_planar.yaml --link 7
+    """
+    from csim.linkage.describe import describe_main
+
+    try:
+        text = describe_main(case, latex=latex, json=json_, links=link or None, overrides=set_ or [])
+    except CsimError as exc:
+        _fail_input(exc)
+    typer.echo(text, nl=False)
+
+
 def main() -> None:
     """Console-script entry point."""
     app(prog_name="csim")

@@ -40,6 +40,7 @@ import numpy as np
 
 from csim.case import Case, apply_overrides, load_case, validate_case
 from csim.errors import CaseError
+from csim.fast import resolve_backend
 from csim.io.hdf5 import COMPARISON_RESERVED, write_comparison
 from csim.pipeline import numeric_model, run_case
 from csim.result import Result
@@ -218,6 +219,8 @@ class Comparison:
         them (method -> the validator's reason).
     interrupted : bool
         Whether Ctrl-C stopped the comparison (unfinished runs are failed rows).
+    backend_note : str
+        Why every run was put on the Python backend ("" when each ran on its own).
     setting : str
         The case's own tolerances (or step), as text, e.g. ``"rtol = 1e-08, atol = 1e-10"``.
     """
@@ -237,6 +240,7 @@ class Comparison:
     skipped: dict[str, str] = field(default_factory=dict)
     interrupted: bool = False
     setting: str = ""
+    backend_note: str = ""
 
     @property
     def method_runs(self) -> dict[str, Run]:
@@ -283,6 +287,7 @@ class Comparison:
             "wall_time": [r.wall_time for r in runs],
             "nfev": [int(r.nfev) for r in runs],
             "nsteps": [int(r.nsteps) for r in runs],
+            "backend": [r.result.backend if r.result is not None else "" for r in runs],
         }
 
     def write(self, path: str | Path) -> None:
@@ -315,6 +320,8 @@ class Comparison:
                  "final = the same at t_end",
                  f"timing:     wall time of each run in its own process, jobs = {self.jobs}"
                  + (" (parallel runs share the CPU)" if self.jobs > 1 else "")]
+        if self.backend_note:
+            lines.append(f"backend:    {self.backend_note}")
         for method, reason in self.skipped.items():
             lines.append(f"skipped:    {method}: {_short(reason, 160)}")
         if self.interrupted:
@@ -727,6 +734,15 @@ def compare(case: str | Path | dict | Case, methods: Sequence[str] | None = None
     if failures:
         raise CaseError([_prefix(per_method, chosen, values, tols is not None, integrator) + p
                          for p, per_method in failures.items()])
+    # one backend for every run, so that wall times compare methods, not backends: under
+    # `backend: auto`, a method without a compiled path (minimal, ggl) puts all on Python
+    python_only = sorted({m for (m, _), c in cases.items() if resolve_backend(c.data) == "python"}, key=chosen.index)
+    backend_note = ""
+    if python_only and len(python_only) < len(chosen):
+        on_python = [*overrides, "simulation.backend=python"]
+        cases = {(m, v): _make_case(case, [*on_python, *_method_sets(m), *value_sets(m, v)]) for (m, v) in cases}
+        backend_note = (f"python for every run ({', '.join(python_only)} has no compiled path; one backend keeps "
+                        f"the wall times comparable)")
     try:
         ref_case = _make_case(case, [*overrides, f"stabilization.method={reference.run_method}",
                                      f"simulation.integrator={reference.run_integrator}",
@@ -750,7 +766,7 @@ def compare(case: str | Path | dict | Case, methods: Sequence[str] | None = None
         tolerances=tols, tolerance_kind=_own_tolerance(base)[1] if tols is None else _tolerance_kind(integrator),
         integrator=integrator,
         reference=reference, reference_run=ref_run, runs=runs, jobs=n_jobs, skipped=skipped,
-        interrupted=interrupted, setting=_setting_text(base),
+        interrupted=interrupted, setting=_setting_text(base), backend_note=backend_note,
     )
 
 

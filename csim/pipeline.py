@@ -11,6 +11,8 @@ import numpy as np
 
 from csim.case import Case
 from csim.errors import SimulationFailure
+from csim.fast import integrate_compiled, prepare_compiled, resolve_backend
+from csim.model.codegen import definition_key
 from csim.model.numeric import NumericModel, build_numeric_model
 from csim.result import Result
 from csim.solver.formulations import make_formulation
@@ -31,10 +33,11 @@ SYSTEMS: dict[str, type[ConstrainedSystem]] = {
 
 def numeric_model(case: Case) -> NumericModel:
     """The (process-wide cached) numeric model of the case's mechanism."""
-    name = case.mechanism.name
-    if name not in _MODELS:
-        _MODELS[name] = build_numeric_model(case.mechanism)
-    return _MODELS[name]
+    # keyed by the symbolic content too: link-coupling cases share names but not models
+    key = f"{case.mechanism.name}-{definition_key(case.mechanism)}"
+    if key not in _MODELS:
+        _MODELS[key] = build_numeric_model(case.mechanism)
+    return _MODELS[key]
 
 
 def build_system(case: Case) -> ConstrainedSystem:
@@ -80,21 +83,59 @@ def initial_state(case: Case, system: ConstrainedSystem) -> np.ndarray:
 
 
 def run_case(case: Case, progress: Callable[[float], None] | None = None) -> Result:
-    """Simulate a validated case. Failures come back as a result with status "failed"."""
+    """Simulate a validated case. Failures come back as a result with status "failed".
+
+    A link-coupling case with prescribed drives is a kinematic analysis instead
+    (:func:`csim.linkage.kinematics.run_kinematics`).
+    """
+    if case.kinematic:
+        from csim.linkage.kinematics import run_kinematics
+
+        return run_kinematics(case, progress=progress)
+    system = build_system(case)  # the model: derived, or loaded from the cache (not timed)
+    settings = case.integration_settings()
     start = time.perf_counter()
-    system = build_system(case)
     try:
         y0 = initial_state(case, system)
     except SimulationFailure as exc:
         empty = Trajectory(t=np.zeros(0), y=np.zeros((0, system.n_state)),
                            mode=np.zeros((0, system.loads.n_switches), bool), status="failed", message=str(exc))
         return assemble_result(case, system, empty, time.perf_counter() - start)
-    trajectory = integrate(system, y0, case.integration_settings(), progress=progress)
-    return assemble_result(case, system, trajectory, time.perf_counter() - start)
+    backend, note = resolve_backend(case.data), ""
+    if backend == "compiled":
+        backend, note = _load_compiled(case, system, y0, settings)
+        if backend == "failed":
+            empty = Trajectory(t=np.zeros(0), y=np.zeros((0, system.n_state)),
+                               mode=np.zeros((0, system.loads.n_switches), bool), status="failed", message=note)
+            return assemble_result(case, system, empty, 0.0, backend="compiled")
+        start = time.perf_counter()  # loading (on a cold cache: compiling) the kernels is not the run's time
+    if backend == "compiled":  # numba kernels, entered once per run (csim.fast)
+        trajectory = integrate_compiled(system, y0, settings)
+        if progress is not None:
+            progress(trajectory.t[-1] if trajectory.t.size else 0.0)
+    else:
+        trajectory = integrate(system, y0, settings, progress=progress)
+    trajectory.message += note
+    return assemble_result(case, system, trajectory, time.perf_counter() - start, backend=backend)
 
 
-def assemble_result(case: Case, system: ConstrainedSystem, traj: Trajectory, wall_time: float) -> Result:
-    """Evaluate every recorded quantity at the output times of a trajectory."""
+def _load_compiled(case: Case, system: ConstrainedSystem, y0: np.ndarray, settings) -> tuple[str, str]:
+    """Load the compiled kernels: ``("compiled", "")``, or where they cannot be loaded (numba
+    missing or broken, no writable cache) ``("python", note)`` under ``backend: auto`` and
+    ``("failed", message)`` under ``backend: compiled``."""
+    try:
+        prepare_compiled(system, y0, settings)
+        return "compiled", ""
+    except Exception as exc:  # numba's errors have no common base class
+        why = f"{type(exc).__name__}: {' '.join(str(exc).split())[:300]}"
+        if case.data["simulation"]["backend"] == "compiled":
+            return "failed", f"simulation.backend 'compiled': the compiled kernels could not be loaded ({why})"
+        return "python", f" (on the Python path: the compiled kernels could not be loaded, {why})"
+
+
+def assemble_result(case: Case, system: ConstrainedSystem, traj: Trajectory, wall_time: float,
+                    backend: str = "python") -> Result:
+    """Evaluate every recorded quantity at the output times of a trajectory (``backend``: what integrated it)."""
     model, par = system.model, system.par
     N, m, r, k = traj.t.size, system.m, system.r, system.k
     o = len(case.mechanism.observables)
@@ -131,5 +172,6 @@ def assemble_result(case: Case, system: ConstrainedSystem, traj: Trajectory, wal
         status=status, message=message, wall_time=wall_time,
         nfev=traj.nfev, njev=traj.njev, nlu=traj.nlu, nsteps=traj.nsteps,
         event_times=np.asarray(traj.event_times, dtype=float), event_labels=list(traj.event_labels),
+        backend=backend,
         **arrays,
     )

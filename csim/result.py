@@ -31,6 +31,11 @@ class Result:
     wall_time : float [s], integration and post-processing
     nfev, njev, nlu, nsteps : int
     event_times : (E,) [s]; event_labels : list of str
+    backend : {"python", "compiled"}
+        What integrated the run: the Python driver or the compiled kernels (``csim.fast``).
+    run_kind : {"simulation", "kinematic"}
+        A dynamic simulation, or a kinematic analysis of prescribed motion (no forces:
+        lam, work, loads and generalized forces are NaN).
     """
 
     mechanism: str
@@ -61,6 +66,8 @@ class Result:
     nsteps: int = 0
     event_times: np.ndarray = field(default_factory=lambda: np.zeros(0))
     event_labels: list[str] = field(default_factory=list)
+    run_kind: str = "simulation"
+    backend: str = "python"
 
     @property
     def ok(self) -> bool:
@@ -106,9 +113,12 @@ class Result:
             lines.append("final qd:          " + ", ".join(f"{n} = {v:.8g}" for n, v in zip(names, self.qd[-1])))
             lines.append(f"max |Phi|:         {self.max_phi:.3e}")
             lines.append(f"max |Phi_q qd|:    {self.max_phi_dot:.3e}")
-            lines.append(f"energy balance:    {self.energy_error_relative:.3e} (max |T + V - T0 - V0 - W|"
-                         f" / {self.energy_scale:.4g} J)")
+            if self.run_kind == "kinematic":
+                lines.append("energy balance:    - (a kinematic analysis of prescribed motion: no forces)")
+            else:
+                lines.append(f"energy balance:    {self.energy_error_relative:.3e} (max |T + V - T0 - V0 - W|"
+                             f" / {self.energy_scale:.4g} J)")
         lines.append(f"events:            {len(self.event_times)}")
-        lines.append(f"wall time:         {self.wall_time:.3f} s")
+        lines.append(f"wall time:         {self.wall_time:.3f} s ({self.backend} backend)")
         lines.append(f"RHS evaluations:   {self.nfev} ({self.nsteps} steps)")
         return "\n".join(lines)

@@ -49,7 +49,7 @@ def test_minimal_case_fills_every_default(tmp_path):
     assert d["simulation"] == {
         "t_end": 5.0, "integrator": "DOP853", "rtol": 1e-8, "atol": 1e-8, "step": 1e-3,
         "max_step": None, "first_step": None, "events": True, "max_events": 100_000,
-        "max_steps": 1_000_000, "event_samples": 4, "max_phi": 0.1, "min_step": 1e-10,
+        "max_steps": 1_000_000, "event_samples": 4, "max_phi": 0.1, "min_step": 1e-10, "backend": "auto",
     }
     assert d["formulation"] == {"method": "kkt", "independent": None, "max_condition": 1e8}
     assert d["stabilization"] == {"method": "none", "d": 1.0, "w": 10.0, "Lambda": 10.0, "K": 10.0, "k": 1e-6,

@@ -91,6 +91,8 @@ def write_result_group(group: h5py.Group, result: Result, coordinate_units: list
     a["observable_names"] = np.array(result.observable_names, dtype=_STR)
     a["status"] = result.status
     a["message"] = result.message
+    a["run_kind"] = result.run_kind
+    a["backend"] = result.backend
     a["wall_time"] = result.wall_time
     for name in ("nfev", "njev", "nlu", "nsteps"):
         a[name] = int(getattr(result, name))
@@ -156,6 +158,7 @@ def read_result_group(group: h5py.Group) -> Result:
             status=_text(a["status"]), message=_text(a["message"]), wall_time=float(a["wall_time"]),
             nfev=int(a["nfev"]), njev=int(a["njev"]), nlu=int(a["nlu"]), nsteps=int(a["nsteps"]),
             event_times=ev["times"][()], event_labels=[_text(x) for x in ev["labels"][()]],
+            run_kind=_text(a.get("run_kind", "simulation")), backend=_text(a.get("backend", "python")),
         )
     except KeyError as exc:
         raise ResultFileError(f"{group.file.filename}: not a csim result (missing {exc})") from None
@@ -209,6 +212,7 @@ COMPARISON_UNITS: dict[str, str] = {
     "wall_time": "s",
     "nfev": "count of right-hand-side evaluations",
     "nsteps": "count of accepted steps",
+    "backend": "what integrated the run: python or compiled",
 }
 
 

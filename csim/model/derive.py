@@ -48,8 +48,16 @@ class DerivedModel:
     points: sp.Matrix
 
 
+#: expressions with more operations than this are left as they are: trigsimp's cost grows
+#: steeply with size (a spatial loop's gamma took more than ten minutes), and the code
+#: generator's common-subexpression elimination handles large expressions anyway
+SIMPLIFY_MAX_OPS = 300
+
+
 def _simplify(expr: sp.Expr) -> sp.Expr:
     """Cheap simplification that collapses sin^2 + cos^2 and products of angle sums."""
+    if sp.count_ops(expr) > SIMPLIFY_MAX_OPS:
+        return expr
     return sp.trigsimp(sp.expand(expr))
 
 

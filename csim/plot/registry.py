@@ -46,6 +46,18 @@ def _no_constraints(run: RunData) -> str | None:
     return None if run.result.phi.shape[1] else "the mechanism has no constraints"
 
 
+def _no_forces(run: RunData) -> str | None:
+    if run.result.run_kind == "kinematic":
+        return "a kinematic analysis of prescribed motion has no forces"
+    return _no_constraints(run)
+
+
+def _no_forces_at_all(run: RunData) -> str | None:
+    if run.result.run_kind == "kinematic":
+        return "a kinematic analysis of prescribed motion has no forces (no work, no energy balance)"
+    return None
+
+
 def _no_loads(run: RunData) -> str | None:
     return None if run.result.load_names else "the mechanism has no loads"
 
@@ -64,8 +76,9 @@ RUN_FIGURES: dict[str, FigureKind] = {k.name: k for k in (
     FigureKind("velocities", "generalized velocities qd against time", rf.velocities_figure),
     FigureKind("constraints", "constraint residuals |Phi_i| and |(Phi_q qd)_i| against time, log scale",
                rf.constraints_figure, _no_constraints),
-    FigureKind("energy", "energies, work of the loads and the energy-balance error", rf.energy_figure),
-    FigureKind("multipliers", "Lagrange multipliers against time", rf.multipliers_figure, _no_constraints),
+    FigureKind("energy", "energies, work of the loads and the energy-balance error", rf.energy_figure,
+               _no_forces_at_all),
+    FigureKind("multipliers", "Lagrange multipliers against time", rf.multipliers_figure, _no_forces),
     FigureKind("loads", "applied loads against time", rf.loads_figure, _no_loads),
     FigureKind("mechanism", "the mechanism drawn at six instants of the run", rf.snapshots_figure, _no_drawing),
 )}

@@ -86,7 +86,10 @@ class RunData:
         """One line naming the run: mechanism, method, integrator and tolerance, status."""
         parts = [self.result.mechanism]
         sim = self.case.get("simulation", {})
-        if self.method:
+        if self.result.run_kind == "kinematic":  # prescribed motion: no integrator, no stabilizer
+            parts.append("kinematic analysis of the prescribed motion")
+            sim = {}
+        elif self.method:
             parts.append(f"stabilization: {self.method}")
         if sim.get("integrator"):
             integ = sim["integrator"]
@@ -166,12 +169,12 @@ def _definition(result: Result) -> tuple[MechanismDefinition | None, dict[str, f
         case = data if isinstance(data, dict) else {}
     except CsimError:
         case = {}
-    if result.mechanism not in MECHANISMS:
-        return None, {}, case
-    try:
+    try:  # a registered mechanism, or a link-coupling description (rebuilt from its tables)
         validated = validate_case(case, source="case stored in the result file")
         return validated.mechanism, validated.parameters, validated.data
     except CsimError:  # a case from another csim version: the mechanism's defaults
+        if result.mechanism not in MECHANISMS:
+            return None, {}, case
         definition = get_mechanism(result.mechanism)
         given = (case.get("mechanism") or {}).get("parameters") or {}
         params = {p.name: float(given.get(p.name, p.default)) if isinstance(given.get(p.name, p.default),

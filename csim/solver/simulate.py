@@ -225,9 +225,9 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
                         _check_step(system, solver, settings, adaptive)
                         t_new = solver.t
                         dense, t_stop, switched = None, t_new, []
-                        event = _find_event(system, solver, mode, settings.event_samples) if locate else None
-                        if event is not None:
-                            dense, t_stop, switched = event
+                        if locate:  # its dense output (built to look inside the step) serves the samples too
+                            dense, t_event, switched = _find_event(system, solver, mode, settings.event_samples)
+                            t_stop = t_new if t_event is None else t_event
                         # sample output times in (t_old, t_stop]
                         while i_out < len(t_out) and t_out[i_out] <= t_stop:
                             if t_out[i_out] == t_new and t_stop == t_new:
@@ -239,7 +239,7 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
                             i_out += 1
                         if progress is not None:
                             progress(t_stop)
-                        if event is not None:
+                        if switched:
                             # restart from the event state with the switched conditions flipped
                             y = dense(t_stop) if t_stop < t_new else solver.y.copy()
                             t = t_stop
@@ -335,12 +335,13 @@ def _swap_state(solver, y) -> bool:
 
 
 def _find_event(system, solver, mode, n_interior):
-    """The earliest switch inside the integrator's last step, or None.
+    """The earliest switch inside the integrator's last step.
 
     The mode is checked at ``n_interior`` equally spaced points of the step's dense output
     and at its end, so that a switching function that crosses zero and back within one
     step (a velocity sign near a dead centre) is not missed. Returns
-    ``(dense, t_event, switched)``.
+    ``(dense, t_event, switched)``, or ``(dense, None, [])`` without a switch; ``dense`` is
+    the step's dense output where it was built (None otherwise), for the output samples.
     """
     t_old, t_new = solver.t_old, solver.t
     dense = solver.dense_output() if n_interior else None
@@ -354,7 +355,7 @@ def _find_event(system, solver, mode, n_interior):
             t_event, switched = _locate(system, dense, a, b, disagree, mode)
             return dense, t_event, switched
         a = b
-    return None
+    return dense, None, []
 
 
 def _locate(system, dense, t_old, t_new, candidates, mode):

@@ -1,0 +1,27 @@
+"""Compiled backend: numba model functions and integration loops, entered once per run.
+
+``simulation.backend`` in a case file selects it (see :mod:`csim.fast.support`). Modules:
+
+``support``  which cases it runs (no numba import)
+``codegen``  njit model functions generated from the symbolic derivation
+``kernels``  KKT right-hand side, stabilizers, projection, DOP853/RK4 loops with events
+``module``   generated module: cache on disk, load
+``runner``   pack a system into arrays, call the loop, build the Trajectory
+"""
+from csim.fast.support import BACKENDS, resolve_backend, unsupported
+
+__all__ = ["BACKENDS", "integrate_compiled", "prepare_compiled", "resolve_backend", "unsupported"]
+
+
+def integrate_compiled(system, y0, settings):
+    """:func:`csim.solver.simulate.integrate` in compiled code (imports numba on first use)."""
+    from csim.fast.runner import integrate_compiled as run
+
+    return run(system, y0, settings)
+
+
+def prepare_compiled(system, y0, settings):
+    """Load (on a cold cache: compile) the kernels of ``system`` without integrating."""
+    from csim.fast.runner import prepare
+
+    prepare(system, y0, settings)

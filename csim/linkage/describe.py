@@ -1,0 +1,213 @@
+"""``csim describe``: what csim derives from a link-coupling description, as text, LaTeX or JSON.
+
+The report lists the chain substructures, the cut joints, the joint variables, the global
+transforms of the links, the independent constraint equations (and which ones were removed,
+and why), the degrees of freedom and the reaction unknowns of every cut joint.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import sympy as sp
+
+from csim.errors import CaseError
+from csim.linkage.constraints import DEPENDENT, REACTIONS, ZERO
+from csim.linkage.model import Linkage, build_linkage
+from csim.schema import describe as describe_value
+from csim.schema import validate_section
+
+
+def load_linkage(path: str | Path, overrides: list[str] | None = None) -> Linkage:
+    """Read a case file and derive its link-coupling model (no run settings needed).
+
+    Raises
+    ------
+    CaseError
+        The file is missing or not valid YAML, its mechanism is not a link-coupling
+        description, or the description is invalid (the message names the table row).
+    """
+    from csim.case import SCHEMA, apply_overrides, parse_yaml
+
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise CaseError([f"{path}: no such case file"]) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise CaseError([f"{path}: cannot read the case file ({exc})"]) from None
+    data = parse_yaml(text, str(path)) or {}
+    if not isinstance(data, dict):
+        raise CaseError([f"{path}: got {describe_value(data)} at the top level; expected a mapping of sections"])
+    apply_overrides(data, overrides or [])
+    problems: list[str] = []
+    mechanism = validate_section("mechanism", data.get("mechanism"), SCHEMA.fields["mechanism"], problems)
+    initial = validate_section("initial", data.get("initial"), SCHEMA.fields["initial"], problems)
+    if not problems and mechanism.get("links") is None:
+        problems.append(f"mechanism.links: missing; csim describe works on link-coupling descriptions; expected "
+                        f"mechanism.links and mechanism.couplings (mechanism.name is "
+                        f"{describe_value(mechanism.get('name'))})")
+    if problems:
+        raise CaseError(problems)
+    return build_linkage(mechanism, initial, tol=initial["tol"], max_iter=initial["max_iter"])
+
+
+def _link_name(linkage: Linkage, n: int) -> str:
+    link = linkage.tables.links[n]
+    return f"{n} ({link.name})" if link.name else str(n)
+
+
+def report(linkage: Linkage, links: list[int] | None = None) -> dict:
+    """Everything the report shows, as plain data (strings for expressions).
+
+    Parameters
+    ----------
+    linkage : Linkage
+    links : list of int, optional
+        Links whose global transforms are listed (default: every moving link).
+
+    Raises
+    ------
+    CaseError
+        A requested link does not exist.
+    """
+    tables, topo, red = linkage.tables, linkage.topology, linkage.reduction
+    chosen = links if links else [n for n in sorted(tables.links) if n != 0]
+    bad = [n for n in chosen if n not in tables.links]
+    if bad:
+        raise CaseError([f"--link {bad[0]}: no such link; expected one of {', '.join(map(str, sorted(tables.links)))}"])
+    chains = []
+    for chain in topo.chains:
+        joints = [topo.edges[child].coupling for child in chain[1:]]
+        chains.append({"links": chain, "joints": [c.number for c in joints],
+                       "variables": [v.name for c in joints for v in topo.variables_of(c)]})
+    variables = [{"name": v.name, "unit": v.unit, "joint": v.coupling.number, "joint_name": v.coupling.name,
+                  "type": v.coupling.type, "meaning": v.meaning, "start": linkage.start[v.name],
+                  "driven": v.name in linkage.drive,
+                  "drive": str(linkage.drive[v.name]) if v.name in linkage.drive else None}
+                 for v in topo.variables]
+    kept = red.kept
+    constraints = [{"expression": str(e.expression), "latex": sp.latex(e.expression), "joint": e.coupling.number,
+                    "component": e.component, "reaction": e.reaction} for e in kept]
+    removed = [{"expression": str(e.expression), "joint": e.coupling.number, "component": e.component,
+                "why": e.status} for e in red.equations if e.status != "kept"]
+    cut = []
+    for c in topo.cut_joints:
+        eqs = [e for e in red.equations if e.coupling.number == c.number]
+        cut.append({"number": c.number, "name": c.name, "type": c.type, "between": [[c.i, c.k], [c.j, c.m]],
+                    "equations": len(eqs), "kept": sum(e.status == "kept" for e in eqs),
+                    "identically_zero": sum(e.status == ZERO for e in eqs),
+                    "dependent": sum(e.status == DEPENDENT for e in eqs),
+                    "reactions": REACTIONS[c.type],
+                    "reaction_unknowns": [e.reaction for e in eqs if e.status == "kept"]})
+    transforms = {str(n): {"name": tables.links[n].name, "matrix": [[str(x) for x in row] for row in
+                                                                    linkage.frames.links[n].tolist()],
+                           "latex": sp.latex(linkage.frames.links[n])} for n in chosen}
+    return {
+        "mechanism": tables.label,
+        "links": len(tables.links),
+        "joints": len(tables.couplings),
+        "planar": linkage.planar,
+        "substructures": chains,
+        "tree_joints": [c.number for c in topo.tree_joints],
+        "cut_joints": cut,
+        "joint_variables": variables,
+        "transforms": transforms,
+        "constraints": constraints,
+        "removed_equations": removed,
+        "dof": {"grubler_kutzbach": linkage.grubler, "formula": "planar" if linkage.planar else "spatial",
+                "actual": linkage.dof, "joint_variables": len(variables), "rank": red.generic_rank,
+                "rank_at_start": red.rank_at_start, "overconstrained": linkage.dof > linkage.grubler,
+                "configurations_sampled": red.samples},
+        "notes": list(linkage.notes),
+    }
+
+
+def _text(data: dict, linkage: Linkage) -> str:
+    tables = linkage.tables
+    out = [f"Link-coupling mechanism {data['mechanism']!r}: {data['links']} links, {data['joints']} joints"
+           f"{' (planar)' if data['planar'] else ''}", "", "Substructures (chains from the fixed link 0):"]
+    for n, chain in enumerate(data["substructures"], 1):
+        links = " - ".join(_link_name(linkage, x) for x in chain["links"])
+        out.append(f"  {n}: {links}   joints {', '.join(map(str, chain['joints']))}   "
+                   f"variables {', '.join(chain['variables'])}")
+    cuts = ", ".join(f"{c['number']}{' ' + c['name'] if c['name'] else ''} ({c['type']}, "
+                     f"({c['between'][0][0]},{c['between'][0][1]})-({c['between'][1][0]},{c['between'][1][1]}))"
+                     for c in data["cut_joints"]) or "none (a tree)"
+    out += ["", f"Cut joints: {cuts}", "", f"Joint variables ({len(data['joint_variables'])}):"]
+    width = max((len(v["name"]) for v in data["joint_variables"]), default=1)
+    for v in data["joint_variables"]:
+        c = next(c for c in tables.couplings if c.number == v["joint"])
+        drive = f"   driven: {v['drive']}" if v["driven"] else ""
+        out.append(f"  {v['name']:<{width}} [{v['unit']}]  {c.label}: {v['meaning']}; "
+                   f"at the start {v['start']:.6g}{drive}")
+    out += ["", "Global transforms T_i^(0) (rotation | origin [m]):"]
+    for n, t in data["transforms"].items():
+        out.append(f"  T_{_link_name(linkage, int(n))} =")
+        for row in t["matrix"]:
+            out.append("    [" + ", ".join(row) + "]")
+    zero = sum(1 for e in data["removed_equations"] if e["why"] == ZERO)
+    dep = sum(1 for e in data["removed_equations"] if e["why"] == DEPENDENT)
+    total = len(data["constraints"]) + len(data["removed_equations"])
+    out += ["", f"Constraint equations: {total} generated by the cut joints, {zero} hold identically, {dep} "
+                f"dependent, {len(data['constraints'])} independent:"]
+    for n, e in enumerate(data["constraints"], 1):
+        out.append(f"  ({n}) [joint {e['joint']}, {e['component']}]  {e['expression']} = 0")
+    if data["removed_equations"]:
+        out.append("  removed:")
+        for e in data["removed_equations"]:
+            out.append(f"    [joint {e['joint']}, {e['component']}] {e['why']}"
+                       + (f": {e['expression']}" if e["why"] == DEPENDENT else ""))
+    d = data["dof"]
+    out += ["", f"Degrees of freedom: Grubler-Kutzbach count ({d['formula']}) {d['grubler_kutzbach']}; actual "
+                f"{d['actual']} = {d['joint_variables']} joint variables - rank {d['rank']} of the constraint "
+                f"Jacobian (generic, over {d['configurations_sampled']} assembled configurations)"]
+    if d["overconstrained"]:
+        out.append(f"  overconstrained: the mechanism moves with {d['actual']} DOF although the count gives "
+                   f"{d['grubler_kutzbach']} (special geometry; the dependent equations were removed)")
+    if d["rank_at_start"] < d["rank"]:
+        out.append(f"  the rank drops to {d['rank_at_start']} at the given configuration (a singular position)")
+    out += ["", "Reaction unknowns per cut joint (joint frame ik; one multiplier per independent equation):"]
+    for c in data["cut_joints"]:
+        out.append(f"  joint {c['number']} {c['type']}: {', '.join(c['reactions'])}; independent: "
+                   f"{', '.join(c['reaction_unknowns']) or 'none'}")
+    if data["notes"]:
+        out += ["", "Notes:"] + [f"  {note}" for note in data["notes"]]
+    return "\n".join(out) + "\n"
+
+
+def _latex(data: dict, linkage: Linkage) -> str:
+    out = [f"% csim describe: link-coupling mechanism {data['mechanism']}",
+           r"\paragraph{Joint variables} $" + ", ".join(sp.latex(v.symbol) for v in linkage.topology.variables)
+           + "$", r"\paragraph{Global transforms}", r"\begin{align}"]
+    rows = [f"T_{{{n}}}^{{(0)}} &= {t['latex']}" for n, t in data["transforms"].items()]
+    out.append(" \\\\\n".join(rows))
+    out += [r"\end{align}", r"\paragraph{Independent constraint equations}", r"\begin{align}"]
+    out.append(" \\\\\n".join(f"{e['latex']} &= 0" for e in data["constraints"]) or "&")
+    d = data["dof"]
+    out += [r"\end{align}",
+            rf"\paragraph{{Degrees of freedom}} Grubler--Kutzbach ({d['formula']}): {d['grubler_kutzbach']}; "
+            rf"actual: {d['actual']} ({d['joint_variables']} joint variables, rank {d['rank']})."]
+    return "\n".join(out) + "\n"
+
+
+def describe_case(linkage: Linkage, latex: bool = False, as_json: bool = False, links: list[int] | None = None) -> str:
+    """The report of a derived link-coupling model: text, LaTeX (``latex``) or JSON (``as_json``)."""
+    data = report(linkage, links)
+    if as_json:
+        return json.dumps(data, indent=2) + "\n"
+    if latex:
+        return _latex(data, linkage)
+    return _text(data, linkage)
+
+
+def describe_main(path: str | Path, latex: bool = False, json: bool = False, links: list[int] | None = None,
+                  overrides: list[str] | None = None) -> str:
+    """``csim describe CASE.yaml [--latex] [--json] [--link N ...] [--set KEY=VALUE ...]``.
+
+    Raises
+    ------
+    CaseError
+        Bad input (see :func:`load_linkage`), naming the table row.
+    """
+    return describe_case(load_linkage(path, overrides), latex=latex, as_json=json, links=links)

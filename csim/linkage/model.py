@@ -1,0 +1,349 @@
+"""From the two tables to a :class:`MechanismDefinition`: the link-coupling pipeline.
+
+tables -> topology (tree, chains, cut joints, joint variables) -> frames (transforms) ->
+constraints (cut-joint equations, independent set, DOF) -> MechanismDefinition:
+
+- coordinates: the joint variables of the tree joints;
+- constraints: the independent cut-joint equations;
+- kinetic energy sum 1/2 m |v_C|^2 + 1/2 omega^T I omega over the links with mass, with
+  omega in link axes accumulated along the tree, and potential energy -sum m g . r_C;
+- observables: the global coordinates of every named point that moves;
+- a Drawing through the joint-frame origins of each link (x, y; a spatial mechanism is
+  drawn in its x-y projection).
+
+The result is handled by :mod:`csim.model` and the solvers like a hand-written mechanism.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import sympy as sp
+
+from csim.errors import CaseError
+from csim.linkage.constraints import Reduction, cut_joint_equations, is_planar, reduce_equations
+from csim.linkage.frames import Frames, build_frames
+from csim.linkage.tables import Coupling, Tables, parse_expression, parse_tables
+from csim.linkage.topology import Topology, analyse, grubler_kutzbach
+from csim.linkage.transforms import simplify_entry
+from csim.model.definition import Drawing, MechanismDefinition, Observable, Parameter
+from csim.schema import describe
+
+T = sp.Symbol("t", real=True)
+
+
+@dataclass
+class Linkage:
+    """Everything csim derives from a link-coupling description.
+
+    Attributes
+    ----------
+    tables, topology, frames, reduction
+        The stages (see the module docstring).
+    planar : bool
+    grubler : int
+        Grubler-Kutzbach mobility count (planar formula when ``planar``).
+    dof : int
+        Actual degrees of freedom: number of joint variables minus the generic rank.
+    drive : dict variable name -> sympy expression of t and parameters
+    start : dict variable name -> float
+        The assembled given configuration.
+    definition : MechanismDefinition
+    """
+
+    tables: Tables
+    topology: Topology
+    frames: Frames
+    reduction: Reduction
+    planar: bool
+    grubler: int
+    dof: int
+    drive: dict[str, sp.Expr]
+    start: dict[str, float]
+    definition: MechanismDefinition | None = None
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def variable_names(self) -> list[str]:
+        return [v.name for v in self.topology.variables]
+
+    @property
+    def driven_indices(self) -> list[int]:
+        names = self.variable_names
+        return [names.index(n) for n in self.drive]
+
+    @property
+    def equation_labels(self) -> list[str]:
+        return [e.label for e in self.reduction.kept]
+
+    def drive_function(self, parameters: dict[str, float]) -> Callable[[float], tuple]:
+        """t -> (u, ud, udd), each (d,) [rad or m, per s, per s^2], at the given parameter values."""
+        subs = {self.tables.symbols[k]: v for k, v in parameters.items() if k in self.tables.symbols}
+        exprs = [sp.sympify(e).subs(subs) for e in self.drive.values()]
+        rows = [exprs, [sp.diff(e, T) for e in exprs], [sp.diff(e, T, 2) for e in exprs]]
+        f = sp.lambdify([T], rows, "numpy")
+
+        def drive(t: float):
+            u, ud, udd = f(t)
+            return (np.array(u, dtype=float), np.array(ud, dtype=float), np.array(udd, dtype=float))
+
+        return drive
+
+
+def _resolve_drive(tables: Tables, problems: list[str]) -> tuple[dict[int, list], dict]:
+    """Drive keys naming a coupling (number or name) -> {coupling number: values per joint
+    variable (None: not driven)}; the other keys are returned as pending (variable names?)."""
+    by_name = {c.name: c for c in tables.couplings if c.name}
+    by_number = {c.number: c for c in tables.couplings}
+    out: dict[int, list] = {}
+    pending = {}
+    for key, value in tables.drive.items():
+        path = f"mechanism.drive.{key}"
+        c = by_number.get(key) if isinstance(key, int) and not isinstance(key, bool) else by_name.get(key)
+        if c is None:
+            pending[key] = value
+            continue
+        values = value if isinstance(value, list) else [value]
+        if len(values) != c.freedoms:
+            expected = "a value" if c.freedoms == 1 else f"a list of {c.freedoms} (null: not driven)"
+            problems.append(f"{path}: got {describe(value)}; {c.label} has {c.freedoms} joint variable(s); "
+                            f"expected {expected}")
+            continue
+        out[c.number] = values
+    return out, pending
+
+
+def _resolve_variable_keys(tables: Tables, per_coupling: dict[int, list], pending: dict,
+                           problems: list[str]) -> None:
+    """Drive keys that are joint-variable names (as ``csim describe`` lists them) join
+    ``per_coupling``, by their joint and slot."""
+    if not pending:
+        return
+    variables = {v.name: v for v in analyse(tables, set(per_coupling)).variables}
+    couplings = ", ".join(str(c.name or c.number) for c in tables.couplings)
+    for key, value in pending.items():
+        var = variables.get(key)
+        if var is None:
+            problems.append(f"mechanism.drive.{key}: no such joint; expected a coupling number or name "
+                            f"({couplings}) or a joint variable ({', '.join(variables)})")
+            continue
+        values = per_coupling.setdefault(var.coupling.number, [None] * var.coupling.freedoms)
+        values[var.slot] = value
+
+
+def _drive_expressions(tables, topology, per_coupling, problems) -> dict[str, sp.Expr]:
+    symbols = {**tables.symbols, "t": T}
+    drive: dict[str, sp.Expr] = {}
+    for number, values in per_coupling.items():
+        c = next(c for c in tables.couplings if c.number == number)
+        if c in topology.cut_joints:
+            problems.append(f"mechanism.drive: {c.label} closes a loop of driven joints and was cut; expected "
+                            f"driving joints that do not form a closed loop")
+            continue
+        for var, value in zip(topology.variables_of(c), values):
+            if value is None:
+                continue
+            expr = parse_expression(f"mechanism.drive.{c.name or c.number}", value, symbols, problems)
+            if expr is not None:
+                drive[var.name] = expr
+    return drive
+
+
+def _angular_velocity(kind: str, q: list, qd: list) -> sp.Matrix:
+    """Angular velocity of frame jm relative to frame ik, in frame ik axes, (3, 1)."""
+    ez, ex = sp.Matrix([0, 0, 1]), sp.Matrix([1, 0, 0])
+
+    def Rz(a):
+        return sp.Matrix([[sp.cos(a), -sp.sin(a), 0], [sp.sin(a), sp.cos(a), 0], [0, 0, 1]])
+
+    def Rx(a):
+        return sp.Matrix([[1, 0, 0], [0, sp.cos(a), -sp.sin(a)], [0, sp.sin(a), sp.cos(a)]])
+
+    if kind in ("R", "C"):
+        return qd[0] * ez
+    if kind == "P":
+        return sp.zeros(3, 1)
+    if kind == "U":
+        return qd[0] * ez + qd[1] * (Rz(q[0]) * Rx(-sp.pi / 2) * ez)
+    return qd[0] * ez + qd[1] * (Rz(q[0]) * ex) + qd[2] * (Rz(q[0]) * Rx(q[1]) * ez)
+
+
+def link_angular_velocities(topology: Topology, frames: Frames) -> dict[int, sp.Matrix]:
+    """omega_i in link i's own axes, (3, 1) [rad/s], accumulated from the root."""
+    omega = {0: sp.zeros(3, 1)}
+    for child in topology.order[1:]:
+        edge = topology.edges[child]
+        c = edge.coupling
+        vs = topology.variables_of(c)
+        w_joint = _angular_velocity(c.type, [v.symbol for v in vs], [v.velocity for v in vs])
+        A_ik = frames.local[(c.i, c.k)][:3, :3]
+        R_rel = frames.relative[child][:3, :3]  # child axes in parent axes
+        w_rel = A_ik * w_joint if edge.forward else -R_rel * A_ik * w_joint
+        omega[child] = (R_rel.T * (omega[edge.parent] + w_rel)).applyfunc(simplify_entry)
+    return omega
+
+
+def energies(tables: Tables, topology: Topology, frames: Frames) -> tuple[sp.Expr, sp.Expr]:
+    """Kinetic energy T(q, qd) and potential energy V(q) [J] of the links with mass."""
+    q = [v.symbol for v in topology.variables]
+    qd = sp.Matrix([v.velocity for v in topology.variables])
+    g = sp.Matrix(tables.gravity)
+    kinetic, potential = sp.Integer(0), sp.Integer(0)
+    omega = None
+    for number, link in sorted(tables.links.items()):
+        if number == 0 or not link.has_mass:
+            continue
+        if omega is None:
+            omega = link_angular_velocities(topology, frames)
+        r_c = (frames.links[number] * sp.Matrix([*link.com, 1]))[:3, 0].applyfunc(simplify_entry)
+        v_c = r_c.jacobian(q) * qd if q else sp.zeros(3, 1)
+        w = omega[number]
+        # contracted per link (sin^2 + cos^2 -> 1), so that the derivation starts from a short T
+        kinetic += simplify_entry(sp.Rational(1, 2) * link.mass * (v_c.T * v_c)[0]
+                                  + sp.Rational(1, 2) * (w.T * link.inertia * w)[0])
+        potential += -link.mass * (g.T * r_c)[0]
+    return kinetic, potential
+
+
+def _point_name(tables: Tables, link: int, index: int) -> str:
+    frame = tables.frame(link, index)
+    return frame.point or f"L{link}J{index}"
+
+
+def drawing_and_observables(tables: Tables, frames: Frames) -> tuple[Drawing, list[Observable]]:
+    """Joint-frame origins: drawn per link (x, y), named ones recorded as observables."""
+    points: dict[str, tuple] = {}
+    links, ground = [], []
+    observables = []
+    seen = set()
+    for number, link in sorted(tables.links.items()):
+        names = []
+        for f in link.joints:
+            name = _point_name(tables, number, f.index)
+            key = name if name not in points else f"{name}_{number}"
+            r = frames.joint_frame(number, f.index)[:3, 3]
+            points[key] = (r[0], r[1])
+            names.append(key)
+            if f.point and f.point not in seen:
+                seen.add(f.point)
+                for axis, value in zip("xyz", r):
+                    if value.free_symbols - set(tables.symbols.values()):
+                        where = f"global {axis} of point {f.point} ({tables.link_label(number)})"
+                        observables.append(Observable(f"{f.point}_{axis}", value, "m", "m/s", where))
+        if number == 0:
+            ground = names
+        else:
+            links.append(tuple(names) if len(names) > 1 else (names[0], names[0]))
+    return Drawing(points=points, links=links, ground=ground), observables
+
+
+def build_linkage(mechanism: dict, initial: dict | None = None, tol: float = 1e-12, max_iter: int = 50) -> Linkage:
+    """Derive the whole link-coupling model of a case's ``mechanism`` section.
+
+    Parameters
+    ----------
+    mechanism : dict
+        ``links``, ``couplings``, ``parameters``, optional ``gravity``, ``drive``, ``label``.
+    initial : dict, optional
+        The case's ``initial`` section: ``guess`` (start values of joint variables) and, for
+        a run without drive, ``q`` (held fixed while assembling).
+    tol, max_iter : float, int
+        Newton settings of the assembly.
+
+    Raises
+    ------
+    CaseError
+        Naming the table row: bad tables, links not connected to link 0, drives that do
+        not match the degrees of freedom, a mechanism that cannot be assembled.
+    """
+    problems: list[str] = []
+    tables = parse_tables(mechanism, problems)
+    if tables is None:
+        raise CaseError(problems)
+    per_coupling, pending = _resolve_drive(tables, problems)
+    _resolve_variable_keys(tables, per_coupling, pending, problems)
+    topology = analyse(tables, set(per_coupling))
+    drive = _drive_expressions(tables, topology, per_coupling, problems)
+    if problems:
+        raise CaseError(problems)
+    frames = build_frames(tables, topology)
+    equations = [e for c in topology.cut_joints for e in cut_joint_equations(c, frames)]
+
+    initial = initial or {}
+    names = [v.name for v in topology.variables]
+    start: dict[str, float] = {}
+    for source in ("guess", "q"):
+        for key, value in (initial.get(source) or {}).items():
+            if key in names and isinstance(value, (int, float)) and not isinstance(value, bool):
+                start[key] = float(value)
+    if drive:
+        subs = {**{tables.symbols[k]: v for k, v in tables.parameters.items()}, T: 0.0}
+        for key, expr in drive.items():
+            start[key] = float(sp.N(expr.subs(subs)))
+        fixed = list(drive)
+    else:
+        fixed = [k for k in (initial.get("q") or {}) if k in names]
+    reduction = reduce_equations(equations, topology.variables, tables, start, fixed, tol=tol, max_iter=max_iter)
+    planar = is_planar(tables, frames, topology.variables)
+    dof = len(names) - reduction.generic_rank
+    linkage = Linkage(tables=tables, topology=topology, frames=frames, reduction=reduction, planar=planar,
+                      grubler=grubler_kutzbach(tables, planar), dof=dof, drive=drive,
+                      start=dict(zip(names, reduction.q_start.tolist())), notes=list(reduction.notes))
+    if drive and len(drive) != dof:
+        raise CaseError([f"mechanism.drive: got {len(drive)} driving joint variable(s) ({', '.join(drive)}); the "
+                         f"mechanism has {dof} degree(s) of freedom; expected exactly {dof}"])
+    linkage.definition = _definition(linkage)
+    return linkage
+
+
+def _definition(linkage: Linkage) -> MechanismDefinition:
+    tables, topology, frames = linkage.tables, linkage.topology, linkage.frames
+    variables = topology.variables
+    kinetic, potential = energies(tables, topology, frames)
+    drawing, observables = drawing_and_observables(tables, frames)
+    kept = linkage.reduction.kept
+    names = linkage.variable_names
+    independent, guess = _partition(linkage)
+    return MechanismDefinition(
+        name=f"linkage_{tables.label}",
+        description=f"link-coupling mechanism {tables.label!r}: {len(tables.links)} links, "
+                    f"{len(tables.couplings)} joints, {len(topology.cut_joints)} cut",
+        coordinates=[v.symbol for v in variables],
+        velocities=[v.velocity for v in variables],
+        coordinate_units=[v.unit for v in variables],
+        parameters=[Parameter(k, v, "", "parameter of the case file") for k, v in tables.parameters.items()],
+        kinetic_energy=kinetic,
+        potential_energy=potential,
+        constraints=[e.expression for e in kept],
+        observables=observables,
+        drawing=drawing,
+        default_independent={n: linkage.start[n] for n in independent},
+        default_independent_velocities={n: 0.0 for n in independent},
+        default_guess={n: linkage.start[n] for n in names if n not in independent},
+    )
+
+
+def _partition(linkage: Linkage) -> tuple[list[str], list[str]]:
+    """Independent coordinates at the start: the drives, or the columns left out of the
+    best-conditioned dependent block (pivoted QR of Phi_q at the assembled start)."""
+    names = linkage.variable_names
+    if linkage.drive:
+        return list(linkage.drive), [n for n in names if n not in linkage.drive]
+    kept = linkage.reduction.kept
+    if not kept:
+        return names, []
+    import scipy.linalg
+
+    tables = linkage.tables
+    subs = {tables.symbols[k]: v for k, v in tables.parameters.items()}
+    subs.update({v.symbol: linkage.start[v.name] for v in linkage.topology.variables})
+    J = np.array(sp.Matrix([e.expression for e in kept]).jacobian([v.symbol for v in linkage.topology.variables])
+                 .subs(subs).evalf(), dtype=float)
+    _, _, piv = scipy.linalg.qr(J, pivoting=True)
+    dependent = set(piv[:len(kept)].tolist())
+    return [n for i, n in enumerate(names) if i not in dependent], [n for i, n in enumerate(names) if i in dependent]
+
+
+def couplings_by_number(tables: Tables) -> dict[int, Coupling]:
+    return {c.number: c for c in tables.couplings}

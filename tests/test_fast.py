@@ -1,0 +1,181 @@
+"""The compiled backend (csim.fast) against the reference Python path and the reference solution.
+
+The first test to run compiles the kernels (tens of seconds, once per cache directory);
+every later one reuses them.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import qr_case
+
+from csim.errors import CaseError
+from csim.fast.module import load_module
+from csim.fast.runner import pack_problem
+from csim.pipeline import build_system, initial_state, run_case
+from csim.solver.simulate import integrate
+
+pytest.importorskip("numba")
+
+
+def _system(*overrides):
+    case = qr_case(*overrides)
+    system = build_system(case)
+    return case, system, initial_state(case, system)
+
+
+@pytest.fixture(scope="module")
+def kernels():
+    _, system, _ = _system()
+    return load_module(system.model.definition)
+
+
+@pytest.mark.parametrize("method", ["none", "baumgarte", "sliding_mode", "projection"])
+def test_compiled_rhs_equals_python_rhs(kernels, method):
+    """dy/dt and the multipliers at random states (off the manifold, every mode) agree to round-off."""
+    extra = ["stabilization.switching=sqrt", "stabilization.eps=1e-3"] if method == "sliding_mode" else []
+    _, system, y0 = _system(f"stabilization.method={method}", "stabilization.w=[20, 30]", *extra)
+    par, pf, pi = pack_problem(system)
+    rng = np.random.default_rng(1)
+    for _ in range(20):
+        y = y0 + rng.normal(scale=[0.3, 0.05, 0.05, 2, 2, 2, 10, 10])
+        mode = rng.random(system.loads.n_switches) < 0.5
+        code, f, x = kernels.rhs_entry(y, mode, par, pf, pi)
+        assert code == 0
+        expected = system.rhs(0.0, y, mode)
+        scale = np.maximum(1.0, np.abs(expected))
+        assert np.max(np.abs(f - expected) / scale) < 1e-12
+        ev = system.evaluate(0.0, y, mode)
+        assert np.allclose(x, np.concatenate((ev.qdd, ev.lam)), rtol=1e-11, atol=1e-9)
+
+
+def test_compiled_projection_equals_python(kernels):
+    _, system, y0 = _system("stabilization.method=projection")
+    par, pf, pi = pack_problem(system)
+    y = y0 + np.array([1e-3, -2e-3, 1e-3, 0.01, -0.02, 0.03, 0, 0])
+    code, _, out = kernels.project_entry(y, par, pf, pi)
+    assert code == 0
+    assert np.allclose(out, system.project(y), rtol=0, atol=1e-13)
+
+
+def test_compiled_dop853_run_equals_python_run():
+    """Same events (to 1e-12 s), same steps, same final state (to 1e-9) on the case with events."""
+    case, system, y0 = _system("simulation.t_end=3", "simulation.rtol=1e-9", "simulation.atol=1e-9")
+    settings = case.integration_settings()
+    from csim.fast import integrate_compiled
+
+    fast = integrate_compiled(system, y0, settings)
+    ref = integrate(system, y0, settings)
+    assert fast.status == ref.status == "success"
+    assert len(fast.event_times) == len(ref.event_times) > 30
+    assert np.max(np.abs(np.subtract(fast.event_times, ref.event_times))) < 1e-12
+    assert fast.event_labels == ref.event_labels
+    assert fast.nsteps == ref.nsteps
+    assert np.array_equal(fast.t, ref.t) and np.array_equal(fast.mode, ref.mode)
+    m = system.m
+    assert np.max(np.abs(fast.y[:, :2 * m] - ref.y[:, :2 * m])) < 1e-9
+    # the work states are in J (up to 1e6): relative round-off
+    assert np.max(np.abs(fast.y[:, 2 * m:] - ref.y[:, 2 * m:])) < 1e-12 * np.max(np.abs(ref.y[:, 2 * m:])) * 1e3
+
+
+def test_backend_key_selects_the_path():
+    fast = run_case(qr_case("simulation.t_end=0.5", "simulation.backend=compiled"))
+    slow = run_case(qr_case("simulation.t_end=0.5", "simulation.backend=python"))
+    auto = run_case(qr_case("simulation.t_end=0.5"))
+    assert fast.ok and slow.ok
+    assert (fast.backend, slow.backend, auto.backend) == ("compiled", "python", "compiled")
+    assert run_case(qr_case("simulation.t_end=0.5", "simulation.integrator=RK45")).backend == "python"
+    # the same work on both paths: the Python driver reuses the dense output it built to look for events
+    assert fast.nfev == slow.nfev and fast.nsteps == slow.nsteps
+    assert np.allclose(fast.q, slow.q, rtol=0, atol=1e-10)
+    assert np.allclose(fast.lam, slow.lam, rtol=1e-9, atol=1e-6)
+
+
+def test_compiled_dop853_agrees_with_tight_reference(reference):
+    res = run_case(qr_case("simulation.backend=compiled", "stabilization.method=projection"))
+    assert res.ok and res.backend == "compiled"
+    assert abs(res.q[-1, 0] - reference["q1"]) < 1e-6
+    assert res.max_phi < 1e-12
+    assert np.allclose(res.event_times, reference["events"], atol=1e-6)
+
+
+def test_compiled_rk4_converges_at_order_4():
+    """Cutting force off (a smooth problem): the error at t = 1 s falls 16-fold per halving of h."""
+    errs = []
+    base = ["simulation.backend=compiled", "simulation.integrator=RK4", "simulation.t_end=1",
+            "loads.cutting_force=0"]
+    ref = run_case(qr_case(*base, "simulation.step=1e-4"))
+    for h in (4e-3, 2e-3, 1e-3):
+        res = run_case(qr_case(*base, f"simulation.step={h}"))
+        assert res.backend == "compiled"
+        errs.append(abs(res.q[-1, 0] - ref.q[-1, 0]))
+    orders = np.log2(np.array(errs[:-1]) / np.array(errs[1:]))
+    assert np.all(np.abs(orders - 4) < 0.3), orders
+
+
+def test_rk4_compiled_equals_python():
+    case, system, y0 = _system("simulation.integrator=RK4", "simulation.step=1e-3", "simulation.t_end=1")
+    from csim.fast import integrate_compiled
+
+    fast = integrate_compiled(system, y0, case.integration_settings())
+    ref = integrate(system, y0, case.integration_settings())
+    assert fast.nfev == ref.nfev and fast.event_times == pytest.approx(ref.event_times, abs=1e-12)
+    assert np.max(np.abs(fast.y[:, :6] - ref.y[:, :6])) < 1e-10
+
+
+def test_divergence_checks_fire():
+    res = run_case(qr_case("simulation.backend=compiled", "simulation.max_phi=1e-9", "simulation.rtol=1e-4",
+                           "simulation.atol=1e-4"))
+    assert res.status == "failed" and "constraint violation" in res.message and "max_phi" in res.message
+    assert res.backend == "compiled"
+    res = run_case(qr_case("simulation.backend=compiled", "simulation.max_steps=10"))
+    assert res.status == "failed" and "simulation.max_steps = 10" in res.message
+    res = run_case(qr_case("simulation.backend=compiled", "simulation.min_step=1.0"))
+    assert res.status == "failed" and "step-size collapse" in res.message
+    res = run_case(qr_case("simulation.backend=compiled", "simulation.max_events=3"))
+    assert res.status == "failed" and "simulation.max_events = 3" in res.message
+    # the same failures as the Python path, at the same instant
+    slow = run_case(qr_case("simulation.backend=python", "simulation.max_events=3"))
+    assert res.message == slow.message and res.t.size == slow.t.size
+
+
+@pytest.mark.parametrize("override, key", [
+    ("formulation.method=elimination", "formulation.method 'elimination'"),
+    ("stabilization.method=minimal", "stabilization.method 'minimal'"),
+    ("simulation.integrator=Radau", "simulation.integrator 'Radau'"),
+])
+def test_unsupported_combinations_are_rejected(override, key):
+    with pytest.raises(CaseError) as info:
+        qr_case("simulation.backend=compiled", override)
+    text = str(info.value)
+    assert "simulation.backend: got 'compiled'" in text and key in text
+
+
+def test_auto_falls_back_to_python_for_unsupported_combinations():
+    from csim.fast import resolve_backend
+
+    assert resolve_backend(qr_case("formulation.method=elimination").data) == "python"
+    assert resolve_backend(qr_case().data) == "compiled"
+    assert resolve_backend(qr_case("simulation.backend=python").data) == "python"
+
+
+def test_unloadable_kernels_fall_back_under_auto_and_fail_under_compiled(monkeypatch):
+    import csim.pipeline as pipeline
+
+    def broken(*args):
+        raise OSError("no space left on device")
+    monkeypatch.setattr(pipeline, "prepare_compiled", broken)
+    auto = run_case(qr_case("simulation.t_end=0.2"))
+    assert auto.ok and auto.backend == "python" and "compiled kernels could not be loaded" in auto.message
+    forced = run_case(qr_case("simulation.t_end=0.2", "simulation.backend=compiled"))
+    assert forced.status == "failed" and "OSError: no space left on device" in forced.message
+
+
+def test_an_unwritable_cache_folder_is_no_error(monkeypatch, tmp_path):
+    from csim.fast import module
+
+    blocked = tmp_path / "a_file"
+    blocked.write_text("")
+    monkeypatch.setattr(module, "_FALLBACK_DIR", None)
+    path = module._writable(blocked / "fast" / "m_key.py")
+    assert path.name == "m_key.py" and path.parent != blocked / "fast" and path.parent.is_dir()

@@ -1,0 +1,116 @@
+"""Slider-crank, four-bar, spatial RSUR and Bricard's linkage, each against independent
+geometry: closed-form positions or a separately coded loop equation."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from csim.case import load_case
+from csim.linkage.describe import load_linkage
+from csim.pipeline import run_case
+
+CONFIGS = Path(__file__).resolve().parents[1] / "configs"
+
+
+def params(name):
+    return yaml.safe_load((CONFIGS / f"{name}.yaml").read_text())["mechanism"]["parameters"]
+
+
+def run(name, *overrides):
+    case = load_case(CONFIGS / f"{name}.yaml", list(overrides))
+    result = run_case(case)
+    assert result.ok, result.message
+    return case, result
+
+
+def col(result, name):
+    return result.q[:, result.coordinate_names.index(name)]
+
+
+def test_slider_crank_against_closed_form():
+    lk = load_linkage(CONFIGS / "slider_crank.yaml")
+    assert [c.name for c in lk.topology.cut_joints] == ["C"] and lk.dof == 1 and lk.grubler == 1
+    assert lk.variable_names == ["q_crank", "q_B", "s_slide"] and lk.planar
+    _, res = run("slider_crank")
+    p = params("slider_crank")
+    th = col(res, "q_crank")
+    x = p["r"] * np.cos(th) + np.sqrt(p["l"] ** 2 - (p["r"] * np.sin(th) - p["e"]) ** 2)
+    assert np.abs(col(res, "s_slide") - x).max() < 1e-11  # Newton stops at max |Phi| <= 1e-12
+    # slider velocity: d/dt of the closed form, by the chain rule
+    dx = -p["r"] * np.sin(th) - (p["r"] * np.sin(th) - p["e"]) * p["r"] * np.cos(th) / (x - p["r"] * np.cos(th))
+    assert np.abs(res.qd[:, 2] - dx * res.qd[:, 0]).max() < 1e-11
+
+
+def test_four_bar_against_circle_intersection():
+    _, res = run("fourbar")
+    p = params("fourbar")
+    th = col(res, "q_crank")
+    B = np.stack([p["a"] * np.cos(th), p["a"] * np.sin(th)], axis=1)
+    D = np.array([p["d"], 0.0])
+    # C on both circles |C - B| = b, |C - D| = c, the branch above B->D
+    v = D - B
+    L = np.linalg.norm(v, axis=1)
+    along = (p["b"] ** 2 - p["c"] ** 2 + L ** 2) / (2 * L)
+    h = np.sqrt(p["b"] ** 2 - along ** 2)
+    u = v / L[:, None]
+    C = B + along[:, None] * u + h[:, None] * np.stack([-u[:, 1], u[:, 0]], axis=1)
+    rocker = np.arctan2(C[:, 1], C[:, 0] - p["d"])
+    err = np.angle(np.exp(1j * (col(res, "q_rocker") - rocker)))
+    assert np.abs(err).max() < 1e-12
+    assert res.observable_names == ["B_x", "B_y", "C_x", "C_y"]
+    assert np.abs(res.observables[:, 2:] - C).max() < 1e-12
+
+
+def test_rsur_against_closed_form_rocker_angle():
+    lk = load_linkage(CONFIGS / "rsur_spatial.yaml")
+    assert [c.type for c in lk.topology.cut_joints] == ["S"]  # S preferred for cutting
+    assert lk.variable_names == ["q_A", "q_D", "q_C_1", "q_C_2"]
+    assert (lk.dof, lk.grubler, lk.planar, len(lk.reduction.kept)) == (1, 1, False, 3)
+    _, res = run("rsur_spatial")
+    p = params("rsur_spatial")
+    th, phi = col(res, "q_A"), col(res, "q_D")
+    # |C(phi) - B(theta)| = b  ->  K1 cos phi + K2 sin phi = K3
+    K1 = 2 * p["c"] * (p["dy"] - p["a"] * np.sin(th))
+    K2 = 2 * p["c"] * p["dz"] * np.ones_like(th)
+    K3 = p["b"] ** 2 - (p["dx"] - p["a"] * np.cos(th)) ** 2 - (p["dy"] - p["a"] * np.sin(th)) ** 2 - p["dz"] ** 2 \
+        - p["c"] ** 2
+    base, spread = np.arctan2(K2, K1), np.arccos(np.clip(K3 / np.hypot(K1, K2), -1, 1))
+    roots = np.stack([base + spread, base - spread], axis=1)
+    err = np.abs(np.angle(np.exp(1j * (phi[:, None] - roots))))
+    branch = np.argmin(err[0])
+    assert np.all(np.argmin(err, axis=1) == branch)
+    assert err[:, branch].max() < 1e-9
+
+
+def dh(a, alpha, d):
+    c, s = np.cos(alpha), np.sin(alpha)
+    return np.array([[1, 0, 0, a], [0, c, -s, 0], [0, s, c, d], [0, 0, 0, 1.0]])
+
+
+def rz(t):
+    c, s = np.cos(t), np.sin(t)
+    return np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
+
+
+@pytest.mark.slow
+def test_bricard_is_overconstrained_and_moves_on_its_loop():
+    """Grubler count 0, actual 1 DOF; one dependent equation removed; the driven motion
+    closes a separately coded Denavit-Hartenberg loop."""
+    lk = load_linkage(CONFIGS / "bricard.yaml")
+    assert (lk.grubler, lk.dof, lk.reduction.generic_rank) == (0, 1, 4)
+    assert [e.status for e in lk.reduction.equations].count("dependent") == 1
+    _, res = run("bricard", "simulation.t_end=0.5", "output.dt=0.05")
+    p = params("bricard")
+    a = [p["a1"], p["a2"], p["a3"]] * 2
+    d = [p["d1"], p["d2"], p["d3"]] * 2
+    alpha = [0.6, 1.1, 1.4] * 2
+    assert np.ptp(res.q[:, 0]) > 0.25  # it really moves (0.3 rad of q1)
+    for q in res.q:
+        M = dh(a[0], alpha[0], d[0])
+        for k in range(5):
+            M = M @ rz(q[k]) @ dh(a[k + 1], alpha[k + 1], d[k + 1])
+        # closing the loop needs only a rotation about joint 6's axis: M = Rz(-theta6)
+        assert np.abs(M[:3, 3]).max() < 1e-10 and abs(M[2, 2] - 1) < 1e-10
