@@ -42,7 +42,7 @@ from csim.schema import (
 )
 from csim.solver.formulations import FORMULATIONS
 from csim.solver.integrators import DAE_INTEGRATORS, INTEGRATORS
-from csim.solver.simulate import IntegrationSettings
+from csim.solver.settings import IntegrationSettings
 from csim.solver.stabilizers import STABILIZERS, SWITCHING_FUNCTIONS
 
 if TYPE_CHECKING:
@@ -328,6 +328,17 @@ def load_case(path: str | Path, overrides: list[str] | None = None) -> Case:
         Listing every problem found (missing file, YAML syntax, unknown keys, wrong
         types, impossible values).
     """
+    return validate_case(read_case_file(path, overrides), source=str(Path(path)))
+
+
+def read_case_file(path: str | Path, overrides: list[str] | None = None) -> dict:
+    """The case file at ``path`` as a dict, with the ``--set`` overrides applied (not validated).
+
+    Raises
+    ------
+    CaseError
+        A missing or unreadable file, bad YAML, or not a mapping at the top level.
+    """
     path = Path(path)
     try:
         text = path.read_text()
@@ -342,7 +353,7 @@ def load_case(path: str | Path, overrides: list[str] | None = None) -> Case:
         raise CaseError([f"{path}: got {describe(data)} at the top level; expected a mapping of sections "
                          f"({', '.join(SCHEMA.fields)})"])
     apply_overrides(data, overrides or [])
-    return validate_case(data, source=str(path))
+    return data
 
 
 def validate_case(data: dict, source: str = "<dict>") -> Case:

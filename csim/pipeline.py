@@ -19,7 +19,7 @@ from csim.solver.formulations import make_formulation
 from csim.solver.ggl import GGLSystem
 from csim.solver.initial import consistent_initial_state
 from csim.solver.partitioned import PartitionedSystem
-from csim.solver.simulate import Trajectory, integrate
+from csim.solver.settings import Trajectory
 from csim.solver.stabilizers import make_stabilizer
 from csim.solver.system import ConstrainedSystem
 
@@ -114,6 +114,8 @@ def run_case(case: Case, progress: Callable[[float], None] | None = None) -> Res
         if progress is not None:
             progress(trajectory.t[-1] if trajectory.t.size else 0.0)
     else:
+        from csim.solver.simulate import integrate  # scipy's integrators: imported only for this path
+
         trajectory = integrate(system, y0, settings, progress=progress)
     trajectory.message += note
     return assemble_result(case, system, trajectory, time.perf_counter() - start, backend=backend)

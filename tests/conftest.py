@@ -50,3 +50,15 @@ def qr_case(*overrides: str):
     from csim.case import load_case
 
     return load_case(CONFIGS / "quick_return.yaml", list(overrides))
+
+
+def simulated_file(tmp_path_factory, config: str, name: str, *overrides: str) -> Path:
+    """Run ``configs/CONFIG`` with overrides and write its result file in a temporary folder."""
+    from csim.case import load_case
+    from csim.io.hdf5 import write_result
+    from csim.pipeline import run_case
+
+    case = load_case(CONFIGS / config, list(overrides))
+    path = tmp_path_factory.mktemp("run") / name
+    write_result(path, run_case(case), case.mechanism.coordinate_units)
+    return path

@@ -10,16 +10,14 @@ import h5py
 import numpy as np
 import pytest
 import sympy as sp
+from conftest import simulated_file
 from PIL import Image
 from typer.testing import CliRunner
 
-from csim.case import load_case
 from csim.cli import app
 from csim.compare import compare
-from csim.io.hdf5 import write_result
 from csim.mechanisms import get_mechanism
 from csim.model.definition import Drawing
-from csim.pipeline import run_case
 from csim.plot import MechanismAnimation, PlotError, animate_file
 from csim.plot import animate as animate_module
 from csim.plot.animate import frame_times, nearest_samples
@@ -42,21 +40,14 @@ def assert_bad_input(result, *fragments):
         assert fragment in result.output, result.output
 
 
-def simulate(tmp_path_factory, config, name, *overrides):
-    case = load_case(CONFIGS / config, list(overrides))
-    path = tmp_path_factory.mktemp("anim") / name
-    write_result(path, run_case(case), case.mechanism.coordinate_units)
-    return path
-
-
 @pytest.fixture(scope="module")
 def qr_file(tmp_path_factory):
-    return simulate(tmp_path_factory, "quick_return.yaml", "qr.h5", "simulation.t_end=0.2")
+    return simulated_file(tmp_path_factory, "quick_return.yaml", "qr.h5", "simulation.t_end=0.2")
 
 
 @pytest.fixture(scope="module")
 def pendulum_file(tmp_path_factory):
-    return simulate(tmp_path_factory, "pendulum.yaml", "pendulum.h5", "simulation.t_end=0.4")
+    return simulated_file(tmp_path_factory, "pendulum.yaml", "pendulum.h5", "simulation.t_end=0.4")
 
 
 def read(path, name, group="/"):

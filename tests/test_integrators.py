@@ -4,7 +4,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from csim.solver.integrators import INTEGRATORS, RK4, make_integrator
+from csim.solver.integrators import INTEGRATORS, make_integrator
+from csim.solver.rk4 import RK4
 
 
 def harmonic(t, y):

@@ -8,6 +8,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+from conftest import simulated_file
 from typer.testing import CliRunner
 
 from csim.case import load_case
@@ -39,22 +40,15 @@ def assert_bad_input(result, *fragments):
         assert fragment in result.output, result.output
 
 
-def simulate(tmp_path_factory, config: str, name: str, *overrides: str) -> Path:
-    case = load_case(CONFIGS / config, list(overrides))
-    path = tmp_path_factory.mktemp("plot") / name
-    write_result(path, run_case(case), case.mechanism.coordinate_units)
-    return path
-
-
 @pytest.fixture(scope="module")
 def qr_file(tmp_path_factory):
     """A 0.2 s quick-return run (the cutting force switches on within it)."""
-    return simulate(tmp_path_factory, "quick_return.yaml", "qr.h5", "simulation.t_end=0.2")
+    return simulated_file(tmp_path_factory, "quick_return.yaml", "qr.h5", "simulation.t_end=0.2")
 
 
 @pytest.fixture(scope="module")
 def pendulum_file(tmp_path_factory):
-    return simulate(tmp_path_factory, "pendulum.yaml", "pendulum.h5", "simulation.t_end=0.3")
+    return simulated_file(tmp_path_factory, "pendulum.yaml", "pendulum.h5", "simulation.t_end=0.3")
 
 
 @pytest.fixture(scope="module")

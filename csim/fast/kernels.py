@@ -28,11 +28,26 @@ The workspace w holds the model terms (offsets W_M ... from the generated part),
 KKT matrix and right-hand side, the loads, the projection's matrices and the switching
 functions (offsets below).
 """
+import importlib.util
 import math
+import os
 
 import numpy as np
 from numba import njit
-from scipy.integrate._ivp import dop853_coefficients as _dop
+
+
+def _dop853_coefficients():
+    """scipy's own DOP853 coefficient module, loaded as a file: importing it through its
+    package would import all of scipy.integrate (half a second) for a table of numbers."""
+    scipy_dir = os.path.dirname(importlib.util.find_spec("scipy").origin)
+    path = os.path.join(scipy_dir, "integrate", "_ivp", "dop853_coefficients.py")
+    spec = importlib.util.spec_from_file_location("_csim_dop853_coefficients", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+_dop = _dop853_coefficients()
 
 # ---- status codes of the integration loop (csim.fast.runner turns them into messages) ----
 OK = 0

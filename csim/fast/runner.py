@@ -10,7 +10,7 @@ import numpy as np
 
 from csim.fast.module import load_module
 from csim.fast.support import SWITCHING_CODES
-from csim.solver.simulate import IntegrationSettings, Trajectory, output_times
+from csim.solver.settings import IntegrationSettings, Trajectory, output_times
 from csim.solver.system import ConstrainedSystem
 
 STAB_CODES = {"none": 0, "baumgarte": 1, "sliding_mode": 2, "projection": 3}

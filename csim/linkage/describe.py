@@ -27,19 +27,9 @@ def load_linkage(path: str | Path, overrides: list[str] | None = None) -> Linkag
         The file is missing or not valid YAML, its mechanism is not a link-coupling
         description, or the description is invalid (the message names the table row).
     """
-    from csim.case import SCHEMA, apply_overrides, parse_yaml
+    from csim.case import SCHEMA, read_case_file
 
-    path = Path(path)
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise CaseError([f"{path}: no such case file"]) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise CaseError([f"{path}: cannot read the case file ({exc})"]) from None
-    data = parse_yaml(text, str(path)) or {}
-    if not isinstance(data, dict):
-        raise CaseError([f"{path}: got {describe_value(data)} at the top level; expected a mapping of sections"])
-    apply_overrides(data, overrides or [])
+    data = read_case_file(path, overrides)
     problems: list[str] = []
     mechanism = validate_section("mechanism", data.get("mechanism"), SCHEMA.fields["mechanism"], problems)
     initial = validate_section("initial", data.get("initial"), SCHEMA.fields["initial"], problems)

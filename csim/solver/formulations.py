@@ -13,7 +13,6 @@ import itertools
 import math
 
 import numpy as np
-import scipy.linalg
 
 from csim.errors import SimulationFailure
 
@@ -90,6 +89,8 @@ def choose_independent(phi_q: np.ndarray) -> np.ndarray:
         best = min(itertools.combinations(range(m), r),
                    key=lambda v: dependent_block_inverse(phi_q, list(v))[1])
         return np.setdiff1d(np.arange(m), best)
+    import scipy.linalg  # only for mechanisms with more than 500 partitions
+
     _, _, piv = scipy.linalg.qr(phi_q, pivoting=True, mode="economic")
     return np.sort(piv[r:])
 
