@@ -114,3 +114,26 @@ def test_bricard_is_overconstrained_and_moves_on_its_loop():
             M = M @ rz(q[k]) @ dh(a[k + 1], alpha[k + 1], d[k + 1])
         # closing the loop needs only a rotation about joint 6's axis: M = Rz(-theta6)
         assert np.abs(M[:3, 3]).max() < 1e-10 and abs(M[2, 2] - 1) < 1e-10
+
+
+def test_spatial_mechanisms_are_drawn_in_3d_planar_ones_in_2d():
+    """Drawing points: (x, y, z) for the spatial RSUR, (x, y) for the planar four-bar; the
+    generated model.points give the joint positions of the analysis (the observables)."""
+    from csim.pipeline import numeric_model
+
+    rsur = load_case(CONFIGS / "rsur_spatial.yaml", ["simulation.t_end=0.3"])
+    assert {len(p) for p in rsur.mechanism.drawing.points.values()} == {3}
+    four = load_case(CONFIGS / "fourbar.yaml")
+    assert {len(p) for p in four.mechanism.drawing.points.values()} == {2}
+    res = run_case(rsur)
+    model = numeric_model(rsur)
+    par = model.parameter_vector(rsur.parameters)
+    names = list(rsur.mechanism.drawing.points)
+    for k in (0, len(res.t) // 2, -1):
+        pts = model.points(res.q[k], par)
+        assert pts.shape == (len(names), 3)
+        # the moving coordinates of B and C are recorded as observables (B_x, B_y, C_y, C_z)
+        for name in res.observable_names:
+            point, axis = name.split("_")
+            j = res.observable_names.index(name)
+            assert pts[names.index(point), "xyz".index(axis)] == pytest.approx(res.observables[k, j], abs=1e-12)

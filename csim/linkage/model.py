@@ -211,8 +211,9 @@ def _point_name(tables: Tables, link: int, index: int) -> str:
     return frame.point or f"L{link}J{index}"
 
 
-def drawing_and_observables(tables: Tables, frames: Frames) -> tuple[Drawing, list[Observable]]:
-    """Joint-frame origins: drawn per link (x, y), named ones recorded as observables."""
+def drawing_and_observables(tables: Tables, frames: Frames, planar: bool = True) -> tuple[Drawing, list[Observable]]:
+    """Joint-frame origins: drawn per link, as (x, y) for a planar mechanism and (x, y, z)
+    for a spatial one; named ones recorded as observables."""
     points: dict[str, tuple] = {}
     links, ground = [], []
     observables = []
@@ -223,7 +224,7 @@ def drawing_and_observables(tables: Tables, frames: Frames) -> tuple[Drawing, li
             name = _point_name(tables, number, f.index)
             key = name if name not in points else f"{name}_{number}"
             r = frames.joint_frame(number, f.index)[:3, 3]
-            points[key] = (r[0], r[1])
+            points[key] = (r[0], r[1]) if planar else (r[0], r[1], r[2])
             names.append(key)
             if f.point and f.point not in seen:
                 seen.add(f.point)
@@ -301,7 +302,7 @@ def _definition(linkage: Linkage) -> MechanismDefinition:
     tables, topology, frames = linkage.tables, linkage.topology, linkage.frames
     variables = topology.variables
     kinetic, potential = energies(tables, topology, frames)
-    drawing, observables = drawing_and_observables(tables, frames)
+    drawing, observables = drawing_and_observables(tables, frames, linkage.planar)
     kept = linkage.reduction.kept
     names = linkage.variable_names
     independent, guess = _partition(linkage)

@@ -22,7 +22,7 @@ from csim.model.definition import MechanismDefinition
 
 #: Generated functions: name -> (arguments, attribute of DerivedModel, kind of output).
 #: kind "matrix" returns (rows, cols), "vector" returns (rows,), "scalar" a float,
-#: "points" returns (rows/2, 2).
+#: "points" returns (rows/d, d), d = 2 or 3 (DerivedModel.point_dim).
 FUNCTIONS: dict[str, tuple[tuple[str, ...], str, str]] = {
     "mass": (("q", "par"), "mass", "matrix"),
     "velocity_terms": (("q", "qd", "par"), "velocity_terms", "vector"),
@@ -40,7 +40,7 @@ FUNCTIONS: dict[str, tuple[tuple[str, ...], str, str]] = {
 }
 
 #: Bump when the generated code changes shape, to invalidate old caches.
-CODEGEN_VERSION = "1"
+CODEGEN_VERSION = "2"
 
 
 class _Printer(PythonCodePrinter):
@@ -93,10 +93,11 @@ def _function_source(name, args, expr, kind, unpack) -> str:
             rows, cols = expr.shape
             shape = f"({rows}, {cols})"
             index = [f"{i}, {j}" for i in range(rows) for j in range(cols)]
-        elif kind == "points":
-            n = expr.shape[0] // 2
-            shape = f"({n}, 2)"
-            index = [f"{i // 2}, {i % 2}" for i in range(expr.shape[0])]
+        elif kind.startswith("points"):
+            dim = int(kind[len("points"):])
+            n = expr.shape[0] // dim
+            shape = f"({n}, {dim})"
+            index = [f"{i // dim}, {i % dim}" for i in range(expr.shape[0])]
         else:
             shape = f"({expr.shape[0]},)"
             index = [str(i) for i in range(expr.shape[0])]
@@ -122,6 +123,8 @@ def generate_source(derived) -> str:
         "",
     ]
     for name, (args, attr, kind) in FUNCTIONS.items():
+        if kind == "points":
+            kind = f"points{derived.point_dim}"
         chunks.append(_function_source(name, args, getattr(derived, attr), kind, unpack))
         chunks.append("")
     return "\n\n".join(chunks)

@@ -29,7 +29,8 @@ class DerivedModel:
     Shapes: ``mass`` (m, m), ``velocity_terms`` (m, 1), ``gravity`` (m, 1),
     ``phi`` (r, 1), ``phi_q`` (r, m), ``gamma`` (r, 1), ``load_matrix`` (m, k),
     ``load_coordinates`` (k, 1), ``observables`` (o, 1), ``observable_jacobian`` (o, m),
-    ``points`` (2 P, 1) as x0, y0, x1, y1, ...
+    ``points`` (d P, 1) as x0, y0, x1, y1, ... (d = ``point_dim``: 2, or 3 for a spatial
+    drawing, with z0, z1, ... between)
     """
 
     definition: MechanismDefinition
@@ -46,6 +47,7 @@ class DerivedModel:
     observables: sp.Matrix
     observable_jacobian: sp.Matrix
     points: sp.Matrix
+    point_dim: int = 2
 
 
 #: expressions with more operations than this are left as they are: trigsimp's cost grows
@@ -100,10 +102,13 @@ def derive(definition: MechanismDefinition) -> DerivedModel:
     else:
         obs = sp.zeros(0, 1)
         obs_q = sp.zeros(0, len(q))
-    pts = []
-    if definition.drawing is not None:
-        for x, y in definition.drawing.points.values():
-            pts += [x, y]
+    pts, dims = [], {2}
+    if definition.drawing is not None and definition.drawing.points:
+        dims = {len(p) for p in definition.drawing.points.values()}
+        if dims not in ({2}, {3}):
+            raise ValueError(f"{definition.name}: drawing points must all be (x, y) or all (x, y, z)")
+        for point in definition.drawing.points.values():
+            pts += list(point)
     return DerivedModel(
         definition=definition,
         mass=M,
@@ -119,4 +124,5 @@ def derive(definition: MechanismDefinition) -> DerivedModel:
         observables=obs,
         observable_jacobian=obs_q,
         points=sp.Matrix(pts) if pts else sp.zeros(0, 1),
+        point_dim=dims.pop(),
     )

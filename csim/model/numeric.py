@@ -22,7 +22,7 @@ class NumericModel:
     ``gamma(q, qd, par)`` (r,); ``load_coordinates(q, par)`` (k,);
     ``load_matrix(q, par)`` (m, k) = B; ``kinetic_energy``, ``potential_energy`` floats [J];
     ``observables(q, par)`` (o,); ``observable_jacobian(q, par)`` (o, m);
-    ``points(q, par)`` (P, 2) [m].
+    ``points(q, par)`` (P, 2), or (P, 3) for a spatial drawing [m].
     """
 
     definition: MechanismDefinition
