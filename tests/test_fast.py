@@ -5,6 +5,8 @@ every later one reuses them.
 """
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from conftest import qr_case
@@ -33,8 +35,11 @@ def kernels():
 @pytest.mark.parametrize("method", ["none", "baumgarte", "sliding_mode", "projection"])
 def test_compiled_rhs_equals_python_rhs(kernels, method):
     """dy/dt and the multipliers at random states (off the manifold, every mode) agree to round-off."""
-    extra = ["stabilization.switching=sqrt", "stabilization.eps=1e-3"] if method == "sliding_mode" else []
-    _, system, y0 = _system(f"stabilization.method={method}", "stabilization.w=[20, 30]", *extra)
+    # gains per constraint, each different, so that a swapped or shared gain shows
+    gains = {"baumgarte": ["stabilization.w=[20, 30]", "stabilization.d=[0.7, 1.0]"],
+             "sliding_mode": ["stabilization.Lambda=[20, 35]", "stabilization.K=[15, 40]",
+                              "stabilization.k=[0.5, 2.0]", "stabilization.switching=sqrt", "stabilization.eps=1e-3"]}
+    _, system, y0 = _system(f"stabilization.method={method}", *gains.get(method, []))
     par, pf, pi = pack_problem(system)
     rng = np.random.default_rng(1)
     for _ in range(20):
@@ -179,3 +184,25 @@ def test_an_unwritable_cache_folder_is_no_error(monkeypatch, tmp_path):
     monkeypatch.setattr(module, "_FALLBACK_DIR", None)
     path = module._writable(blocked / "fast" / "m_key.py")
     assert path.name == "m_key.py" and path.parent != blocked / "fast" and path.parent.is_dir()
+
+
+@pytest.mark.parametrize("config, overrides", [
+    ("quick_return.yaml", ["stabilization.method=projection"]),
+    ("quick_return.yaml", ["stabilization.method=sliding_mode", "stabilization.Lambda=[20, 35]"]),
+    ("quick_return.yaml", ["stabilization.method=baumgarte", "simulation.integrator=RK4", "simulation.step=2e-3"]),
+    ("pendulum.yaml", ["stabilization.method=baumgarte"]),  # no loads, no switches, a perturbed start
+    ("pendulum.yaml", ["stabilization.method=projection"]),
+], ids=["qr-projection", "qr-sliding", "qr-baumgarte-rk4", "pendulum-baumgarte", "pendulum-projection"])
+def test_whole_runs_agree_with_the_python_path(config, overrides):
+    from csim.case import load_case
+
+    CONFIGS = Path(__file__).resolve().parents[1] / "configs"
+    base = [*overrides, "simulation.t_end=1.5"]
+    fast = run_case(load_case(CONFIGS / config, [*base, "simulation.backend=compiled"]))
+    slow = run_case(load_case(CONFIGS / config, [*base, "simulation.backend=python"]))
+    assert (fast.backend, slow.backend) == ("compiled", "python")
+    assert fast.ok and slow.ok, (fast.message, slow.message)
+    assert (fast.nfev, fast.nsteps) == (slow.nfev, slow.nsteps)
+    np.testing.assert_allclose(fast.event_times, slow.event_times, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(fast.q, slow.q, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(fast.phi, slow.phi, rtol=0, atol=1e-12)
