@@ -27,7 +27,7 @@ import yaml
 
 from csim.errors import CaseError
 from csim.loads import VELOCITY_CONDITIONS, LoadLaw, LoadSet
-from csim.mechanisms import MECHANISMS, get_mechanism
+from csim.mechanisms import MECHANISMS, light_mechanism
 from csim.model.definition import MechanismDefinition
 from csim.schema import (
     REQUIRED,
@@ -377,7 +377,7 @@ def validate_case(data: dict, source: str = "<dict>") -> Case:
             section.pop(key, None)
         if name not in MECHANISMS:
             raise CaseError(problems)
-        mech = get_mechanism(name)
+        mech = light_mechanism(name)
     else:
         section.pop("name", None)
         if problems:
@@ -473,7 +473,7 @@ def _coordinate_map(path, given, allowed, problems, what):
 def _validate_initial(out, mech, problems):
     ini = out["initial"]
     names = mech.coordinate_names
-    n_dof = len(names) - len(mech.constraints)
+    n_dof = len(names) - mech.n_constraints
     given = ini["q"] if ini["q"] is not None else dict(mech.default_independent)
     q = _coordinate_map("initial.q", given, names, problems, "a coordinate of " + mech.name)
     # Judge the count and the other maps by the coordinates named, valid values or not, so
@@ -483,7 +483,7 @@ def _validate_initial(out, mech, problems):
         problems.append(
             f"initial.q: got {len(given)} coordinate(s) ({', '.join(map(str, given)) or 'none'}); expected "
             f"exactly {n_dof} independent coordinate(s) of {names} ({mech.name} has {len(names)} coordinates "
-            f"and {len(mech.constraints)} constraints)"
+            f"and {mech.n_constraints} constraints)"
         )
     qd = ini["qd"] if ini["qd"] is not None else \
         {k: v for k, v in mech.default_independent_velocities.items() if k in independent}
@@ -571,7 +571,7 @@ def _validate_combination(out, problems):
 
 
 def _validate_gains(out, mech, problems):
-    r = len(mech.constraints)
+    r = mech.n_constraints
     for key in ("d", "w", "Lambda", "K", "k"):
         value = out["stabilization"].get(key)
         if isinstance(value, list) and len(value) != r:
@@ -583,7 +583,7 @@ def _validate_formulation(out, mech, problems):
     independent = out["formulation"]["independent"]
     if independent is None:
         return
-    n_dof = len(mech.coordinates) - len(mech.constraints)
+    n_dof = len(mech.coordinate_names) - mech.n_constraints
     names = mech.coordinate_names
     bad = [x for x in independent if x not in names]
     if bad or len(set(independent)) != n_dof or len(independent) != n_dof:

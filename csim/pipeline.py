@@ -12,7 +12,7 @@ import numpy as np
 from csim.case import Case
 from csim.errors import SimulationFailure
 from csim.fast import integrate_compiled, prepare_compiled, resolve_backend
-from csim.model.codegen import definition_key
+from csim.model.cache import definition_key
 from csim.model.numeric import NumericModel, build_numeric_model
 from csim.result import Result
 from csim.solver.formulations import make_formulation

@@ -4,7 +4,7 @@ from __future__ import annotations
 import ast
 
 from csim.mechanisms import get_mechanism
-from csim.model.codegen import FUNCTIONS, cache_dir, cached_source, definition_key
+from csim.model.cache import FUNCTIONS, cache_dir, cached_source, definition_key
 
 
 def test_generated_source_uses_only_math_and_numpy():

@@ -21,7 +21,7 @@ import tempfile
 from pathlib import Path
 from types import ModuleType
 
-from csim.model.codegen import cache_dir, definition_key
+from csim.model.cache import cache_dir, definition_key
 from csim.model.definition import MechanismDefinition
 
 #: bump when the generated module changes shape
@@ -44,9 +44,8 @@ def _versions() -> str:
 
 def module_key(definition: MechanismDefinition) -> str:
     """Hash of everything the compiled module of ``definition`` depends on."""
-    from csim.model import derive
-
-    sources = [KERNELS, Path(__file__), Path(__file__).with_name("codegen.py"), Path(derive.__file__)]
+    model_dir = Path(__file__).parents[1] / "model"  # read, not imported: importing derive imports sympy
+    sources = [KERNELS, Path(__file__), Path(__file__).with_name("codegen.py"), model_dir / "derive.py"]
     parts = [FAST_VERSION, definition_key(definition), *(p.read_text() for p in sources), _versions(), sys.version]
     return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:24]
 

@@ -10,37 +10,10 @@ keyed by a hash of the symbolic definition, so the sympy derivation runs once pe
 """
 from __future__ import annotations
 
-import hashlib
-import os
-import tempfile
-from pathlib import Path
-
 import sympy as sp
 from sympy.printing.pycode import PythonCodePrinter
 
-from csim.model.definition import MechanismDefinition
-
-#: Generated functions: name -> (arguments, attribute of DerivedModel, kind of output).
-#: kind "matrix" returns (rows, cols), "vector" returns (rows,), "scalar" a float,
-#: "points" returns (rows/d, d), d = 2 or 3 (DerivedModel.point_dim).
-FUNCTIONS: dict[str, tuple[tuple[str, ...], str, str]] = {
-    "mass": (("q", "par"), "mass", "matrix"),
-    "velocity_terms": (("q", "qd", "par"), "velocity_terms", "vector"),
-    "gravity": (("q", "par"), "gravity", "vector"),
-    "phi": (("q", "par"), "phi", "vector"),
-    "phi_q": (("q", "par"), "phi_q", "matrix"),
-    "gamma": (("q", "qd", "par"), "gamma", "vector"),
-    "load_coordinates": (("q", "par"), "load_coordinates", "vector"),
-    "load_matrix": (("q", "par"), "load_matrix", "matrix"),
-    "kinetic_energy": (("q", "qd", "par"), "kinetic_energy", "scalar"),
-    "potential_energy": (("q", "par"), "potential_energy", "scalar"),
-    "observables": (("q", "par"), "observables", "vector"),
-    "observable_jacobian": (("q", "par"), "observable_jacobian", "matrix"),
-    "points": (("q", "par"), "points", "points"),
-}
-
-#: Bump when the generated code changes shape, to invalidate old caches.
-CODEGEN_VERSION = "2"
+from csim.model.cache import FUNCTIONS
 
 
 class _Printer(PythonCodePrinter):
@@ -48,24 +21,6 @@ class _Printer(PythonCodePrinter):
 
     def _print_Symbol(self, expr):  # symbols are unpacked into locals of the same name
         return str(expr)
-
-
-def definition_key(definition: MechanismDefinition) -> str:
-    """A hash of everything the generated code depends on."""
-    parts = [
-        CODEGEN_VERSION,
-        definition.name,
-        sp.srepr(definition.coordinates),
-        sp.srepr(definition.velocities),
-        sp.srepr(definition.parameter_symbols),
-        sp.srepr(definition.kinetic_energy),
-        sp.srepr(definition.potential_energy),
-        sp.srepr(definition.constraints),
-        sp.srepr([ld.coordinate for ld in definition.loads]),
-        sp.srepr([o.expression for o in definition.observables]),
-        sp.srepr(list(definition.drawing.points.values()) if definition.drawing else []),
-    ]
-    return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:24]
 
 
 def _function_source(name, args, expr, kind, unpack) -> str:
@@ -128,29 +83,3 @@ def generate_source(derived) -> str:
         chunks.append(_function_source(name, args, getattr(derived, attr), kind, unpack))
         chunks.append("")
     return "\n\n".join(chunks)
-
-
-def cache_dir() -> Path:
-    """Where generated model sources are cached."""
-    root = os.environ.get("CSIM_CACHE_DIR")
-    return Path(root) if root else Path.home() / ".cache" / "csim"
-
-
-def cached_source(definition: MechanismDefinition, use_cache: bool = True) -> str:
-    """Generated source for ``definition``, derived anew only when not cached."""
-    from csim.model.derive import derive
-
-    path = cache_dir() / f"{definition.name}-{definition_key(definition)}.py"
-    if use_cache and path.is_file():
-        return path.read_text()
-    source = generate_source(derive(definition))
-    if use_cache:
-        try:  # write atomically; a cache that cannot be written is not an error
-            path.parent.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-            with os.fdopen(fd, "w") as fh:
-                fh.write(source)
-            os.replace(tmp, path)
-        except OSError:
-            pass
-    return source

@@ -9,8 +9,10 @@ h, Phi_q, gamma and the load matrix B from it.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
-import sympy as sp
+if TYPE_CHECKING:  # sympy is imported where expressions are built, not by reading this module
+    import sympy as sp
 
 
 @dataclass(frozen=True)
@@ -42,6 +44,8 @@ class Parameter:
 
     @property
     def symbol(self) -> sp.Symbol:
+        import sympy as sp
+
         return sp.Symbol(self.name, real=True)
 
 
@@ -100,6 +104,8 @@ class PlanarBody:
 
     def kinetic_energy(self, q: list[sp.Symbol], qd: list[sp.Symbol]) -> sp.Expr:
         """T = 1/2 m |v_C|^2 + 1/2 J omega^2, velocities by the chain rule in q."""
+        import sympy as sp
+
         vx = sum(sp.diff(self.com[0], qi) * qdi for qi, qdi in zip(q, qd))
         vy = sum(sp.diff(self.com[1], qi) * qdi for qi, qdi in zip(q, qd))
         omega = sum(sp.diff(self.angle, qi) * qdi for qi, qdi in zip(q, qd))
@@ -265,6 +271,10 @@ class MechanismDefinition:
     @property
     def parameter_names(self) -> list[str]:
         return [p.name for p in self.parameters]
+
+    @property
+    def n_constraints(self) -> int:
+        return len(self.constraints)
 
     @property
     def parameter_symbols(self) -> list[sp.Symbol]:

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import sympy as sp
 
 from csim.model.definition import MechanismDefinition
+from csim.model.light import full_definition
 
 
 @dataclass
@@ -71,6 +72,7 @@ def derive(definition: MechanismDefinition) -> DerivedModel:
     ValueError
         If T is not a quadratic form in the velocities (the mass matrix depends on qd).
     """
+    definition = full_definition(definition)
     q = sp.Matrix(definition.coordinates)
     qd = sp.Matrix(definition.velocities)
     T = sp.expand(definition.kinetic_energy)

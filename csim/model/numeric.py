@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from csim.model.codegen import FUNCTIONS, cached_source
+from csim.model.cache import FUNCTIONS, cached_source
 from csim.model.definition import MechanismDefinition
 
 
@@ -43,11 +43,11 @@ class NumericModel:
 
     @property
     def n_coordinates(self) -> int:
-        return len(self.definition.coordinates)
+        return len(self.definition.coordinate_names)
 
     @property
     def n_constraints(self) -> int:
-        return len(self.definition.constraints)
+        return self.definition.n_constraints
 
     @property
     def n_loads(self) -> int:

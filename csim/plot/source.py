@@ -20,6 +20,7 @@ from csim.errors import CsimError, ResultFileError
 from csim.io.hdf5 import COMPARISON_KIND, ComparisonFile, read_comparison, read_result
 from csim.mechanisms import MECHANISMS, get_mechanism
 from csim.model.definition import MechanismDefinition
+from csim.model.light import full_definition
 from csim.result import Result
 
 #: kinds of result file
@@ -171,7 +172,8 @@ def _definition(result: Result) -> tuple[MechanismDefinition | None, dict[str, f
         case = {}
     try:  # a registered mechanism, or a link-coupling description (rebuilt from its tables)
         validated = validate_case(case, source="case stored in the result file")
-        return validated.mechanism, validated.parameters, validated.data
+        # figures evaluate the drawing and the constraints: the symbolic definition
+        return full_definition(validated.mechanism), validated.parameters, validated.data
     except CsimError:  # a case from another csim version: the mechanism's defaults
         if result.mechanism not in MECHANISMS:
             return None, {}, case

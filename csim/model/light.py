@@ -1,0 +1,163 @@
+"""A registered mechanism's plain data, kept on disk, so that a warm run needs no sympy.
+
+Importing sympy and building a mechanism symbolically takes about half a second, which a
+run whose generated code is already cached does not need: validating a case file wants
+names, units, parameter defaults and the counts, and the code cache wants the key of the
+definition. :func:`light_definition` keeps these in a JSON snapshot under
+``<cache>/definitions/``, filed under a hash of the mechanism's source files, and returns a
+:class:`LightDefinition` built from it. Anything symbolic (coordinates, energies,
+constraints, drawing, ...) builds the full :class:`MechanismDefinition` on first use.
+"""
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import json
+import os
+import tempfile
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from csim.model.definition import MechanismDefinition, Parameter
+
+#: bump when the snapshot's content changes
+SNAPSHOT_VERSION = "1"
+
+#: the files every generated model depends on, beside the mechanism's own module
+MODEL_SOURCES = ("definition.py", "derive.py", "codegen.py", "cache.py", "light.py")
+
+
+@dataclass(frozen=True)
+class LoadInfo:
+    """A load's name and units (its coordinate s_k(q) is on the full definition)."""
+
+    name: str
+    unit: str
+    coordinate_unit: str
+    description: str
+
+
+@dataclass(frozen=True)
+class ObservableInfo:
+    """An observable's name and units (its expression is on the full definition)."""
+
+    name: str
+    unit: str
+    rate_unit: str
+    description: str
+
+
+class LightDefinition:
+    """The plain data of a :class:`MechanismDefinition`; the rest from the full one, built on demand.
+
+    Attributes read here without sympy: ``name``, ``description``, ``coordinate_names``,
+    ``coordinate_units``, ``parameters``, ``parameter_names``, ``loads`` and ``observables``
+    (names and units), ``n_constraints``, the ``default_*`` initial values and ``key``
+    (the generated code's key, :func:`csim.model.cache.definition_key`). Every other
+    attribute is the full definition's (:meth:`full`).
+    """
+
+    def __init__(self, data: dict, factory: Callable[[], MechanismDefinition],
+                 full: MechanismDefinition | None = None):
+        self.name: str = data["name"]
+        self.description: str = data["description"]
+        self.coordinate_names: list[str] = list(data["coordinate_names"])
+        self.coordinate_units: list[str] = list(data["coordinate_units"])
+        self.parameters = [Parameter(**p) for p in data["parameters"]]
+        self.loads = [LoadInfo(**x) for x in data["loads"]]
+        self.observables = [ObservableInfo(**x) for x in data["observables"]]
+        self.n_constraints: int = int(data["n_constraints"])
+        self.default_independent: dict[str, float] = dict(data["default_independent"])
+        self.default_independent_velocities: dict[str, float] = dict(data["default_independent_velocities"])
+        self.default_guess: dict[str, float] = dict(data["default_guess"])
+        self.key: str = data["key"]
+        self._factory = factory
+        self._full = full
+
+    @property
+    def parameter_names(self) -> list[str]:
+        return [p.name for p in self.parameters]
+
+    def parameter(self, name: str) -> Parameter:
+        for p in self.parameters:
+            if p.name == name:
+                return p
+        raise KeyError(name)
+
+    def full(self) -> MechanismDefinition:
+        """The symbolic definition (built, with sympy, on the first call)."""
+        if self._full is None:
+            self._full = self._factory()
+        return self._full
+
+    def __getattr__(self, attr: str):
+        # only for what is not set above: the symbolic parts
+        if attr.startswith("_"):
+            raise AttributeError(attr)
+        return getattr(self.full(), attr)
+
+
+def full_definition(definition: MechanismDefinition | LightDefinition) -> MechanismDefinition:
+    """The symbolic definition behind ``definition``."""
+    return definition.full() if isinstance(definition, LightDefinition) else definition
+
+
+def snapshot(definition: MechanismDefinition) -> dict:
+    """The plain data of ``definition`` (JSON-serializable)."""
+    from csim.model.cache import definition_key
+
+    return {
+        "version": SNAPSHOT_VERSION,
+        "name": definition.name,
+        "description": definition.description,
+        "coordinate_names": definition.coordinate_names,
+        "coordinate_units": list(definition.coordinate_units),
+        "parameters": [asdict(p) for p in definition.parameters],
+        "loads": [asdict(LoadInfo(ld.name, ld.unit, ld.coordinate_unit, ld.description)) for ld in definition.loads],
+        "observables": [asdict(ObservableInfo(o.name, o.unit, o.rate_unit, o.description))
+                        for o in definition.observables],
+        "n_constraints": definition.n_constraints,
+        "default_independent": dict(definition.default_independent),
+        "default_independent_velocities": dict(definition.default_independent_velocities),
+        "default_guess": dict(definition.default_guess),
+        "key": definition_key(definition),
+    }
+
+
+def _source_key(module: str) -> str:
+    """Hash of the mechanism's module file and of the model layer's sources."""
+    here = Path(__file__).parent
+    files = [Path(importlib.util.find_spec(module).origin), *(here / name for name in MODEL_SOURCES)]
+    digest = hashlib.sha256(SNAPSHOT_VERSION.encode())
+    for path in files:
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:24]
+
+
+def light_definition(name: str, module: str, factory: Callable[[], MechanismDefinition]) -> LightDefinition:
+    """The light definition of the mechanism ``name`` built by ``factory`` in ``module``.
+
+    Read from the snapshot when one exists for these sources; otherwise the full definition
+    is built (sympy) and its snapshot written (a cache that cannot be written is no error).
+    """
+    from csim.model.cache import cache_dir
+
+    path = cache_dir() / "definitions" / f"{name}-{_source_key(module)}.json"
+    try:
+        data = json.loads(path.read_text())
+        if data.get("version") == SNAPSHOT_VERSION:
+            return LightDefinition(data, factory)
+    except (OSError, ValueError, KeyError, TypeError):
+        pass
+    full = factory()
+    data = snapshot(full)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
+        with os.fdopen(fd, "w") as fh:
+            json.dump(data, fh, indent=1)
+        os.replace(tmp, path)
+    except OSError:
+        pass
+    return LightDefinition(data, factory, full)
