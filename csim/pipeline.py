@@ -101,9 +101,11 @@ def run_case(case: Case, progress: Callable[[float], None] | None = None) -> Res
         empty = Trajectory(t=np.zeros(0), y=np.zeros((0, system.n_state)),
                            mode=np.zeros((0, system.loads.n_switches), bool), status="failed", message=str(exc))
         return assemble_result(case, system, empty, time.perf_counter() - start)
-    backend, note = resolve_backend(case.data), ""
+    backend, note, load_time = resolve_backend(case.data), "", 0.0
     if backend == "compiled":
+        loading = time.perf_counter()
         backend, note = _load_compiled(case, system, y0, settings)
+        load_time = time.perf_counter() - loading
         if backend == "failed":
             empty = Trajectory(t=np.zeros(0), y=np.zeros((0, system.n_state)),
                                mode=np.zeros((0, system.loads.n_switches), bool), status="failed", message=note)
@@ -118,7 +120,9 @@ def run_case(case: Case, progress: Callable[[float], None] | None = None) -> Res
 
         trajectory = integrate(system, y0, settings, progress=progress)
     trajectory.message += note
-    return assemble_result(case, system, trajectory, time.perf_counter() - start, backend=backend)
+    result = assemble_result(case, system, trajectory, time.perf_counter() - start, backend=backend)
+    result.kernel_load_time = load_time
+    return result
 
 
 def _load_compiled(case: Case, system: ConstrainedSystem, y0: np.ndarray, settings) -> tuple[str, str]:

@@ -9,6 +9,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+#: a kernel load longer than this [s] was a compilation, and the summary says so
+COMPILE_NOTICE = 3.0
+
 
 @dataclass
 class Result:
@@ -33,6 +36,9 @@ class Result:
     event_times : (E,) [s]; event_labels : list of str
     backend : {"python", "compiled"}
         What integrated the run: the Python driver or the compiled kernels (``csim.fast``).
+    kernel_load_time : float [s]
+        Time to load the compiled kernels before the run (on a cold cache: to generate and
+        compile them); not part of ``wall_time``.
     run_kind : {"simulation", "kinematic"}
         A dynamic simulation, or a kinematic analysis of prescribed motion (no forces:
         lam, work, loads and generalized forces are NaN).
@@ -68,6 +74,7 @@ class Result:
     event_labels: list[str] = field(default_factory=list)
     run_kind: str = "simulation"
     backend: str = "python"
+    kernel_load_time: float = 0.0
 
     @property
     def ok(self) -> bool:
@@ -120,5 +127,8 @@ class Result:
                              f" / {self.energy_scale:.4g} J)")
         lines.append(f"events:            {len(self.event_times)}")
         lines.append(f"wall time:         {self.wall_time:.3f} s ({self.backend} backend)")
+        if self.backend == "compiled" and self.kernel_load_time > COMPILE_NOTICE:
+            lines.append(f"compilation:       {self.kernel_load_time:.1f} s before the run (the first run of this "
+                         f"mechanism; later runs load the kernels from the cache)")
         lines.append(f"RHS evaluations:   {self.nfev} ({self.nsteps} steps)")
         return "\n".join(lines)

@@ -206,3 +206,12 @@ def test_whole_runs_agree_with_the_python_path(config, overrides):
     np.testing.assert_allclose(fast.event_times, slow.event_times, rtol=0, atol=1e-12)
     np.testing.assert_allclose(fast.q, slow.q, rtol=0, atol=1e-10)
     np.testing.assert_allclose(fast.phi, slow.phi, rtol=0, atol=1e-12)
+
+
+def test_a_run_records_the_kernel_load_and_a_cold_one_says_it_compiled():
+    res = run_case(qr_case("simulation.t_end=0.1", "simulation.backend=compiled"))
+    assert res.kernel_load_time > 0.0
+    res.kernel_load_time = 0.5  # as on a warm cache: no notice
+    assert "compilation:" not in res.summary()
+    res.kernel_load_time = 30.0  # as on a cold cache
+    assert "compilation:       30.0 s before the run (the first run of this mechanism" in res.summary()

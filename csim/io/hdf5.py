@@ -93,6 +93,7 @@ def write_result_group(group: h5py.Group, result: Result, coordinate_units: list
     a["message"] = result.message
     a["run_kind"] = result.run_kind
     a["backend"] = result.backend
+    a["kernel_load_time"] = result.kernel_load_time
     a["wall_time"] = result.wall_time
     for name in ("nfev", "njev", "nlu", "nsteps"):
         a[name] = int(getattr(result, name))
@@ -159,6 +160,7 @@ def read_result_group(group: h5py.Group) -> Result:
             nfev=int(a["nfev"]), njev=int(a["njev"]), nlu=int(a["nlu"]), nsteps=int(a["nsteps"]),
             event_times=ev["times"][()], event_labels=[_text(x) for x in ev["labels"][()]],
             run_kind=_text(a.get("run_kind", "simulation")), backend=_text(a.get("backend", "python")),
+            kernel_load_time=float(a.get("kernel_load_time", 0.0)),
         )
     except KeyError as exc:
         raise ResultFileError(f"{group.file.filename}: not a csim result (missing {exc})") from None
