@@ -130,3 +130,31 @@ def test_describe_main_errors(tmp_path):
     path.write_text("mechanism: {name: pendulum}\n")
     with pytest.raises(CaseError, match="csim describe works on link-coupling descriptions"):
         describe_main(str(path))
+
+
+def test_names_drives_and_expressions_that_would_have_gone_wrong_later():
+    # a parameter named like a joint velocity would have been the same symbol as it
+    msg = problems(changed(parameters={**FOURBAR["parameters"], "q1_dot": 5.0}))
+    assert msg[0].startswith("mechanism.couplings[0] (coupling 1): its joint variable 'q1' (velocity 'q1_dot')")
+    # a drive that is not finite, or complex, at t = 0
+    assert "at t = 0 it is not finite" in problems(changed(drive={1: "1/t"}))[0]
+    assert "at t = 0 it is complex" in problems(changed(drive={1: "sqrt(t - 1)"}))[0]
+    # floor division and power towers are not expressions of the README (a^b^c hung sympy)
+    links = copy.deepcopy(FOURBAR["links"])
+    links[1]["joints"][1][1] = ["a//2", 0, 0]
+    assert "no //, ** or a^b^c" in problems(changed(links=links))[0]
+    links[1]["joints"][1][1] = ["9^9^9", 0, 0]
+    assert "no //, ** or a^b^c" in problems(changed(links=links))[0]
+    # a typo in the guess is named, not hidden behind an assembly failure
+    msg = problems(copy.deepcopy(FOURBAR), {"guess": {"qB": 1.0}})
+    assert msg == ["initial.guess.qB: not a joint variable of this mechanism; expected one of q1, q2, q3"]
+
+
+def test_a_drive_that_stops_being_finite_fails_the_run_with_a_file():
+    from csim.pipeline import run_case
+
+    case = validate_case({"mechanism": changed(drive={1: "sqrt(0.25 - t)"}), "initial": GUESS,
+                          "simulation": {"t_end": 0.5}, "output": {"dt": 0.05}})
+    result = run_case(case)
+    assert result.status == "failed" and "mechanism.drive is not finite at t = 0.25 s" in result.message
+    assert result.t[-1] == pytest.approx(0.2)  # the samples before are kept

@@ -72,7 +72,12 @@ def solve_positions(phi: Callable, phi_q: Callable, q_start: np.ndarray, free: n
         if iteration == max_iter:
             break
         J = np.asarray(phi_q(q), dtype=float)[:, free]
-        step = np.linalg.lstsq(J, -res, rcond=None)[0]
+        if not np.all(np.isfinite(J)):
+            break
+        try:
+            step = np.linalg.lstsq(J, -res, rcond=None)[0]
+        except np.linalg.LinAlgError:
+            break
         q[free] += step
         res = np.asarray(phi(q), dtype=float)
         if not np.all(np.isfinite(q)) or not np.all(np.isfinite(res)):
@@ -121,7 +126,13 @@ def analyse_motion(model, par: np.ndarray, drive: Callable[[float], tuple[np.nda
     start = np.array(q_guess, dtype=float)
     done = 0
     for k, t in enumerate(times):
-        u, ud, udd = (np.atleast_1d(np.asarray(x, dtype=float)) for x in drive(t))
+        with np.errstate(all="ignore"):
+            u, ud, udd = (np.atleast_1d(np.asarray(x, dtype=float)) for x in drive(t))
+        if not (np.all(np.isfinite(u)) and np.all(np.isfinite(ud)) and np.all(np.isfinite(udd))):
+            status = "failed"
+            message = (f"{KINEMATIC_RUN}: mechanism.drive is not finite at t = {t:.6g} s (the driving variables, "
+                       f"their rates and accelerations: {u.tolist()}, {ud.tolist()}, {udd.tolist()})")
+            break
         if k > 0:
             h = t - times[k - 1]
             start = q_out[k - 1] + h * qd_out[k - 1] + 0.5 * h * h * qdd_out[k - 1]

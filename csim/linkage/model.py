@@ -274,17 +274,29 @@ def build_linkage(mechanism: dict, initial: dict | None = None, tol: float = 1e-
     initial = initial or {}
     names = [v.name for v in topology.variables]
     start: dict[str, float] = {}
+    problems = []
     for source in ("guess", "q"):
         for key, value in (initial.get(source) or {}).items():
-            if key in names and isinstance(value, (int, float)) and not isinstance(value, bool):
+            if key not in names:  # before the assembly, whose failure would hide the typo
+                problems.append(f"initial.{source}.{key}: not a joint variable of this mechanism; expected one of "
+                                f"{', '.join(names)}")
+            elif isinstance(value, (int, float)) and not isinstance(value, bool):
                 start[key] = float(value)
     if drive:
         subs = {**{tables.symbols[k]: v for k, v in tables.parameters.items()}, T: 0.0}
         for key, expr in drive.items():
-            start[key] = float(sp.N(expr.subs(subs)))
+            value = complex(sp.N(expr.subs(subs)))
+            if value.imag != 0 or not np.isfinite(value.real):
+                what = "complex" if np.isfinite(value.real) and np.isfinite(value.imag) else "not finite"
+                problems.append(f"mechanism.drive.{key}: got {expr}; at t = 0 it is {what}; expected a finite real "
+                                f"value")
+            else:
+                start[key] = value.real
         fixed = list(drive)
     else:
         fixed = [k for k in (initial.get("q") or {}) if k in names]
+    if problems:
+        raise CaseError(problems)
     reduction = reduce_equations(equations, topology.variables, tables, start, fixed, tol=tol, max_iter=max_iter)
     planar = is_planar(tables, frames, topology.variables)
     dof = len(names) - reduction.generic_rank

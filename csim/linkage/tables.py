@@ -87,6 +87,10 @@ def parse_expression(path: str, value: Any, symbols: dict[str, sp.Symbol], probl
             return None
         return sp.Rational(repr(value))
     text = value.strip()
+    if "//" in text or "**" in text or re.search(r"\^[^()+\-*/]*\^", text):
+        problems.append(f"{path}: got {describe(value)}; expected + - * / and single powers ^ (no //, ** or "
+                        f"a^b^c)")
+        return None
     if not text or not _EXPRESSION_CHARS.match(text):
         problems.append(f"{path}: got {describe(value)}; expected an expression of numbers, the parameters "
                         f"({allowed}), + - * / ^ ( ) and {', '.join(FUNCTIONS)}")

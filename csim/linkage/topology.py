@@ -205,12 +205,14 @@ def analyse(tables: Tables, driven: set[int]) -> Topology:
             c = edges[child].coupling
             names = _variable_names(c, len(variables) + 1)
             for slot, name in enumerate(names):
-                if name in taken:
-                    problems.append(f"{c.path}: its joint variable {name!r} has the name of a parameter or of "
-                                    f"another joint variable; expected the coupling name or the parameter "
-                                    f"renamed")
+                # the variable and its velocity NAME_dot become symbols: neither may be a parameter's
+                clash = {name, f"{name}_dot"} & taken
+                if clash:
+                    problems.append(f"{c.path}: its joint variable {name!r} (velocity {name + '_dot'!r}) has the "
+                                    f"name of a parameter or of another joint variable ({', '.join(sorted(clash))}); "
+                                    f"expected the coupling name or the parameter renamed")
                     continue
-                taken.add(name)
+                taken |= {name, f"{name}_dot"}
                 variables.append(JointVariable(sp.Symbol(name, real=True), sp.Symbol(f"{name}_dot", real=True), c,
                                                slot, VARIABLE_UNITS[c.type][slot], VARIABLE_MEANINGS[c.type][slot]))
     if problems:
