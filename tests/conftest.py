@@ -62,3 +62,21 @@ def simulated_file(tmp_path_factory, config: str, name: str, *overrides: str) ->
     path = tmp_path_factory.mktemp("run") / name
     write_result(path, run_case(case), case.mechanism.coordinate_units)
     return path
+
+
+def invoke(*args):
+    """Run the csim command line in process with ``args`` (converted to str)."""
+    from typer.testing import CliRunner
+
+    from csim.cli import app
+
+    return CliRunner().invoke(app, [str(a) for a in args])
+
+
+def assert_bad_input(result, *fragments):
+    """Exit 2 through csim's own handling, no traceback, the message naming the problem."""
+    assert result.exit_code == 2, result.output
+    assert result.exception is None or isinstance(result.exception, SystemExit), result.exc_info
+    assert "Traceback" not in result.output
+    for fragment in fragments:
+        assert fragment in result.output, result.output

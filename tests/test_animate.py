@@ -10,11 +10,9 @@ import h5py
 import numpy as np
 import pytest
 import sympy as sp
-from conftest import simulated_file
+from conftest import assert_bad_input, invoke, simulated_file
 from PIL import Image
-from typer.testing import CliRunner
 
-from csim.cli import app
 from csim.compare import compare
 from csim.mechanisms import get_mechanism
 from csim.model.definition import Drawing
@@ -26,18 +24,6 @@ from csim.plot.run_figures import snapshots_figure
 from csim.plot.source import load_run
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
-
-
-def invoke(*args):
-    return CliRunner().invoke(app, [str(a) for a in args])
-
-
-def assert_bad_input(result, *fragments):
-    assert result.exit_code == 2, result.output
-    assert result.exception is None or isinstance(result.exception, SystemExit), result.exc_info
-    assert "Traceback" not in result.output
-    for fragment in fragments:
-        assert fragment in result.output, result.output
 
 
 @pytest.fixture(scope="module")

@@ -8,11 +8,9 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from conftest import simulated_file
-from typer.testing import CliRunner
+from conftest import assert_bad_input, invoke, simulated_file
 
 from csim.case import load_case
-from csim.cli import app
 from csim.compare import compare
 from csim.io.hdf5 import write_result
 from csim.mechanisms import MECHANISMS, get_mechanism
@@ -25,19 +23,6 @@ from csim.plot.source import constraint_units, load_comparison, load_run
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 QR_FIGURES = ["crank_velocity", "ram_displacement", "ram_position_velocity", "rocker_rod_angles", "constraint_error",
               "configurations", "coordinates", "velocities", "constraints", "energy", "multipliers", "loads"]
-
-
-def invoke(*args):
-    return CliRunner().invoke(app, [str(a) for a in args])
-
-
-def assert_bad_input(result, *fragments):
-    """Exit 2 through csim's own handling, no traceback, the message naming the problem."""
-    assert result.exit_code == 2, result.output
-    assert result.exception is None or isinstance(result.exception, SystemExit), result.exc_info
-    assert "Traceback" not in result.output
-    for fragment in fragments:
-        assert fragment in result.output, result.output
 
 
 @pytest.fixture(scope="module")
