@@ -826,12 +826,11 @@ def integrate(method, y0, t_out, par, pf, pi, iset, fset):
                         for i in range(n):
                             ytmp[i] = y[i]
                     else:
-                        if not dense_ready and dense_kind == DOP853:
-                            status = _dop_dense(t_old, dense_h, y_old, y, f_new, rmode, locate,
-                                                par, pf, pi, w, piv, K, F, ytmp, info)
-                            nfev += 3
-                            if status != OK:
-                                break
+                        status, spent = _ensure_dense(dense_ready, dense_kind, t_old, dense_h, y_old, y, f_new, rmode,
+                                                      locate, par, pf, pi, w, piv, K, F, ytmp, info)
+                        nfev += spent
+                        if status != OK:
+                            break
                         dense_ready = True
                         dense_eval(dense_kind, b, t_old, dense_h, y_old, F if dense_kind == DOP853 else Fh, ytmp)
                     mode_at(ytmp, par, pf, pi, w, mode_b)
@@ -840,12 +839,11 @@ def integrate(method, y0, t_out, par, pf, pi, iset, fset):
                         if mode_b[jj] != mode[jj]:
                             found = True
                     if found:
-                        if not dense_ready and dense_kind == DOP853:
-                            status = _dop_dense(t_old, dense_h, y_old, y, f_new, rmode, locate,
-                                                par, pf, pi, w, piv, K, F, ytmp, info)
-                            nfev += 3
-                            if status != OK:
-                                break
+                        status, spent = _ensure_dense(dense_ready, dense_kind, t_old, dense_h, y_old, y, f_new, rmode,
+                                                      locate, par, pf, pi, w, piv, K, F, ytmp, info)
+                        nfev += spent
+                        if status != OK:
+                            break
                         dense_ready = True
                         a = t_old if rep == 0 else t_old + (t - t_old) * rep / (n_interior + 1)
                         FF = F if dense_kind == DOP853 else Fh
@@ -882,12 +880,11 @@ def integrate(method, y0, t_out, par, pf, pi, iset, fset):
                     for i in range(n):
                         ytmp[i] = y[i]
                 else:
-                    if not dense_ready and dense_kind == DOP853:
-                        status = _dop_dense(t_old, dense_h, y_old, y, f_new, rmode, locate,
-                                                par, pf, pi, w, piv, K, F, ytmp, info)
-                        nfev += 3
-                        if status != OK:
-                            break
+                    status, spent = _ensure_dense(dense_ready, dense_kind, t_old, dense_h, y_old, y, f_new, rmode,
+                                                  locate, par, pf, pi, w, piv, K, F, ytmp, info)
+                    nfev += spent
+                    if status != OK:
+                        break
                     dense_ready = True
                     dense_eval(dense_kind, t_out[i_out], t_old, dense_h, y_old, FF, ytmp)
                 if projects:
@@ -969,6 +966,18 @@ def integrate(method, y0, t_out, par, pf, pi, iset, fset):
         if not restarted:
             break
     return n_rec, ts, ys, modes, n_ev, ev_t, ev_sw, nfev, nsteps, status, info
+
+
+@njit(cache=True, error_model="numpy")
+def _ensure_dense(dense_ready, dense_kind, t_old, h, y_old, y, f, mode, locate, par, pf, pi, w, piv, K, F, ytmp,
+                  info):
+    """The step's dense output, built on its first use: (status, right-hand-side evaluations spent).
+
+    DOP853 needs three extra stages (:func:`_dop_dense`); RK4's Hermite data is in place already.
+    """
+    if dense_ready or dense_kind != DOP853:
+        return OK, 0
+    return _dop_dense(t_old, h, y_old, y, f, mode, locate, par, pf, pi, w, piv, K, F, ytmp, info), 3
 
 
 @njit(cache=True, error_model="numpy")
