@@ -43,7 +43,8 @@ from csim.schema import (
 from csim.solver.formulations import FORMULATIONS
 from csim.solver.integrators import DAE_INTEGRATORS, INTEGRATORS
 from csim.solver.settings import IntegrationSettings
-from csim.solver.stabilizers import STABILIZERS, SWITCHING_FUNCTIONS
+from csim.solver.methods import STABILIZERS
+from csim.solver.methods import schema_fields as stabilization_fields
 
 if TYPE_CHECKING:
     from csim.linkage.model import Linkage
@@ -96,14 +97,6 @@ def _construct_mapping(loader, node, deep=False):
 CaseLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
 
 
-def _gain_check(value):
-    """A gain is a positive number or a non-empty list of positive numbers."""
-    values = value if isinstance(value, list) else [value]
-    ok = bool(values) and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0
-                              for v in values)
-    return None if ok else "a positive number, or a list of positive numbers (one per constraint)"
-
-
 #: The case-file schema (mechanism-specific parts are checked by :func:`validate_case`).
 SCHEMA = Section({
     "mechanism": Section({
@@ -139,36 +132,11 @@ SCHEMA = Section({
                              "re-chosen automatically)", nullable=True),
         "max_condition": Field("number", 1e8, "re-partition when cond(Phi_v) exceeds this", gt=1.0),
     }),
+    # method, then every method's settings, generated from its Options (csim/solver/methods/).
+    # Each method reads only its own, so one case file can be run with each (csim compare).
     "stabilization": Section({
         "method": Field("string", "none", "constraint stabilization", choices=lambda: list(STABILIZERS)),
-        # Gains: a number, or a list with one value per constraint. Every method reads only
-        # its own, so one case file can be run with each method (csim compare).
-        "d": Field("any", 1.0, "baumgarte: damping ratio (1 = critical, fastest decay without overshoot)",
-                   check=_gain_check),
-        "w": Field("any", 10.0, "baumgarte: natural frequency; Phi decays like exp(-d w t). Well above "
-                   "1/t_end, and w h << 2.8 for explicit steps h", "1/s", check=_gain_check),
-        "Lambda": Field("any", 10.0, "sliding_mode: slope of s = Phi' + Lambda Phi; on s = 0, Phi decays "
-                        "like exp(-Lambda t)", "1/s", check=_gain_check),
-        "K": Field("any", 10.0, "sliding_mode: linear reaching gain, s decays like exp(-K t)", "1/s",
-                   check=_gain_check),
-        "k": Field("any", 1e-6, "sliding_mode: switching gain, small: it only has to beat the integration "
-                   "error's drift of s", "unit of Phi/s^2", check=_gain_check),
-        "switching": Field("string", "tanh", "sliding_mode: sgn, or a smooth replacement: sat, tanh, atan, sqrt",
-                           choices=lambda: list(SWITCHING_FUNCTIONS)),
-        "eps": Field("number", 1e-6, "sliding_mode: boundary-layer width of sat and sqrt", "unit of Phi/s",
-                     gt=0.0),
-        "c": Field("number", 1e6, "sliding_mode: steepness of tanh and atan", "s/unit of Phi", gt=0.0),
-        "projection_metric": Field("string", "mass", "projection: metric of the Gauss-Newton projection",
-                                   choices=("mass", "minimum_norm")),
-        "projection_tol": Field("number", 1e-13, "projection: target max |Phi|", "unit of Phi", gt=0.0),
-        "projection_max_iter": Field("integer", 10, "projection: Gauss-Newton iteration limit", ge=1),
-        "minimal_tol": Field("number", 1e-13, "minimal: Newton tolerance on max |Phi| for the dependent "
-                             "coordinates", "unit of Phi", gt=0.0),
-        "minimal_max_iter": Field("integer", 20, "minimal: Newton iteration limit per evaluation", ge=1),
-        "minimal_max_condition": Field("number", 20.0, "minimal: choose the partition again when cond(Phi_v) "
-                                       "exceeds this", gt=1.0),
-        "ggl_tol": Field("number", 1e-12, "ggl: largest residual of Phi and Phi_q qd accepted at a step's end",
-                         "unit of Phi", gt=0.0),
+        **stabilization_fields(),
     }),
     "simulation": Section({
         "t_end": Field("number", 5.0, "end time", "s", gt=0.0),

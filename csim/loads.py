@@ -18,6 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from csim.physics import loads as core
+
 VELOCITY_CONDITIONS = ("any", "positive", "negative")
 
 
@@ -55,19 +57,19 @@ class LoadLaw:
             labels.append(f"{self.name}: ds/dt = 0 (velocity sign)")
         return labels
 
-    def switching(self, s: float, sdot: float) -> list[float]:
-        """Switching functions at (s, ds/dt); each is > 0 where its condition holds."""
-        g = []
+    def conditions(self) -> list[tuple[int, float]]:
+        """Its switching functions as (kind, value) pairs of :mod:`csim.physics.loads`, in label order."""
+        out = []
         lo, hi = self.window
         if np.isfinite(lo):
-            g.append(s - lo)
+            out.append((core.LOWER, float(lo)))
         if np.isfinite(hi):
-            g.append(hi - s)
+            out.append((core.UPPER, float(hi)))
         if self.velocity == "positive":
-            g.append(sdot)
+            out.append((core.RISING, 0.0))
         elif self.velocity == "negative":
-            g.append(-sdot)
-        return g
+            out.append((core.FALLING, 0.0))
+        return out
 
 
 class LoadSet:
@@ -77,36 +79,40 @@ class LoadSet:
     ----------
     laws : list of LoadLaw
         One per load of the mechanism (a load not named in the case file has magnitude 0).
+
+    Attributes
+    ----------
+    magnitudes : ndarray (k,)
+    sw_load, sw_kind, sw_value : ndarray (n_switches,)
+        The switching functions packed for :mod:`csim.physics.loads`: the load each
+        belongs to, its kind and its bound.
     """
 
     def __init__(self, laws: list[LoadLaw]):
         self.laws = list(laws)
         self.magnitudes = np.array([law.magnitude for law in self.laws], dtype=float)
-        # slices of the concatenated switching-function vector that belong to each law
-        self._slices = []
-        start = 0
-        for law in self.laws:
-            n = len(law.switch_labels)
-            self._slices.append(slice(start, start + n))
-            start += n
-        self.n_switches = start
+        packed = [(k, kind, value) for k, law in enumerate(self.laws) for kind, value in law.conditions()]
+        self.sw_load = np.array([p[0] for p in packed], dtype=np.int64)
+        self.sw_kind = np.array([p[1] for p in packed], dtype=np.int64)
+        self.sw_value = np.array([p[2] for p in packed], dtype=float)
+        self.n_switches = len(packed)
         self.switch_labels = [label for law in self.laws for label in law.switch_labels]
 
     def switching(self, s: np.ndarray, sdot: np.ndarray) -> np.ndarray:
         """All switching functions g (n_switches,) at load coordinates ``s`` (k,) and rates ``sdot`` (k,)."""
-        g = []
-        for k, law in enumerate(self.laws):
-            g.extend(law.switching(s[k], sdot[k]))
-        return np.array(g, dtype=float)
+        g = np.empty(self.n_switches)
+        core.switching_functions(np.asarray(s, dtype=float), np.asarray(sdot, dtype=float), self.sw_load,
+                                 self.sw_kind, self.sw_value, g)
+        return g
 
     def values(self, mode: np.ndarray) -> np.ndarray:
         """Load values u (k,) in a mode: ``mode`` (n_switches,) bool, the conditions that hold."""
-        u = self.magnitudes.copy()
-        for k, sl in enumerate(self._slices):
-            if not np.all(mode[sl]):
-                u[k] = 0.0
+        u = np.empty(len(self.laws))
+        core.load_values(self.magnitudes, np.asarray(mode, dtype=np.bool_), self.sw_load, u)
         return u
 
     def mode(self, g: np.ndarray) -> np.ndarray:
         """The mode that holds where the switching functions are ``g``: the law's own inequality."""
-        return g > 0.0
+        mode = np.empty(len(g), dtype=np.bool_)
+        core.mode_of(np.asarray(g, dtype=float), mode)
+        return mode

@@ -16,19 +16,12 @@ from csim.model.cache import definition_key
 from csim.model.numeric import NumericModel, build_numeric_model
 from csim.result import Result
 from csim.solver.formulations import make_formulation
-from csim.solver.ggl import GGLSystem
 from csim.solver.initial import consistent_initial_state
-from csim.solver.partitioned import PartitionedSystem
+from csim.solver.methods import make_stabilizer
 from csim.solver.settings import Trajectory
-from csim.solver.stabilizers import make_stabilizer
 from csim.solver.system import ConstrainedSystem
 
 _MODELS: dict[str, NumericModel] = {}
-
-#: Stabilizer.system -> the system that integrates it
-SYSTEMS: dict[str, type[ConstrainedSystem]] = {
-    "constrained": ConstrainedSystem, "partitioned": PartitionedSystem, "ggl": GGLSystem,
-}
 
 
 def numeric_model(case: Case) -> NumericModel:
@@ -54,7 +47,7 @@ def build_system(case: Case) -> ConstrainedSystem:
         )
     stab = {k: v for k, v in case.data["stabilization"].items() if k != "method"}
     stabilizer = make_stabilizer(case.data["stabilization"]["method"], stab)
-    return SYSTEMS[stabilizer.system](
+    return stabilizer.system_class()(
         model=model,
         par=model.parameter_vector(case.parameters),
         loads=case.load_set(),

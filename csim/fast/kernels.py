@@ -1,32 +1,28 @@
 # ruff: noqa: F821
-"""Compiled kernels: KKT right-hand side, stabilizers, projection, DOP853 and RK4 loops.
+"""Compiled kernels: the step loops of DOP853 and RK4 with event location, over the shared core.
 
 This file is not imported as it is. :mod:`csim.fast.module` pastes its text after the
 generated model functions of one mechanism (:mod:`csim.fast.codegen`: ``terms``, ``phi_``,
-``jac``, ``mass``, ``loads_``, ``kinetic`` and the sizes ``NQ``, ``NC``, ``NL``) into one
-module, which numba compiles and caches on disk. The names this file uses without
-defining them are those.
+``jac``, ``mass``, ``loads_``, ``kinetic`` and the sizes ``NQ``, ``NC``, ``NL``) and the
+generated dispatch ``method_gamma_star`` over the registered stabilization methods, into
+one module that numba compiles and caches on disk. The names used here without a
+definition are those.
 
-Everything mirrors the Python path so that both give the same results to round-off:
-:class:`csim.solver.system.ConstrainedSystem` (state y = [q, qd, W]),
-:class:`csim.solver.formulations.KKT`, :mod:`csim.solver.stabilizers`, scipy's ``DOP853``
-(step-size control, error estimate, dense output), :class:`csim.solver.integrators.RK4`
-with its cubic Hermite dense output, scipy's ``brentq``, and the event location, sampling
-and divergence checks of :func:`csim.solver.simulate.integrate`.
+The physics is not here: the KKT solve, gamma* of each method, the switching functions,
+the load laws, the projection, the step checks and the status codes are the functions of
+:mod:`csim.physics` and of the method files (:mod:`csim.solver.methods`), the same ones the
+Python driver calls. What is here is what must be compiled: the step loops, the ports of
+scipy's ``DOP853`` (step-size control, error estimate, dense output) and ``brentq``, the
+cubic Hermite dense output of :class:`csim.solver.rk4.RK4`, and the glue that evaluates
+the model into the workspace.
 
-The problem is passed as two flat arrays (no tuples of arrays: numba would count
-references to each member at every call)::
-
-    pf = [magnitudes (k), g1 (r), g2 (r), g3 (r), sw_width, proj_tol, sw_value (n_sw)]
-    pi = [stab_kind, sw_fn, proj_metric, proj_max_iter, n_sw, sw_load (n_sw), sw_kind (n_sw)]
-
-switching function j of load ``sw_load[j]``: kind 0 is s - lo, 1 hi - s, 2 ds/dt, 3 -ds/dt
-(``sw_value`` holds lo or hi). ``stab_kind``: 0 none, 1 baumgarte (g1 = d, g2 = w),
-2 sliding_mode (g1 = Lambda, g2 = K, g3 = k; ``sw_fn`` 0 sgn, 1 sat, 2 tanh, 3 atan,
-4 sqrt with width ``sw_width``), 3 projection (``proj_metric`` 0 minimum_norm, 1 mass).
-The workspace w holds the model terms (offsets W_M ... from the generated part), then the
-KKT matrix and right-hand side, the loads, the projection's matrices and the switching
-functions (offsets below).
+The problem is passed as flat arrays (no tuples of arrays: numba would count references
+to each member at every call): ``par`` the parameters; ``mag`` (k,), ``sw_load``,
+``sw_kind``, ``sw_value`` (n_sw,) the load laws (:mod:`csim.physics.loads`); ``mk`` the
+method's code in the dispatch and ``gains`` (G, r), ``fpar``, ``ipar`` its packed settings
+(:meth:`csim.solver.methods.base.Method.pack`). The workspace w holds the model terms
+(offsets W_M ... from the generated part), then the scratch of the right-hand side and
+of the projection (offsets below); views into it are made where they are used.
 """
 import importlib.util
 import math
@@ -34,6 +30,24 @@ import os
 
 import numpy as np
 from numba import njit
+
+from csim.physics.kkt import constraint_rates, generalized_forces, kkt_solve
+from csim.physics.loads import load_rates, load_values, mode_of, switching_functions
+from csim.physics.projection import at_round_off, correction, invert, max_abs
+from csim.physics.status import (
+    MAX_EVENTS,
+    MAX_STEPS,
+    NO_SIGN_CHANGE,
+    NONFINITE_RHS,
+    OK,
+    PROJ_NO_CONVERGENCE,
+    PROJ_SINGULAR,
+    RK4_RESOLUTION,
+    SINGULAR_KKT,
+    SINGULAR_MASS,
+    STEP_TOO_SMALL,
+)
+from csim.physics.steps import all_finite, check_step
 
 
 def _dop853_coefficients():
@@ -49,22 +63,7 @@ def _dop853_coefficients():
 
 _dop = _dop853_coefficients()
 
-# ---- status codes of the integration loop (csim.fast.runner turns them into messages) ----
-OK = 0
-NONFINITE_RHS = 1  # info: t, max |y|
-NONFINITE_STATE = 2  # info: t
-MAX_PHI = 3  # info: max |Phi|, t
-STEP_COLLAPSE = 4  # info: h, t
-MAX_STEPS = 5  # info: t
-STEP_TOO_SMALL = 6  # info: t (scipy: "Required step size is less than spacing between numbers.")
-SINGULAR_KKT = 7  # info: t
-PROJ_SINGULAR = 8  # info: t
-PROJ_NO_CONVERGENCE = 9  # info: max |Phi|, t
-MAX_EVENTS = 10  # info: t
-RK4_RESOLUTION = 11  # info: t
-SINGULAR_MASS = 12  # info: t
-NO_SIGN_CHANGE = 13  # info: t
-
+# ---- the loop's constants (status codes are csim.physics.status's) ----
 EPS = 2.220446049250313e-16
 
 # DOP853 coefficients, the very arrays scipy's DOP853 uses
@@ -83,19 +82,23 @@ SAFETY = 0.9
 MIN_FACTOR = 0.2
 MAX_FACTOR = 10.0
 
-# integrators
+# integrators, and the dense output of an empty step
 DOP853 = 0
 RK4 = 1
-
+CONSTANT = 2
 
 # ---------------------------------------------------------------------------------------
 # workspace layout after the model terms (the model part defines W_M ... W_MODEL)
 # ---------------------------------------------------------------------------------------
 NK = NQ + NC  # size of the KKT system
 W_A = W_MODEL  # KKT matrix (NK, NK)
-W_X = W_A + NK * NK  # its right-hand side [p, gamma*], then the solution [qdd, lambda]
-W_U = W_X + NK  # load values (NL)
-W_WINV = W_U + NL  # projection: W^-1 (NQ, NQ)
+W_X = W_A + NK * NK  # [qdd, lambda] (NK)
+W_P = W_X + NK  # p = B u - C qd - h (NQ)
+W_U = W_P + NQ  # load values (NL)
+W_SD = W_U + NL  # load rates ds/dt (NL)
+W_PD = W_SD + NL  # Phi_q qd (NC)
+W_GS = W_PD + NC  # gamma* (NC)
+W_WINV = W_GS + NC  # projection: W^-1 (NQ, NQ)
 W_M2 = W_WINV + NQ * NQ  # projection: LU of M (NQ, NQ)
 W_WJT = W_M2 + NQ * NQ  # projection: W^-1 Phi_q^T (NQ, NC)
 W_S2 = W_WJT + NQ * NC  # projection: Phi_q W^-1 Phi_q^T (NC, NC)
@@ -103,77 +106,16 @@ W_Z = W_S2 + NC * NC  # projection: (NC)
 W_DQ = W_Z + NC  # projection: correction (NQ)
 W_COL = W_DQ + NQ  # projection: a column of the identity (NQ)
 W_G = W_COL + NQ  # switching functions (n_sw), last
-# offsets in pf
-PF_G1 = NL
-PF_G2 = NL + NC
-PF_G3 = NL + 2 * NC
-PF_WIDTH = NL + 3 * NC
-PF_PTOL = PF_WIDTH + 1
-PF_SW = PF_PTOL + 1
 
-
-# ---------------------------------------------------------------------------------------
-# small dense linear algebra in w (LU with partial pivoting, as LAPACK's getrf/getrs)
-# ---------------------------------------------------------------------------------------
-@njit(cache=True, error_model="numpy")
-def lu_factor(w, a, n, piv):
-    """In-place LU of the row-major n x n matrix at w[a:]; False if a pivot is exactly zero."""
-    for c in range(n):
-        p = c
-        big = abs(w[a + c * n + c])
-        for i in range(c + 1, n):
-            v = abs(w[a + i * n + c])
-            if v > big:
-                big = v
-                p = i
-        piv[c] = p
-        if w[a + p * n + c] == 0.0:
-            return False
-        if p != c:
-            for j in range(n):
-                tmp = w[a + c * n + j]
-                w[a + c * n + j] = w[a + p * n + j]
-                w[a + p * n + j] = tmp
-        inv = 1.0 / w[a + c * n + c]
-        for i in range(c + 1, n):
-            w[a + i * n + c] *= inv
-            lic = w[a + i * n + c]
-            if lic != 0.0:
-                for j in range(c + 1, n):
-                    w[a + i * n + j] -= lic * w[a + c * n + j]
-    return True
+# scalars of the loop, in one float array ts_ and one int array cs_
+T, T_OLD, H_ABS, HSTEP, T_STOP, SEG_START = range(6)
+NFEV, NSTEPS, N_REC, I_OUT, N_EV, SEG_STEPS = range(6)
 
 
 @njit(cache=True, error_model="numpy")
-def lu_solve(w, a, n, piv, b):
-    """Solve with the factors of :func:`lu_factor`; w[b:b + n] is overwritten by the solution."""
-    for c in range(n):
-        p = piv[c]
-        if p != c:
-            tmp = w[b + c]
-            w[b + c] = w[b + p]
-            w[b + p] = tmp
-    for i in range(n):
-        s = w[b + i]
-        for j in range(i):
-            s -= w[a + i * n + j] * w[b + j]
-        w[b + i] = s
-    for i in range(n - 1, -1, -1):
-        s = w[b + i]
-        for j in range(i + 1, n):
-            s -= w[a + i * n + j] * w[b + j]
-        w[b + i] = s / w[a + i * n + i]
-
-
-@njit(cache=True, error_model="numpy")
-def all_finite(x):
-    """Whether every entry is finite (a loop: numba does not compile all() over a generator)."""
-    ok = True
-    for i in range(x.size):
-        if not math.isfinite(x[i]):
-            ok = False
-            break
-    return ok
+def _mat(w, offset, rows, cols):
+    """The row-major (rows, cols) matrix stored in w from ``offset`` (a view)."""
+    return w[offset:offset + rows * cols].reshape((rows, cols))
 
 
 @njit(cache=True, error_model="numpy")
@@ -186,145 +128,69 @@ def spacing(t):
 
 
 @njit(cache=True, error_model="numpy")
-def copy_to(src, dst):
-    for i in range(src.size):
-        dst[i] = src[i]
-
-
-@njit(cache=True, error_model="numpy")
 def copy_row(src, dst, row):
     for i in range(src.size):
         dst[row, i] = src[i]
 
 
-@njit(cache=True, error_model="numpy")
-def max_abs_range(x, a, n):
-    """max |x[a:a + n]| (0 when empty), NaN if any entry is NaN (as numpy's max)."""
-    out = 0.0
-    for i in range(a, a + n):
-        v = abs(x[i])
-        if v != v:
-            return v
-        if v > out:
-            out = v
-    return out
-
-
-@njit(cache=True, error_model="numpy")
-def max_abs(x):
-    return max_abs_range(x, 0, x.size)
-
-
 # ---------------------------------------------------------------------------------------
-# loads, stabilizers, right-hand side
+# the model at a state: switching functions, right-hand side
 # ---------------------------------------------------------------------------------------
 @njit(cache=True, error_model="numpy")
-def switching_from(y, pf, pi, w):
-    """Switching functions into w[W_G:] from s and B in w and qd in y."""
-    n_sw = pi[4]
-    for j in range(n_sw):
-        kk = pi[5 + j]
-        kind = pi[5 + n_sw + j]
-        if kind == 0:
-            w[W_G + j] = w[W_S + kk] - pf[PF_SW + j]
-        elif kind == 1:
-            w[W_G + j] = pf[PF_SW + j] - w[W_S + kk]
-        else:
-            sdot = 0.0
-            for i in range(NQ):
-                sdot += w[W_B + i * NL + kk] * y[NQ + i]
-            w[W_G + j] = sdot if kind == 2 else -sdot
+def switching_from(y, sw_load, sw_kind, sw_value, w):
+    """Switching functions into w[W_G:] from s and B in w (loads_ or terms evaluated) and qd in y."""
+    n_sw = sw_load.size
+    load_rates(_mat(w, W_B, NQ, NL), y[NQ:2 * NQ], w[W_SD:W_SD + NL])
+    switching_functions(w[W_S:W_S + NL], w[W_SD:W_SD + NL], sw_load, sw_kind, sw_value, w[W_G:W_G + n_sw])
 
 
 @njit(cache=True, error_model="numpy")
-def mode_at(y, par, pf, pi, w, mode):
+def mode_at(y, par, sw_load, sw_kind, sw_value, w, mode):
     """The load-law conditions that hold at state y (switching functions left in w[W_G:])."""
     loads_(y, par, w)
-    switching_from(y, pf, pi, w)
-    for j in range(pi[4]):
-        mode[j] = w[W_G + j] > 0.0
+    switching_from(y, sw_load, sw_kind, sw_value, w)
+    mode_of(w[W_G:W_G + sw_load.size], mode)
 
 
 @njit(cache=True, error_model="numpy")
-def switch_fn(kind, s, width):
-    if kind == 0:
-        return 1.0 if s > 0 else (-1.0 if s < 0 else (0.0 if s == 0 else s))
-    if kind == 1:
-        return min(1.0, max(-1.0, s / width))
-    if kind == 2:
-        return math.tanh(width * s)
-    if kind == 3:
-        return 2.0 / np.pi * math.atan(width * s)
-    return s / math.sqrt(s * s + width * width)
-
-
-@njit(cache=True, error_model="numpy")
-def gamma_star(i, gam, phi_i, phi_dot_i, pf, pi):
-    """gamma*_i of constraint i (csim.solver.stabilizers)."""
-    kind = pi[0]
-    if kind == 1:  # baumgarte
-        d, wn = pf[PF_G1 + i], pf[PF_G2 + i]
-        return gam - 2.0 * d * wn * phi_dot_i - wn**2 * phi_i
-    if kind == 2:  # sliding mode
-        lam, K, k = pf[PF_G1 + i], pf[PF_G2 + i], pf[PF_G3 + i]
-        s = phi_dot_i + lam * phi_i
-        return gam - lam * phi_dot_i - K * s - k * switch_fn(pi[1], s, pf[PF_WIDTH])
-    return gam
-
-
-@njit(cache=True, error_model="numpy")
-def rhs(y, mode, located, par, pf, pi, w, piv, f):
-    """dy/dt into f: [qd, qdd, u * ds/dt]; [qdd, lambda] left in w[W_X:]. Returns OK or SINGULAR_KKT.
+def rhs(y, mode, located, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar, w, piv, f):
+    """dy/dt = [qd, qdd, u * ds/dt] into f; [qdd, lambda] left in w[W_X:]. Returns OK or SINGULAR_KKT.
 
     The load laws are held in ``mode``; with ``located`` False they are evaluated at y
     itself (``mode`` is then overwritten: pass a scratch array).
     """
     terms(y, par, w)
+    qd = y[NQ:2 * NQ]
+    B = _mat(w, W_B, NQ, NL)
+    J = _mat(w, W_J, NC, NQ)
     if not located:
-        switching_from(y, pf, pi, w)
-        for j in range(pi[4]):
-            mode[j] = w[W_G + j] > 0.0
-    n_sw = pi[4]
-    for kk in range(NL):  # u_k = magnitude_k while every condition of load k holds
-        w[W_U + kk] = pf[kk]
-    for j in range(n_sw):
-        if not mode[j]:
-            w[W_U + pi[5 + j]] = 0.0
-    for i in range(NQ):
-        Q = 0.0
-        for kk in range(NL):
-            Q += w[W_B + i * NL + kk] * w[W_U + kk]
-        w[W_X + i] = Q - w[W_CQD + i] - w[W_H + i]  # p = B u - C qd - h
-        for j in range(NQ):
-            w[W_A + i * NK + j] = w[W_M + i * NQ + j]
-        for j in range(NC):
-            w[W_A + i * NK + NQ + j] = w[W_J + j * NQ + i]
-    for i in range(NC):
-        phi_dot = 0.0
-        for j in range(NQ):
-            w[W_A + (NQ + i) * NK + j] = w[W_J + i * NQ + j]
-            phi_dot += w[W_J + i * NQ + j] * y[NQ + j]
-        for j in range(NC):
-            w[W_A + (NQ + i) * NK + NQ + j] = 0.0
-        w[W_X + NQ + i] = gamma_star(i, w[W_GAM + i], w[W_PHI + i], phi_dot, pf, pi)
-    if not lu_factor(w, W_A, NK, piv):
+        switching_from(y, sw_load, sw_kind, sw_value, w)
+        mode_of(w[W_G:W_G + sw_load.size], mode)
+    u = w[W_U:W_U + NL]
+    load_values(mag, mode, sw_load, u)
+    p = w[W_P:W_P + NQ]
+    generalized_forces(B, u, w[W_CQD:W_CQD + NQ], w[W_H:W_H + NQ], p)
+    phi_dot = w[W_PD:W_PD + NC]
+    constraint_rates(J, qd, phi_dot)
+    gstar = w[W_GS:W_GS + NC]
+    method_gamma_star(mk, w[W_GAM:W_GAM + NC], w[W_PHI:W_PHI + NC], phi_dot, gains, fpar, ipar, gstar)
+    x = w[W_X:W_X + NK]
+    if not kkt_solve(_mat(w, W_M, NQ, NQ), J, p, gstar, _mat(w, W_A, NK, NK), x, piv):
         return SINGULAR_KKT
-    lu_solve(w, W_A, NK, piv, W_X)
+    sdot = w[W_SD:W_SD + NL]
+    load_rates(B, qd, sdot)
     for i in range(NQ):
-        f[i] = y[NQ + i]
-        f[NQ + i] = w[W_X + i]
-    for kk in range(NL):
-        sdot = 0.0
-        for i in range(NQ):
-            sdot += w[W_B + i * NL + kk] * y[NQ + i]
-        f[2 * NQ + kk] = w[W_U + kk] * sdot
+        f[i] = qd[i]
+        f[NQ + i] = x[i]
+    for kk in range(NL):  # dW/dt = u * ds/dt
+        f[2 * NQ + kk] = u[kk] * sdot[kk]
     return OK
 
 
 @njit(cache=True, error_model="numpy")
-def feval(t, y, mode, located, par, pf, pi, w, piv, f, info):
+def feval(t, y, mode, located, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar, w, piv, f, info):
     """rhs plus the driver's check of a non-finite result (info = [t, max |y|] then)."""
-    code = rhs(y, mode, located, par, pf, pi, w, piv, f)
+    code = rhs(y, mode, located, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar, w, piv, f)
     if code == OK and not all_finite(f):
         code = NONFINITE_RHS
     if code != OK:
@@ -334,98 +200,62 @@ def feval(t, y, mode, located, par, pf, pi, w, piv, f, info):
 
 
 # ---------------------------------------------------------------------------------------
-# projection onto Phi = 0, Phi_q qd = 0 (csim.solver.stabilizers.Projection)
+# projection onto Phi = 0, Phi_q qd = 0 (csim.solver.methods.projection)
 # ---------------------------------------------------------------------------------------
 @njit(cache=True, error_model="numpy")
-def _correction(w, mass_metric, res, piv):
-    """w[W_DQ:] = W^-1 J^T (J W^-1 J^T)^-1 w[res:] with J = w[W_J:]; False if singular."""
-    for i in range(NQ):
-        for c in range(NC):
-            if mass_metric:
-                v = 0.0
-                for j in range(NQ):
-                    v += w[W_WINV + i * NQ + j] * w[W_J + c * NQ + j]
-                w[W_WJT + i * NC + c] = v
-            else:
-                w[W_WJT + i * NC + c] = w[W_J + c * NQ + i]
-    for a in range(NC):
-        for b in range(NC):
-            v = 0.0
-            for j in range(NQ):
-                v += w[W_J + a * NQ + j] * w[W_WJT + j * NC + b]
-            w[W_S2 + a * NC + b] = v
-    for a in range(NC):
-        w[W_Z + a] = w[res + a]
-    if not lu_factor(w, W_S2, NC, piv):
-        return False
-    lu_solve(w, W_S2, NC, piv, W_Z)
-    for i in range(NQ):
-        v = 0.0
-        for c in range(NC):
-            v += w[W_WJT + i * NC + c] * w[W_Z + c]
-        w[W_DQ + i] = v
-    return True
+def project(y, out, par, fpar, ipar, w, piv):
+    """out = y with (q, qd) projected; returns (status code, max |Phi| of the last iterate).
 
-
-@njit(cache=True, error_model="numpy")
-def project(y, out, par, pf, pi, w, piv):
-    """out = y with (q, qd) projected; returns (status code, max |Phi| of the last iterate)."""
-    tol, max_iter = pf[PF_PTOL], pi[3]
-    mass_metric = pi[2] == 1
+    fpar[0] is the tolerance on max |Phi|, ipar = [mass metric (0/1), iteration limit].
+    """
+    tol, mass_metric, max_iter = fpar[0], ipar[0] == 1, ipar[1]
     for i in range(y.size):
         out[i] = y[i]
-    if mass_metric:  # W^-1 = M^-1, column by column
+    Winv = _mat(w, W_WINV, NQ, NQ)
+    J = _mat(w, W_J, NC, NQ)
+    WJt, S, z, dq = _mat(w, W_WJT, NQ, NC), _mat(w, W_S2, NC, NC), w[W_Z:W_Z + NC], w[W_DQ:W_DQ + NQ]
+    if mass_metric:  # W^-1 = M^-1
         mass(out, par, w)
-        for i in range(NQ * NQ):
-            w[W_M2 + i] = w[W_M + i]
-        if not lu_factor(w, W_M2, NQ, piv):
+        if not invert(_mat(w, W_M, NQ, NQ), _mat(w, W_M2, NQ, NQ), piv, w[W_COL:W_COL + NQ], Winv):
             return SINGULAR_MASS, 0.0
-        for c in range(NQ):
-            for i in range(NQ):
-                w[W_COL + i] = 1.0 if i == c else 0.0
-            lu_solve(w, W_M2, NQ, piv, W_COL)
-            for i in range(NQ):
-                w[W_WINV + i * NQ + c] = w[W_COL + i]
+    q = out[:NQ]
+    phi = w[W_PHI:W_PHI + NC]
     converged = False
     mx = 0.0
     for _ in range(max_iter + 1):
         phi_(out, par, w)
-        mx = max_abs_range(w, W_PHI, NC)
+        mx = max_abs(phi)
         if mx <= tol:
             converged = True
             break
         jac(out, par, w)
-        if not _correction(w, mass_metric, W_PHI, piv):
+        if not correction(J, Winv, mass_metric, phi, WJt, S, z, piv, dq):
             return PROJ_SINGULAR, mx
         for i in range(NQ):
-            out[i] -= w[W_DQ + i]
-        # at_round_off: the correction is down to the round-off of q
-        if max_abs_range(w, W_DQ, NQ) <= 8 * EPS * max(1.0, max_abs_range(out, 0, NQ)):
+            q[i] -= dq[i]
+        if at_round_off(dq, q):  # |Phi| cannot go lower: its round-off grows with |q|
             converged = True
             break
     if not converged:
         return PROJ_NO_CONVERGENCE, mx
     jac(out, par, w)
-    for a in range(NC):
-        v = 0.0
-        for j in range(NQ):
-            v += w[W_J + a * NQ + j] * out[NQ + j]
-        w[W_PHI + a] = v  # Phi_q qd (Phi itself is no longer needed)
-    if not _correction(w, mass_metric, W_PHI, piv):
+    phi_dot = w[W_PD:W_PD + NC]
+    constraint_rates(J, out[NQ:2 * NQ], phi_dot)
+    if not correction(J, Winv, mass_metric, phi_dot, WJt, S, z, piv, dq):
         return PROJ_SINGULAR, mx
     for i in range(NQ):
-        out[NQ + i] -= w[W_DQ + i]
+        out[NQ + i] -= dq[i]
     return OK, mx
 
 
 # ---------------------------------------------------------------------------------------
-# dense output
+# dense output and the zeros of the switching functions on it
 # ---------------------------------------------------------------------------------------
 @njit(cache=True, error_model="numpy")
 def dense_eval(kind, tau, t_old, h, y_old, F, out):
-    """The last step's interpolant at tau into out (kind: DOP853, RK4 (Hermite), 2 constant)."""
+    """The last step's interpolant at tau into out (kind: DOP853, RK4 (Hermite), CONSTANT)."""
     n = y_old.size
-    if kind == 2:
+    if kind == CONSTANT:
         for i in range(n):
             out[i] = y_old[i]
         return
@@ -452,22 +282,23 @@ def dense_eval(kind, tau, t_old, h, y_old, F, out):
 
 
 @njit(cache=True, error_model="numpy")
-def _g_at(j, tau, kind, t_old, h, y_old, F, par, pf, pi, w, ytmp):
+def _g_at(j, tau, kind, t_old, h, y_old, F, par, sw_load, sw_kind, sw_value, w, ytmp):
+    """Switching function j on the dense output at tau."""
     dense_eval(kind, tau, t_old, h, y_old, F, ytmp)
     loads_(ytmp, par, w)
-    switching_from(ytmp, pf, pi, w)
+    switching_from(ytmp, sw_load, sw_kind, sw_value, w)
     return w[W_G + j]
 
 
 @njit(cache=True, error_model="numpy")
-def brentq(j, xa, xb, kind, t_old, h, y_old, F, par, pf, pi, w, ytmp):
-    """scipy's brentq (xtol = rtol = 4 eps, 100 iterations) on switching function j."""
+def brentq(j, xa, xb, kind, t_old, h, y_old, F, par, sw_load, sw_kind, sw_value, w, ytmp):
+    """scipy's brentq (xtol = rtol = 4 eps, 100 iterations) on switching function j: (root, ok)."""
     xtol = 4 * EPS
     rtol = 4 * EPS
     xpre, xcur = xa, xb
     xblk, fblk, spre, scur = 0.0, 0.0, 0.0, 0.0
-    fpre = _g_at(j, xpre, kind, t_old, h, y_old, F, par, pf, pi, w, ytmp)
-    fcur = _g_at(j, xcur, kind, t_old, h, y_old, F, par, pf, pi, w, ytmp)
+    fpre = _g_at(j, xpre, kind, t_old, h, y_old, F, par, sw_load, sw_kind, sw_value, w, ytmp)
+    fcur = _g_at(j, xcur, kind, t_old, h, y_old, F, par, sw_load, sw_kind, sw_value, w, ytmp)
     if fpre == 0:
         return xpre, True
     if fcur == 0:
@@ -512,12 +343,12 @@ def brentq(j, xa, xb, kind, t_old, h, y_old, F, par, pf, pi, w, ytmp):
             xcur += scur
         else:
             xcur += delta if sbis > 0 else -delta
-        fcur = _g_at(j, xcur, kind, t_old, h, y_old, F, par, pf, pi, w, ytmp)
+        fcur = _g_at(j, xcur, kind, t_old, h, y_old, F, par, sw_load, sw_kind, sw_value, w, ytmp)
     return xcur, True
 
 
 # ---------------------------------------------------------------------------------------
-# the integration loop
+# one step of each integrator
 # ---------------------------------------------------------------------------------------
 @njit(cache=True, error_model="numpy")
 def _rms(x, scale):
@@ -529,459 +360,174 @@ def _rms(x, scale):
 
 
 @njit(cache=True, error_model="numpy")
-def integrate(method, y0, t_out, par, pf, pi, iset, fset):
-    """Integrate from t = 0, state y0 (n,), sampling at t_out (csim.solver.simulate.integrate).
-
-    ``par``, ``pf``, ``pi``: the problem (module docstring);
-    ``iset`` = [locate, event_samples, max_events, max_steps];
-    ``fset`` = [t_end, rtol, atol, step, max_step, first_step (NaN: automatic), max_phi,
-    min_step]. Returns (n_rec, ts, ys, modes, n_ev, ev_t, ev_switched, nfev, nsteps,
-    status, info (2,)).
-    """
-    locate = iset[0] != 0
-    n_interior = iset[1]
-    max_events = iset[2]
-    max_steps = iset[3]
-    t_end, rtol, atol, fixed_h, max_step, first_step, max_phi, min_step_set = \
-        fset[0], fset[1], fset[2], fset[3], fset[4], fset[5], fset[6], fset[7]
-    projects = pi[0] == 3
-    n = y0.size
-    n_sw = pi[4]
-    w = np.zeros(W_G + n_sw)
-    piv = np.zeros(NK, np.int64)
-    n_out = t_out.size
-    ts = np.empty(n_out)
-    ys = np.empty((n_out, n))
-    modes = np.zeros((n_out, n_sw), np.bool_)
-    cap = 16
-    ev_t = np.empty(cap)
-    ev_sw = np.zeros((cap, n_sw), np.bool_)
-    n_ev = 0
-    info = np.zeros(2)
-    status = OK
-    nfev = 0
-    nsteps = 0
-    n_rec = 0
-
-    y = y0.copy()
-    ytmp = np.empty(n)
-    yp = np.empty(n)
-    f = np.empty(n)
-    f_new = np.empty(n)
-    y_new = np.empty(n)
-    y_old = np.empty(n)
-    K = np.empty((DOP_NX, n))
-    F = np.empty((DOP_POWER, n))
-    Fh = np.empty((4, n))
-    tolv = np.empty(n)
-    scl = np.empty(n)
-    mode = np.zeros(n_sw, np.bool_)
-    # the mode the right-hand side uses: the located one, or a scratch it overwrites
-    rmode = mode if locate else np.zeros(n_sw, np.bool_)
-    mode_b = np.zeros(n_sw, np.bool_)
-    roots = np.empty(n_sw)
-    has_root = np.zeros(n_sw, np.bool_)
-    t = 0.0
-
-    # ---- start: project (projection), mode, first record ----
-    if projects:
-        code, mx = project(y, yp, par, pf, pi, w, piv)
-        if code != OK:
-            info[0] = mx
-            info[1] = t
-            return n_rec, ts, ys, modes, n_ev, ev_t, ev_sw, nfev, nsteps, code, info
-        copy_to(yp, y)
-    mode_at(y, par, pf, pi, w, mode)
-    if projects:
-        code, mx = project(y, yp, par, pf, pi, w, piv)
-        if code != OK:
-            info[0] = mx
-            info[1] = t
-            return n_rec, ts, ys, modes, n_ev, ev_t, ev_sw, nfev, nsteps, code, info
-        copy_row(yp, ys, 0)
+def _initial_step(t, y, f, t_end, rtol, tolv, max_step, first_step, par, mag, sw_load, sw_kind, sw_value, rmode,
+                  locate, mk, gains, fpar, ipar, w, piv, ytmp, f1, scl, cs, info):
+    """DOP853's first step: given, or scipy's select_initial_step (one evaluation). Returns (status, h)."""
+    n = y.size
+    interval = abs(t_end - t)
+    if first_step == first_step:  # given (NaN: automatic)
+        return OK, min(first_step, interval)
+    if interval == 0.0:
+        return OK, 0.0
+    for i in range(n):
+        scl[i] = tolv[i] + abs(y[i]) * rtol
+    d0 = _rms(y, scl)
+    d1 = _rms(f, scl)
+    if d0 < 1e-5 or d1 < 1e-5:
+        h0 = 1e-6
     else:
-        copy_row(y, ys, 0)
-    ts[0] = t
-    for jj in range(n_sw):
-        modes[0, jj] = mode[jj]
-    n_rec = 1
-    i_out = 1
+        h0 = 0.01 * d0 / d1
+    h0 = min(h0, interval)
+    for i in range(n):
+        ytmp[i] = y[i] + h0 * f[i]
+    cs[NFEV] += 1
+    status = feval(t + h0, ytmp, rmode, locate, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar, w,
+                   piv, f1, info)
+    if status != OK:
+        return status, 0.0
+    for i in range(n):
+        f1[i] = f1[i] - f[i]
+    d2 = _rms(f1, scl) / h0
+    if d1 <= 1e-15 and d2 <= 1e-15:
+        h1 = max(1e-6, h0 * 1e-3)
+    else:
+        h1 = (0.01 / max(d1, d2)) ** (1 / 8)
+    return OK, min(100 * h0, h1, interval, max_step)
 
-    while t < t_end and status == OK:
-        # ---- a new segment: start the integrator at (t, y) ----
-        restarted = False
-        ke = kinetic(y, par)
-        scale_w = max(1.0, abs(ke))
+
+@njit(cache=True, error_model="numpy")
+def _dop853_error(K, y, y_new, tolv, rtol, hstep):
+    """scipy DOP853._estimate_error_norm: the scaled error norm of the step."""
+    n = y.size
+    e5 = 0.0
+    e3 = 0.0
+    for i in range(n):
+        sc = tolv[i] + max(abs(y[i]), abs(y_new[i])) * rtol
+        a5 = 0.0
+        a3 = 0.0
+        for jj in range(DOP_NS + 1):
+            a5 += K[jj, i] * DOP_E5[jj]
+            a3 += K[jj, i] * DOP_E3[jj]
+        a5 /= sc
+        a3 /= sc
+        e5 += a5 * a5
+        e3 += a3 * a3
+    if e5 == 0 and e3 == 0:
+        return 0.0
+    return abs(hstep) * e5 / math.sqrt((e5 + 0.01 * e3) * n)
+
+
+@njit(cache=True, error_model="numpy")
+def _dop853_stages(t, hstep, y, f, K, ytmp, y_new, f_new, par, mag, sw_load, sw_kind, sw_value, rmode, locate, mk,
+                   gains, fpar, ipar, w, piv, cs, info):
+    """scipy's rk_step: the 12 stages, y_new and f_new = f(t + h, y_new) into K[DOP_NS]. Returns the status."""
+    n = y.size
+    for i in range(n):
+        K[0, i] = f[i]
+    for s in range(1, DOP_NS):
         for i in range(n):
-            tolv[i] = atol * scale_w if i >= 2 * NQ else atol
-        nfev += 1
-        status = feval(t, y, rmode, locate, par, pf, pi, w, piv, f, info)
+            acc = 0.0
+            for jj in range(s):
+                acc += K[jj, i] * DOP_A[s, jj]
+            ytmp[i] = y[i] + acc * hstep
+        cs[NFEV] += 1
+        status = feval(t + DOP_C[s] * hstep, ytmp, rmode, locate, par, mag, sw_load, sw_kind, sw_value, mk, gains,
+                       fpar, ipar, w, piv, K[s], info)
         if status != OK:
-            break
-        h_abs = 0.0
-        seg_start = t
-        seg_steps = 0
-        if method == DOP853:
-            interval = abs(t_end - t)
-            if first_step == first_step:  # given
-                h_abs = min(first_step, interval)
-            elif interval == 0.0:
-                h_abs = 0.0
-            else:  # scipy's select_initial_step
-                for i in range(n):
-                    scl[i] = tolv[i] + abs(y[i]) * rtol
-                d0 = _rms(y, scl)
-                d1 = _rms(f, scl)
-                if d0 < 1e-5 or d1 < 1e-5:
-                    h0 = 1e-6
-                else:
-                    h0 = 0.01 * d0 / d1
-                h0 = min(h0, interval)
-                for i in range(n):
-                    ytmp[i] = y[i] + h0 * f[i]
-                nfev += 1
-                status = feval(t + h0, ytmp, rmode, locate, par, pf, pi, w, piv, f_new, info)
-                if status != OK:
-                    break
-                for i in range(n):
-                    yp[i] = f_new[i] - f[i]
-                d2 = _rms(yp, scl) / h0
-                if d1 <= 1e-15 and d2 <= 1e-15:
-                    h1 = max(1e-6, h0 * 1e-3)
-                else:
-                    h1 = (0.01 / max(d1, d2)) ** (1 / 8)
-                h_abs = min(100 * h0, h1, interval, max_step)
-        running = True
-        while running:
-            # ---- one step of the integrator: t -> t_new, y -> y_new ----
-            t_old = t
-            dense_kind = method
-            step_ok = True
-            if t == t_end:
-                dense_kind = 2  # scipy: an empty step to t_bound
-                t_new = t_end
-                for i in range(n):
-                    y_new[i] = y[i]
-                    f_new[i] = f[i]
-                hstep = 0.0
-            elif method == DOP853:
-                min_step = 10 * spacing(t)
-                if h_abs > max_step:
-                    h_abs = max_step
-                elif h_abs < min_step:
-                    h_abs = min_step
-                accepted = False
-                rejected = False
-                hstep = 0.0
-                t_new = t
-                while not accepted:
-                    if h_abs < min_step:
-                        step_ok = False
-                        break
-                    hstep = h_abs
-                    t_new = t + hstep
-                    if t_new - t_end > 0:
-                        t_new = t_end
-                    hstep = t_new - t
-                    h_abs = abs(hstep)
-                    # rk_step
-                    for i in range(n):
-                        K[0, i] = f[i]
-                    for s in range(1, DOP_NS):
-                        for i in range(n):
-                            acc = 0.0
-                            for jj in range(s):
-                                acc += K[jj, i] * DOP_A[s, jj]
-                            ytmp[i] = y[i] + acc * hstep
-                        nfev += 1
-                        status = feval(t + DOP_C[s] * hstep, ytmp, rmode, locate, par, pf, pi, w, piv, K[s], info)
-                        if status != OK:
-                            break
-                    if status != OK:
-                        break
-                    for i in range(n):
-                        acc = 0.0
-                        for jj in range(DOP_NS):
-                            acc += K[jj, i] * DOP_B[jj]
-                        y_new[i] = y[i] + hstep * acc
-                    nfev += 1
-                    status = feval(t + hstep, y_new, rmode, locate, par, pf, pi, w, piv, f_new, info)
-                    if status != OK:
-                        break
-                    for i in range(n):
-                        K[DOP_NS, i] = f_new[i]
-                    # error norm (scipy DOP853._estimate_error_norm)
-                    e5 = 0.0
-                    e3 = 0.0
-                    for i in range(n):
-                        sc = tolv[i] + max(abs(y[i]), abs(y_new[i])) * rtol
-                        a5 = 0.0
-                        a3 = 0.0
-                        for jj in range(DOP_NS + 1):
-                            a5 += K[jj, i] * DOP_E5[jj]
-                            a3 += K[jj, i] * DOP_E3[jj]
-                        a5 /= sc
-                        a3 /= sc
-                        e5 += a5 * a5
-                        e3 += a3 * a3
-                    if e5 == 0 and e3 == 0:
-                        err = 0.0
-                    else:
-                        err = abs(hstep) * e5 / math.sqrt((e5 + 0.01 * e3) * n)
-                    if err < 1:
-                        if err == 0:
-                            factor = MAX_FACTOR
-                        else:
-                            factor = min(MAX_FACTOR, SAFETY * err ** (-1 / 8))
-                        if rejected:
-                            factor = min(1.0, factor)
-                        h_abs *= factor
-                        accepted = True
-                    else:
-                        h_abs *= max(MIN_FACTOR, SAFETY * err ** (-1 / 8))
-                        rejected = True
-                if status != OK:
-                    break
-            else:  # RK4 on the grid t_start + n h
-                t_new = seg_start + (seg_steps + 1) * fixed_h
-                if t_new >= t_end - 1e-9 * fixed_h:
-                    t_new = t_end
-                hstep = t_new - t
-                if not hstep > 0:
-                    step_ok = False
-                else:
-                    for i in range(n):
-                        K[0, i] = f[i]
-                    for s in range(1, 4):
-                        c = 1.0 if s == 3 else 0.5
-                        for i in range(n):
-                            ytmp[i] = y[i] + (hstep if s == 3 else hstep / 2) * K[s - 1, i]
-                        nfev += 1
-                        status = feval(t + c * hstep, ytmp, rmode, locate, par, pf, pi, w, piv, K[s], info)
-                        if status != OK:
-                            break
-                    if status != OK:
-                        break
-                    for i in range(n):
-                        y_new[i] = y[i] + hstep / 6 * (K[0, i] + 2 * K[1, i] + 2 * K[2, i] + K[3, i])
-                    nfev += 1
-                    status = feval(t_new, y_new, rmode, locate, par, pf, pi, w, piv, f_new, info)
-                    if status != OK:
-                        break
-                    seg_steps += 1
-            nsteps += 1
-            if nsteps > max_steps:
-                status = MAX_STEPS
-                info[0] = t_new if step_ok else t
-                break
-            if not step_ok:
-                status = STEP_TOO_SMALL if method == DOP853 else RK4_RESOLUTION
-                info[0] = t
-                break
-            # the step is accepted
-            for i in range(n):
-                y_old[i] = y[i]
-            t = t_new
-            for i in range(n):
-                y[i] = y_new[i]
-            if t_new >= t_end:
-                running = False
-            # ---- divergence checks (simulate._check_step) ----
-            if not all_finite(y):
-                status = NONFINITE_STATE
-                info[0] = t
-                break
-            phi_(y, par, w)
-            mphi = max_abs_range(w, W_PHI, NC)
-            if not mphi <= max_phi:
-                status = MAX_PHI
-                info[0] = mphi
-                info[1] = t
-                break
-            if method == DOP853 and t != t_end and hstep < min_step_set:
-                status = STEP_COLLAPSE
-                info[0] = hstep
-                info[1] = t
-                break
-            # ---- the dense output of the step, built on first use ----
-            dense_ready = False
-            dense_h = t - t_old
-            if dense_kind == RK4:
-                for i in range(n):
-                    Fh[0, i] = y_old[i]
-                    Fh[1, i] = f[i]
-                    Fh[2, i] = y[i]
-                    Fh[3, i] = f_new[i]
-            # ---- event location (simulate._find_event, _locate) ----
-            event = False
-            t_stop = t
-            if locate:
-                for rep in range(n_interior + 1):
-                    i_b = rep + 1
-                    if i_b == n_interior + 1:
-                        b = t
-                    else:
-                        b = t_old + (t - t_old) * i_b / (n_interior + 1)
-                    if b == t:
-                        for i in range(n):
-                            ytmp[i] = y[i]
-                    else:
-                        status, spent = _ensure_dense(dense_ready, dense_kind, t_old, dense_h, y_old, y, f_new, rmode,
-                                                      locate, par, pf, pi, w, piv, K, F, ytmp, info)
-                        nfev += spent
-                        if status != OK:
-                            break
-                        dense_ready = True
-                        dense_eval(dense_kind, b, t_old, dense_h, y_old, F if dense_kind == DOP853 else Fh, ytmp)
-                    mode_at(ytmp, par, pf, pi, w, mode_b)
-                    found = False
-                    for jj in range(n_sw):
-                        if mode_b[jj] != mode[jj]:
-                            found = True
-                    if found:
-                        status, spent = _ensure_dense(dense_ready, dense_kind, t_old, dense_h, y_old, y, f_new, rmode,
-                                                      locate, par, pf, pi, w, piv, K, F, ytmp, info)
-                        nfev += spent
-                        if status != OK:
-                            break
-                        dense_ready = True
-                        a = t_old if rep == 0 else t_old + (t - t_old) * rep / (n_interior + 1)
-                        FF = F if dense_kind == DOP853 else Fh
-                        t_event = np.inf
-                        for jj in range(n_sw):
-                            has_root[jj] = False
-                            if mode_b[jj] != mode[jj]:
-                                g_old = _g_at(jj, a, dense_kind, t_old, dense_h, y_old, FF, par, pf, pi, w, ytmp)
-                                if (g_old > 0) == mode[jj]:
-                                    root, ok = brentq(jj, a, b, dense_kind, t_old, dense_h, y_old, FF, par, pf, pi,
-                                                      w, ytmp)
-                                    if not ok:
-                                        status = NO_SIGN_CHANGE
-                                        info[0] = t
-                                        break
-                                else:
-                                    root = a
-                                roots[jj] = root
-                                has_root[jj] = True
-                                t_event = min(t_event, root)
-                        if status != OK:
-                            break
-                        event = True
-                        t_stop = t_event
-                        break
-                    if status != OK:
-                        break
-                if status != OK:
-                    break
-            FF = F if dense_kind == DOP853 else Fh
-            # ---- sample the output times in (t_old, t_stop] ----
-            while i_out < n_out and t_out[i_out] <= t_stop:
-                if t_out[i_out] == t and t_stop == t:
-                    for i in range(n):
-                        ytmp[i] = y[i]
-                else:
-                    status, spent = _ensure_dense(dense_ready, dense_kind, t_old, dense_h, y_old, y, f_new, rmode,
-                                                  locate, par, pf, pi, w, piv, K, F, ytmp, info)
-                    nfev += spent
-                    if status != OK:
-                        break
-                    dense_ready = True
-                    dense_eval(dense_kind, t_out[i_out], t_old, dense_h, y_old, FF, ytmp)
-                if projects:
-                    code, mx = project(ytmp, yp, par, pf, pi, w, piv)
-                    if code != OK:
-                        status = code
-                        info[0] = mx
-                        info[1] = t_out[i_out]
-                        break
-                    copy_row(yp, ys, n_rec)
-                else:
-                    copy_row(ytmp, ys, n_rec)
-                ts[n_rec] = t_out[i_out]
-                for jj in range(n_sw):
-                    modes[n_rec, jj] = mode[jj]
-                n_rec += 1
-                i_out += 1
-            if status != OK:
-                break
-            if event:
-                # restart from the event state with the switched conditions flipped
-                if t_stop < t:
-                    dense_eval(dense_kind, t_stop, t_old, dense_h, y_old, FF, ytmp)
-                else:
-                    for i in range(n):
-                        ytmp[i] = y[i]
-                if projects:
-                    code, mx = project(ytmp, yp, par, pf, pi, w, piv)
-                    if code != OK:
-                        status = code
-                        info[0] = mx
-                        info[1] = t_stop
-                        break
-                    for i in range(n):
-                        ytmp[i] = yp[i]
-                for i in range(n):
-                    y[i] = ytmp[i]
-                t = t_stop
-                tol_ev = 4 * EPS * max(1.0, abs(t_stop)) + 4 * EPS
-                if n_ev == cap:  # grow the event arrays
-                    cap *= 2
-                    new_t = np.empty(cap)
-                    new_sw = np.zeros((cap, n_sw), np.bool_)
-                    for e in range(n_ev):
-                        new_t[e] = ev_t[e]
-                        for jj in range(n_sw):
-                            new_sw[e, jj] = ev_sw[e, jj]
-                    ev_t = new_t
-                    ev_sw = new_sw
-                ev_t[n_ev] = t
-                for jj in range(n_sw):
-                    if has_root[jj] and roots[jj] - t_stop <= tol_ev:
-                        ev_sw[n_ev, jj] = True
-                        mode[jj] = not mode[jj]
-                n_ev += 1
-                if n_ev > max_events:
-                    status = MAX_EVENTS
-                    info[0] = t
-                    break
-                restarted = True
-                break
-            # ---- after the step: project and hand the state back (swap) ----
-            if projects:
-                code, mx = project(y, yp, par, pf, pi, w, piv)
-                if code != OK:
-                    status = code
-                    info[0] = mx
-                    info[1] = t
-                    break
-                for i in range(n):
-                    y[i] = yp[i]
-                nfev += 1
-                status = feval(t, y, rmode, locate, par, pf, pi, w, piv, f, info)
-                if status != OK:
-                    break
-            else:
-                for i in range(n):
-                    f[i] = f_new[i]
-        if not restarted:
-            break
-    return n_rec, ts, ys, modes, n_ev, ev_t, ev_sw, nfev, nsteps, status, info
+            return status
+    for i in range(n):
+        acc = 0.0
+        for jj in range(DOP_NS):
+            acc += K[jj, i] * DOP_B[jj]
+        y_new[i] = y[i] + hstep * acc
+    cs[NFEV] += 1
+    status = feval(t + hstep, y_new, rmode, locate, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar, w,
+                   piv, f_new, info)
+    if status != OK:
+        return status
+    for i in range(n):
+        K[DOP_NS, i] = f_new[i]
+    return OK
 
 
 @njit(cache=True, error_model="numpy")
-def _ensure_dense(dense_ready, dense_kind, t_old, h, y_old, y, f, mode, locate, par, pf, pi, w, piv, K, F, ytmp,
-                  info):
-    """The step's dense output, built on its first use: (status, right-hand-side evaluations spent).
+def _dop853_step(ts_, t_end, rtol, tolv, max_step, y, f, K, ytmp, y_new, f_new, par, mag, sw_load, sw_kind, sw_value,
+                 rmode, locate, mk, gains, fpar, ipar, w, piv, cs, info):
+    """One accepted DOP853 step from ts_[T] (scipy's _step_impl). Returns (status, t_new, step_ok).
 
-    DOP853 needs three extra stages (:func:`_dop_dense`); RK4's Hermite data is in place already.
+    ts_[H_ABS] carries the step size over; ts_[HSTEP] gets the accepted step.
     """
-    if dense_ready or dense_kind != DOP853:
-        return OK, 0
-    return _dop_dense(t_old, h, y_old, y, f, mode, locate, par, pf, pi, w, piv, K, F, ytmp, info), 3
+    t = ts_[T]
+    min_step = 10 * spacing(t)
+    h_abs = ts_[H_ABS]
+    if h_abs > max_step:
+        h_abs = max_step
+    elif h_abs < min_step:
+        h_abs = min_step
+    rejected = False
+    while True:
+        if h_abs < min_step:
+            ts_[H_ABS] = h_abs
+            return OK, t, False
+        t_new = t + h_abs
+        if t_new - t_end > 0:
+            t_new = t_end
+        hstep = t_new - t
+        h_abs = abs(hstep)
+        status = _dop853_stages(t, hstep, y, f, K, ytmp, y_new, f_new, par, mag, sw_load, sw_kind, sw_value, rmode,
+                                locate, mk, gains, fpar, ipar, w, piv, cs, info)
+        if status != OK:
+            return status, t, True
+        err = _dop853_error(K, y, y_new, tolv, rtol, hstep)
+        if err < 1:
+            factor = MAX_FACTOR if err == 0 else min(MAX_FACTOR, SAFETY * err ** (-1 / 8))
+            if rejected:
+                factor = min(1.0, factor)
+            ts_[H_ABS] = h_abs * factor
+            ts_[HSTEP] = hstep
+            return OK, t_new, True
+        h_abs *= max(MIN_FACTOR, SAFETY * err ** (-1 / 8))
+        rejected = True
 
 
 @njit(cache=True, error_model="numpy")
-def _dop_dense(t_old, h, y_old, y, f, mode, locate, par, pf, pi, w, piv, K, F, ytmp, info):
+def _rk4_step(ts_, t_end, fixed_h, y, f, K, ytmp, y_new, f_new, par, mag, sw_load, sw_kind, sw_value, rmode, locate,
+              mk, gains, fpar, ipar, w, piv, cs, info):
+    """One classic RK4 step on the grid seg_start + n h (csim.solver.rk4.RK4). Returns (status, t_new, step_ok)."""
+    n = y.size
+    t = ts_[T]
+    t_new = ts_[SEG_START] + (cs[SEG_STEPS] + 1) * fixed_h
+    if t_new >= t_end - 1e-9 * fixed_h:
+        t_new = t_end
+    hstep = t_new - t
+    if not hstep > 0:
+        return OK, t, False
+    for i in range(n):
+        K[0, i] = f[i]
+    for s in range(1, 4):
+        c = 1.0 if s == 3 else 0.5
+        for i in range(n):
+            ytmp[i] = y[i] + (hstep if s == 3 else hstep / 2) * K[s - 1, i]
+        cs[NFEV] += 1
+        status = feval(t + c * hstep, ytmp, rmode, locate, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar,
+                       w, piv, K[s], info)
+        if status != OK:
+            return status, t, True
+    for i in range(n):
+        y_new[i] = y[i] + hstep / 6 * (K[0, i] + 2 * K[1, i] + 2 * K[2, i] + K[3, i])
+    cs[NFEV] += 1
+    status = feval(t_new, y_new, rmode, locate, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar, w, piv,
+                   f_new, info)
+    if status != OK:
+        return status, t, True
+    cs[SEG_STEPS] += 1
+    ts_[HSTEP] = hstep
+    return OK, t_new, True
+
+
+@njit(cache=True, error_model="numpy")
+def _dop_dense(t_old, h, y_old, y, f, mode, locate, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar, w,
+               piv, K, F, ytmp, info):
     """scipy's DOP853._dense_output_impl: three extra stages, then the interpolant F (7, n)."""
     n = y_old.size
     for e in range(DOP_NX - DOP_NS - 1):
@@ -991,7 +537,8 @@ def _dop_dense(t_old, h, y_old, y, f, mode, locate, par, pf, pi, w, piv, K, F, y
             for jj in range(s):
                 acc += K[jj, i] * DOP_A_EXTRA[e, jj]
             ytmp[i] = y_old[i] + acc * h
-        code = feval(t_old + DOP_C_EXTRA[e] * h, ytmp, mode, locate, par, pf, pi, w, piv, K[s], info)
+        code = feval(t_old + DOP_C_EXTRA[e] * h, ytmp, mode, locate, par, mag, sw_load, sw_kind, sw_value, mk, gains,
+                     fpar, ipar, w, piv, K[s], info)
         if code != OK:
             return code
     for i in range(n):
@@ -1007,36 +554,403 @@ def _dop_dense(t_old, h, y_old, y, f, mode, locate, par, pf, pi, w, piv, K, F, y
     return OK
 
 
+@njit(cache=True, error_model="numpy")
+def _ensure_dense(dense_ready, dense_kind, t_old, h, y_old, y, f, mode, locate, par, mag, sw_load, sw_kind, sw_value,
+                  mk, gains, fpar, ipar, w, piv, K, F, ytmp, cs, info):
+    """The step's dense output, built on its first use (DOP853's three extra stages); returns the status.
+
+    RK4's Hermite data and an empty step's constant need no evaluation.
+    """
+    if dense_ready or dense_kind != DOP853:
+        return OK
+    cs[NFEV] += 3
+    return _dop_dense(t_old, h, y_old, y, f, mode, locate, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar,
+                      ipar, w, piv, K, F, ytmp, info)
+
+
+# ---------------------------------------------------------------------------------------
+# events: where a switching function leaves the sign its mode says
+# ---------------------------------------------------------------------------------------
+@njit(cache=True, error_model="numpy")
+def _locate(a, b, dense_kind, t_old, h, y_old, FF, mode, mode_b, par, sw_load, sw_kind, sw_value, w, ytmp, roots,
+            has_root, info):
+    """Earliest zero in (a, b] of the switching functions whose mode differs at b. Returns (status, t_event).
+
+    A function already on the other side at a (the last event was located a hair early)
+    switches at a. ``roots`` and ``has_root`` record each function's zero.
+    """
+    t_event = np.inf
+    for jj in range(sw_load.size):
+        has_root[jj] = False
+        if mode_b[jj] != mode[jj]:
+            g_old = _g_at(jj, a, dense_kind, t_old, h, y_old, FF, par, sw_load, sw_kind, sw_value, w, ytmp)
+            if (g_old > 0) == mode[jj]:
+                root, ok = brentq(jj, a, b, dense_kind, t_old, h, y_old, FF, par, sw_load, sw_kind, sw_value, w, ytmp)
+                if not ok:
+                    info[0] = t_old + h
+                    return NO_SIGN_CHANGE, t_event
+            else:
+                root = a
+            roots[jj] = root
+            has_root[jj] = True
+            t_event = min(t_event, root)
+    return OK, t_event
+
+
+@njit(cache=True, error_model="numpy")
+def _find_event(ts_, n_interior, dense_kind, y_old, y, f_new, mode, mode_b, rmode, locate, par, mag, sw_load, sw_kind,
+                sw_value, mk, gains, fpar, ipar, w, piv, K, F, Fh, ytmp, roots, has_root, dense, cs, info):
+    """The earliest switch inside the last step (csim.solver.simulate._find_event). Returns (status, event).
+
+    The mode is checked at ``n_interior`` equally spaced points of the step and at its end,
+    so that a function that crosses zero and back within one step is not missed. On an
+    event, ts_[T_STOP] is its time. ``dense`` [0] says whether the dense output is built.
+    """
+    t_old, t = ts_[T_OLD], ts_[T]
+    h = t - t_old
+    FF = F if dense_kind == DOP853 else Fh
+    for rep in range(n_interior + 1):
+        b = t if rep == n_interior else t_old + (t - t_old) * (rep + 1) / (n_interior + 1)
+        if b == t:
+            for i in range(y.size):
+                ytmp[i] = y[i]
+        else:
+            status = _ensure_dense(dense[0], dense_kind, t_old, h, y_old, y, f_new, rmode, locate, par, mag, sw_load,
+                                   sw_kind, sw_value, mk, gains, fpar, ipar, w, piv, K, F, ytmp, cs, info)
+            if status != OK:
+                return status, False
+            dense[0] = True
+            dense_eval(dense_kind, b, t_old, h, y_old, FF, ytmp)
+        mode_at(ytmp, par, sw_load, sw_kind, sw_value, w, mode_b)
+        found = False
+        for jj in range(sw_load.size):
+            if mode_b[jj] != mode[jj]:
+                found = True
+        if found:
+            status = _ensure_dense(dense[0], dense_kind, t_old, h, y_old, y, f_new, rmode, locate, par, mag, sw_load,
+                                   sw_kind, sw_value, mk, gains, fpar, ipar, w, piv, K, F, ytmp, cs, info)
+            if status != OK:
+                return status, False
+            dense[0] = True
+            a = t_old if rep == 0 else t_old + (t - t_old) * rep / (n_interior + 1)
+            status, t_event = _locate(a, b, dense_kind, t_old, h, y_old, FF, mode, mode_b, par, sw_load, sw_kind,
+                                      sw_value, w, ytmp, roots, has_root, info)
+            if status != OK:
+                return status, False
+            ts_[T_STOP] = t_event
+            return OK, True
+    return OK, False
+
+
+@njit(cache=True, error_model="numpy")
+def _sample(ts_, t_out, dense_kind, y_old, y, f_new, mode, rmode, locate, projects, par, mag, sw_load, sw_kind,
+            sw_value, mk, gains, fpar, ipar, w, piv, K, F, Fh, ytmp, yp, dense, tr, ys, modes, cs, info):
+    """Record the output times in (t_old, t_stop] from the step's dense output (projected, for projection)."""
+    t_old, t, t_stop = ts_[T_OLD], ts_[T], ts_[T_STOP]
+    FF = F if dense_kind == DOP853 else Fh
+    while cs[I_OUT] < t_out.size and t_out[cs[I_OUT]] <= t_stop:
+        t_i = t_out[cs[I_OUT]]
+        if t_i == t and t_stop == t:
+            for i in range(y.size):
+                ytmp[i] = y[i]
+        else:
+            status = _ensure_dense(dense[0], dense_kind, t_old, t - t_old, y_old, y, f_new, rmode, locate, par, mag,
+                                   sw_load, sw_kind, sw_value, mk, gains, fpar, ipar, w, piv, K, F, ytmp, cs, info)
+            if status != OK:
+                return status
+            dense[0] = True
+            dense_eval(dense_kind, t_i, t_old, t - t_old, y_old, FF, ytmp)
+        if projects:
+            code, mx = project(ytmp, yp, par, fpar, ipar, w, piv)
+            if code != OK:
+                info[0] = mx
+                info[1] = t_i
+                return code
+            copy_row(yp, ys, cs[N_REC])
+        else:
+            copy_row(ytmp, ys, cs[N_REC])
+        tr[cs[N_REC]] = t_i
+        for jj in range(mode.size):
+            modes[cs[N_REC], jj] = mode[jj]
+        cs[N_REC] += 1
+        cs[I_OUT] += 1
+    return OK
+
+
+@njit(cache=True, error_model="numpy")
+def _event_state(ts_, dense_kind, y_old, y, F, Fh, projects, par, fpar, ipar, w, piv, ytmp, yp, info):
+    """y = the state at the event ts_[T_STOP] (projected, for projection); t = t_stop. Returns the status."""
+    t_old, t, t_stop = ts_[T_OLD], ts_[T], ts_[T_STOP]
+    if t_stop < t:
+        dense_eval(dense_kind, t_stop, t_old, t - t_old, y_old, F if dense_kind == DOP853 else Fh, ytmp)
+    else:
+        for i in range(y.size):
+            ytmp[i] = y[i]
+    if projects:
+        code, mx = project(ytmp, yp, par, fpar, ipar, w, piv)
+        if code != OK:
+            info[0] = mx
+            info[1] = t_stop
+            return code
+        for i in range(y.size):
+            ytmp[i] = yp[i]
+    for i in range(y.size):
+        y[i] = ytmp[i]
+    ts_[T] = t_stop
+    return OK
+
+
+@njit(cache=True, error_model="numpy")
+def _record_event(t, mode, roots, has_root, ev_t, ev_sw, n_ev):
+    """Flip the conditions that switch at t (zeros within 4 eps of it) and record the event.
+
+    Returns the event arrays, grown when full.
+    """
+    n_sw = mode.size
+    if n_ev == ev_t.size:  # grow the event arrays
+        new_t = np.empty(2 * ev_t.size)
+        new_sw = np.zeros((2 * ev_t.size, n_sw), np.bool_)
+        for e in range(n_ev):
+            new_t[e] = ev_t[e]
+            for jj in range(n_sw):
+                new_sw[e, jj] = ev_sw[e, jj]
+        ev_t = new_t
+        ev_sw = new_sw
+    tol_ev = 4 * EPS * max(1.0, abs(t)) + 4 * EPS
+    ev_t[n_ev] = t
+    for jj in range(n_sw):
+        if has_root[jj] and roots[jj] - t <= tol_ev:
+            ev_sw[n_ev, jj] = True
+            mode[jj] = not mode[jj]
+    return ev_t, ev_sw
+
+
+# ---------------------------------------------------------------------------------------
+# the integration loop (csim.solver.simulate.integrate)
+# ---------------------------------------------------------------------------------------
+@njit(cache=True, error_model="numpy")
+def _start(y, yp, mode, projects, par, sw_load, sw_kind, sw_value, fpar, ipar, w, piv, tr, ys, modes, info):
+    """Project the initial state (projection), find its mode and record it. Returns the status."""
+    if projects:
+        code, mx = project(y, yp, par, fpar, ipar, w, piv)
+        if code != OK:
+            info[0] = mx
+            return code
+        for i in range(y.size):
+            y[i] = yp[i]
+    mode_at(y, par, sw_load, sw_kind, sw_value, w, mode)
+    if projects:  # the recorded sample, projected as every recorded sample is
+        code, mx = project(y, yp, par, fpar, ipar, w, piv)
+        if code != OK:
+            info[0] = mx
+            return code
+        copy_row(yp, ys, 0)
+    else:
+        copy_row(y, ys, 0)
+    tr[0] = 0.0
+    for jj in range(mode.size):
+        modes[0, jj] = mode[jj]
+    return OK
+
+
+@njit(cache=True, error_model="numpy")
+def _start_segment(method, ts_, y, f, t_end, rtol, atol, max_step, first_step, tolv, par, mag, sw_load, sw_kind,
+                   sw_value, rmode, locate, mk, gains, fpar, ipar, w, piv, ytmp, f1, scl, cs, info):
+    """Start the integrator at (t, y): tolerances, f(t, y), and DOP853's first step. Returns the status."""
+    n = y.size
+    scale_w = max(1.0, abs(kinetic(y, par)))  # the work states are in J: atol scaled to the energy
+    for i in range(n):
+        tolv[i] = atol * scale_w if i >= 2 * NQ else atol
+    cs[NFEV] += 1
+    status = feval(ts_[T], y, rmode, locate, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar, w, piv, f,
+                   info)
+    if status != OK:
+        return status
+    ts_[H_ABS] = 0.0
+    ts_[SEG_START] = ts_[T]
+    cs[SEG_STEPS] = 0
+    if method == DOP853:
+        status, h = _initial_step(ts_[T], y, f, t_end, rtol, tolv, max_step, first_step, par, mag, sw_load, sw_kind,
+                                  sw_value, rmode, locate, mk, gains, fpar, ipar, w, piv, ytmp, f1, scl, cs, info)
+        ts_[H_ABS] = h
+    return status
+
+
+@njit(cache=True, error_model="numpy")
+def _take_step(method, ts_, t_end, rtol, tolv, fixed_h, max_step, y, f, K, ytmp, y_new, f_new, par, mag, sw_load,
+               sw_kind, sw_value, rmode, locate, mk, gains, fpar, ipar, w, piv, cs, info):
+    """One step of the integrator from (t, y), or scipy's empty step at t_end.
+
+    Returns (status, t_new, step_ok, dense kind); step_ok is False where no step can be
+    taken (DOP853's step below the spacing of t, RK4's below the resolution of t).
+    """
+    if ts_[T] == t_end:  # scipy: an empty step to t_bound
+        for i in range(y.size):
+            y_new[i] = y[i]
+            f_new[i] = f[i]
+        ts_[HSTEP] = 0.0
+        return OK, t_end, True, CONSTANT
+    if method == DOP853:
+        status, t_new, ok = _dop853_step(ts_, t_end, rtol, tolv, max_step, y, f, K, ytmp, y_new, f_new, par, mag,
+                                         sw_load, sw_kind, sw_value, rmode, locate, mk, gains, fpar, ipar, w, piv, cs,
+                                         info)
+    else:
+        status, t_new, ok = _rk4_step(ts_, t_end, fixed_h, y, f, K, ytmp, y_new, f_new, par, mag, sw_load, sw_kind,
+                                      sw_value, rmode, locate, mk, gains, fpar, ipar, w, piv, cs, info)
+    return status, t_new, ok, method
+
+
+@njit(cache=True, error_model="numpy")
+def _after_step(ts_, y, f, f_new, yp, projects, par, mag, sw_load, sw_kind, sw_value, rmode, locate, mk, gains, fpar,
+                ipar, w, piv, cs, info):
+    """Go on from the accepted step: project and hand the state back (projection), else keep f_new."""
+    if not projects:
+        for i in range(y.size):
+            f[i] = f_new[i]
+        return OK
+    code, mx = project(y, yp, par, fpar, ipar, w, piv)
+    if code != OK:
+        info[0] = mx
+        info[1] = ts_[T]
+        return code
+    for i in range(y.size):
+        y[i] = yp[i]
+    cs[NFEV] += 1
+    return feval(ts_[T], y, rmode, locate, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar, w, piv, f,
+                 info)
+
+
+@njit(cache=True, error_model="numpy")
+def integrate(method, y0, t_out, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar, projects, iset, fset):
+    """Integrate from t = 0, state y0 (n,), sampling at t_out (csim.solver.simulate.integrate).
+
+    The problem arrays are the module docstring's; ``projects``: project after every step;
+    ``iset`` = [locate, event_samples, max_events, max_steps]; ``fset`` = [t_end, rtol, atol,
+    step, max_step, first_step (NaN: automatic), max_phi, min_step]. Returns (n_rec, ts,
+    ys, modes, n_ev, ev_t, ev_switched, nfev, nsteps, status, info (2,)).
+    """
+    locate, n_interior, max_events, max_steps = iset[0] != 0, iset[1], iset[2], iset[3]
+    t_end, rtol, atol, fixed_h, max_step, first_step, max_phi, min_step = fset[0], fset[1], fset[2], fset[3], \
+        fset[4], fset[5], fset[6], fset[7]
+    n, n_sw = y0.size, sw_load.size
+    w = np.zeros(W_G + n_sw)
+    piv = np.zeros(NK, np.int64)
+    tr, ys, modes = np.empty(t_out.size), np.empty((t_out.size, n)), np.zeros((t_out.size, n_sw), np.bool_)
+    ev_t, ev_sw = np.empty(16), np.zeros((16, n_sw), np.bool_)
+    info, ts_, cs = np.zeros(2), np.zeros(6), np.zeros(6, np.int64)
+    y, ytmp, yp, f, f_new, y_new, y_old = y0.copy(), np.empty(n), np.empty(n), np.empty(n), np.empty(n), \
+        np.empty(n), np.empty(n)
+    K, F, Fh = np.empty((DOP_NX, n)), np.empty((DOP_POWER, n)), np.empty((4, n))
+    tolv, scl = np.empty(n), np.empty(n)
+    mode, mode_b = np.zeros(n_sw, np.bool_), np.zeros(n_sw, np.bool_)
+    rmode = mode if locate else np.zeros(n_sw, np.bool_)  # the right-hand side's mode, or a scratch it overwrites
+    roots, has_root, dense = np.empty(n_sw), np.zeros(n_sw, np.bool_), np.zeros(1, np.bool_)
+    status = _start(y, yp, mode, projects, par, sw_load, sw_kind, sw_value, fpar, ipar, w, piv, tr, ys, modes, info)
+    cs[I_OUT] = 1
+    if status == OK:
+        cs[N_REC] = 1
+    while status == OK and ts_[T] < t_end:
+        restarted = False
+        status = _start_segment(method, ts_, y, f, t_end, rtol, atol, max_step, first_step, tolv, par, mag, sw_load,
+                                sw_kind, sw_value, rmode, locate, mk, gains, fpar, ipar, w, piv, ytmp, f_new, scl, cs,
+                                info)
+        while status == OK:
+            ts_[T_OLD] = ts_[T]
+            status, t_new, ok, dense_kind = _take_step(method, ts_, t_end, rtol, tolv, fixed_h, max_step, y, f, K,
+                                                       ytmp, y_new, f_new, par, mag, sw_load, sw_kind, sw_value, rmode,
+                                                       locate, mk, gains, fpar, ipar, w, piv, cs, info)
+            if status != OK:
+                break
+            cs[NSTEPS] += 1
+            if cs[NSTEPS] > max_steps:
+                status = MAX_STEPS
+                info[0] = t_new if ok else ts_[T]
+                break
+            if not ok:
+                status = STEP_TOO_SMALL if method == DOP853 else RK4_RESOLUTION
+                info[0] = ts_[T]
+                break
+            for i in range(n):  # the step is accepted
+                y_old[i] = y[i]
+                y[i] = y_new[i]
+            ts_[T] = t_new
+            phi_(y, par, w)
+            status = check_step(y, max_abs(w[W_PHI:W_PHI + NC]), ts_[HSTEP], t_new, t_end, method == DOP853,
+                                max_phi, min_step, info)
+            if status != OK:
+                break
+            if dense_kind == RK4:  # the cubic Hermite interpolant's data
+                for i in range(n):
+                    Fh[0, i] = y_old[i]
+                    Fh[1, i] = f[i]
+                    Fh[2, i] = y[i]
+                    Fh[3, i] = f_new[i]
+            dense[0] = False
+            ts_[T_STOP] = t_new
+            event = False
+            if locate:
+                status, event = _find_event(ts_, n_interior, dense_kind, y_old, y, f_new, mode, mode_b, rmode, locate,
+                                            par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar, w, piv, K, F,
+                                            Fh, ytmp, roots, has_root, dense, cs, info)
+                if status != OK:
+                    break
+            status = _sample(ts_, t_out, dense_kind, y_old, y, f_new, mode, rmode, locate, projects, par, mag, sw_load,
+                             sw_kind, sw_value, mk, gains, fpar, ipar, w, piv, K, F, Fh, ytmp, yp, dense, tr, ys,
+                             modes, cs, info)
+            if status != OK:
+                break
+            if event:  # restart from the event state with the switched conditions flipped
+                status = _event_state(ts_, dense_kind, y_old, y, F, Fh, projects, par, fpar, ipar, w, piv, ytmp, yp,
+                                      info)
+                if status != OK:
+                    break
+                ev_t, ev_sw = _record_event(ts_[T], mode, roots, has_root, ev_t, ev_sw, cs[N_EV])
+                cs[N_EV] += 1
+                if cs[N_EV] > max_events:
+                    status = MAX_EVENTS
+                    info[0] = ts_[T]
+                    break
+                restarted = True
+                break
+            status = _after_step(ts_, y, f, f_new, yp, projects, par, mag, sw_load, sw_kind, sw_value, rmode, locate,
+                                 mk, gains, fpar, ipar, w, piv, cs, info)
+            if t_new >= t_end:
+                break
+        if not restarted:
+            break
+    return cs[N_REC], tr, ys, modes, cs[N_EV], ev_t, ev_sw, cs[NFEV], cs[NSTEPS], status, info
+
+
 # ---------------------------------------------------------------------------------------
 # entry points for the tests and the benchmark
 # ---------------------------------------------------------------------------------------
 @njit(cache=True, error_model="numpy")
-def rhs_entry(y, mode, par, pf, pi):
+def rhs_entry(y, mode, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar):
     """dy/dt and [qdd, lambda] at one state (mode held), for comparison with the Python path."""
-    w = np.zeros(W_G + pi[4])
+    w = np.zeros(W_G + sw_load.size)
     piv = np.zeros(NK, np.int64)
     f = np.empty(y.size)
-    code = rhs(y, mode.copy(), True, par, pf, pi, w, piv, f)
+    code = rhs(y, mode.copy(), True, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar, w, piv, f)
     return code, f, w[W_X:W_X + NK].copy()
 
 
 @njit(cache=True, error_model="numpy")
-def rhs_repeat(y, mode, par, pf, pi, n_eval):
+def rhs_repeat(y, mode, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar, n_eval):
     """n_eval evaluations of the right-hand side (a timing loop for the benchmark)."""
-    w = np.zeros(W_G + pi[4])
+    w = np.zeros(W_G + sw_load.size)
     piv = np.zeros(NK, np.int64)
     f = np.empty(y.size)
     acc = 0.0
     for _ in range(n_eval):
-        rhs(y, mode, True, par, pf, pi, w, piv, f)
+        rhs(y, mode, True, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar, w, piv, f)
         acc += f[NQ]
     return acc
 
 
 @njit(cache=True, error_model="numpy")
-def project_entry(y, par, pf, pi):
-    w = np.zeros(W_G + pi[4])
+def project_entry(y, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar):
+    w = np.zeros(W_G + sw_load.size)
     piv = np.zeros(NK, np.int64)
     out = np.empty(y.size)
-    code, mx = project(y, out, par, pf, pi, w, piv)
+    code, mx = project(y, out, par, fpar, ipar, w, piv)
     return code, mx, out

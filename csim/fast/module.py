@@ -1,11 +1,14 @@
 """Build, cache and load the compiled module of one mechanism.
 
-The module is one Python file: the model functions generated from the symbolic derivation
-(:mod:`csim.fast.codegen`) followed by the text of :mod:`csim.fast.kernels`. It is written
-to ``<cache>/fast/<mechanism>_<key>.py``, where ``<cache>`` is csim's model cache
-(``$CSIM_CACHE_DIR``, default ``~/.cache/csim``) and ``<key>`` hashes everything the
-compiled code depends on: the symbolic definition, the sources of the kernels, of this
-module, of the generator and of the derivation, and the numba, numpy and scipy versions.
+The module is one Python file: the imports of :mod:`csim.fast.kernels` (the core functions
+of :mod:`csim.physics`), the model functions generated from the symbolic derivation
+(:mod:`csim.fast.codegen`), the dispatch ``method_gamma_star`` over the registered
+stabilization methods that have a compiled path (:func:`method_dispatch_source`), and the
+rest of the kernels' text. It is written to ``<cache>/fast/<mechanism>_<key>.py``, where
+``<cache>`` is csim's model cache (``$CSIM_CACHE_DIR``, default ``~/.cache/csim``) and
+``<key>`` hashes everything the compiled code depends on: the symbolic definition, the
+sources of the kernels, of the core, of the methods' gamma* functions, of this module, of
+the generator and of the derivation, and the numba, numpy and scipy versions.
 Where the cache cannot be written, the module goes to a temporary folder of this process.
 numba compiles its functions on first use and, with
 ``cache=True``, stores the machine code next to the file (``__pycache__``), so only the
@@ -15,6 +18,7 @@ from __future__ import annotations
 
 import hashlib
 import importlib.util
+import inspect
 import os
 import sys
 import tempfile
@@ -23,15 +27,19 @@ from types import ModuleType
 
 from csim.model.cache import cache_dir, definition_key
 from csim.model.definition import MechanismDefinition
+from csim.solver.methods import STABILIZERS
 
 #: bump when the generated module changes shape
-FAST_VERSION = "1"
+FAST_VERSION = "2"
 
 KERNELS = Path(__file__).with_name("kernels.py")
+PHYSICS = Path(__file__).parents[1] / "physics"
+#: where the kernels' own imports end and their body starts
+_BODY_MARK = "# ---- the loop's constants"
 
 _LOADED: dict[str, ModuleType] = {}
-#: id(definition) -> (definition, module): hashing a symbolic definition takes milliseconds
-_BY_DEFINITION: dict[int, tuple[MechanismDefinition, ModuleType]] = {}
+#: (id(definition), compiled methods) -> (definition, module): hashing a definition takes milliseconds
+_BY_DEFINITION: dict[tuple, tuple[MechanismDefinition, ModuleType]] = {}
 
 
 def _versions() -> str:
@@ -42,11 +50,50 @@ def _versions() -> str:
     return f"numba {numba.__version__}, numpy {numpy.__version__}, scipy {scipy.__version__}"
 
 
+def compiled_methods() -> list:
+    """The registered methods whose gamma* the kernels call, in dispatch order (code = index + 1).
+
+    Code 0 is gamma* = gamma (a method with a compiled path and no gamma_star_kernel).
+    """
+    return [cls for cls in STABILIZERS.values() if cls.compiled and cls.gamma_star_kernel is not None]
+
+
+def method_code(method) -> int:
+    """The dispatch code of a method instance (0: gamma* = gamma)."""
+    cls = type(method)
+    return compiled_methods().index(cls) + 1 if cls in compiled_methods() else 0
+
+
+def _kernel_function(cls):
+    """The plain Python function behind a method's gamma* kernel (a numba dispatcher or not)."""
+    fn = cls.gamma_star_kernel
+    return getattr(fn, "py_func", fn)
+
+
+def method_dispatch_source() -> str:
+    """``method_gamma_star(mk, gamma, phi, phi_dot, gains, fpar, ipar, out)``: gamma* by method code."""
+    lines = ["# ---- gamma* of the stabilization methods with a compiled path (csim.solver.methods), by code ----"]
+    for code, cls in enumerate(compiled_methods(), start=1):
+        fn = _kernel_function(cls)
+        lines.append(f"from {fn.__module__} import {fn.__name__} as _gamma_star_{code}  # {cls.name}")
+    lines += ["", "", '@njit(cache=True, error_model="numpy")',
+              "def method_gamma_star(mk, gamma, phi, phi_dot, gains, fpar, ipar, out):",
+              '    """gamma* (r,) into out by the method\'s code; 0 is gamma* = gamma."""']
+    for code, _ in enumerate(compiled_methods(), start=1):
+        lines += [f"    {'if' if code == 1 else 'elif'} mk == {code}:",
+                  f"        _gamma_star_{code}(gamma, phi, phi_dot, gains, fpar, ipar, out)", "        return"]
+    lines += ["    for i in range(gamma.size):", "        out[i] = gamma[i]"]
+    return "\n".join(lines) + "\n"
+
+
 def module_key(definition: MechanismDefinition) -> str:
     """Hash of everything the compiled module of ``definition`` depends on."""
     model_dir = Path(__file__).parents[1] / "model"  # read, not imported: importing derive imports sympy
-    sources = [KERNELS, Path(__file__), Path(__file__).with_name("codegen.py"), model_dir / "derive.py"]
-    parts = [FAST_VERSION, definition_key(definition), *(p.read_text() for p in sources), _versions(), sys.version]
+    sources = [KERNELS, Path(__file__), Path(__file__).with_name("codegen.py"), model_dir / "derive.py",
+               *sorted(PHYSICS.glob("*.py"))]
+    methods = [inspect.getsource(_kernel_function(cls)) for cls in compiled_methods()]
+    parts = [FAST_VERSION, definition_key(definition), *(p.read_text() for p in sources), *methods,
+             method_dispatch_source(), _versions(), sys.version]
     return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:24]
 
 
@@ -64,8 +111,9 @@ def generate_module_source(definition: MechanismDefinition) -> str:
               f'Do not edit."""\n')
     # the kernels' own imports come first; the model functions use math, numpy and njit
     body = kernels.split('"""', 2)[2]  # drop the kernels' docstring
-    imports, _, rest = body.partition("# ---- status codes")
-    return header + imports + model_source(derive(definition)) + "\n\n# ---- status codes" + rest
+    imports, _, rest = body.partition(_BODY_MARK)
+    return (header + imports + model_source(derive(definition)) + "\n\n" + method_dispatch_source() + "\n\n"
+            + _BODY_MARK + rest)
 
 
 def _write_atomic(path: Path, text: str) -> None:
@@ -102,7 +150,8 @@ def _writable(path: Path) -> Path:
 
 def load_module(definition: MechanismDefinition) -> ModuleType:
     """The compiled module of ``definition`` (generated on the first call for this key)."""
-    known = _BY_DEFINITION.get(id(definition))
+    memo = (id(definition), tuple(compiled_methods()))  # a method registered later makes a new module
+    known = _BY_DEFINITION.get(memo)
     if known is not None and known[0] is definition:
         return known[1]
     path = module_path(definition)
@@ -110,7 +159,7 @@ def load_module(definition: MechanismDefinition) -> ModuleType:
         path = _writable(path)
     key = str(path)
     if key in _LOADED:
-        _BY_DEFINITION[id(definition)] = (definition, _LOADED[key])
+        _BY_DEFINITION[memo] = (definition, _LOADED[key])
         return _LOADED[key]
     if not path.is_file():
         _write_atomic(path, generate_module_source(definition))
@@ -120,5 +169,5 @@ def load_module(definition: MechanismDefinition) -> ModuleType:
     sys.modules[name] = module  # numba's cache locates functions through their module
     spec.loader.exec_module(module)
     _LOADED[key] = module
-    _BY_DEFINITION[id(definition)] = (definition, module)
+    _BY_DEFINITION[memo] = (definition, module)
     return module

@@ -12,21 +12,26 @@
 ``python``
     the reference Python path (:func:`csim.solver.simulate.integrate`), for debugging.
 
-Supported: ``formulation.method: kkt``; ``stabilization.method`` none, baumgarte,
-sliding_mode or projection; ``simulation.integrator`` DOP853 or RK4; events on or off.
+Supported: ``formulation.method: kkt``; every ``stabilization.method`` whose class says
+``compiled = True`` (:mod:`csim.solver.methods`); ``simulation.integrator`` DOP853 or RK4;
+events on or off.
 """
 from __future__ import annotations
 
 import importlib.util
 
+from csim.solver.methods import STABILIZERS
+
 BACKENDS = ("auto", "python", "compiled")
 
 #: what the compiled backend implements
 FORMULATIONS = ("kkt",)
-STABILIZERS = ("none", "baumgarte", "sliding_mode", "projection")
 INTEGRATORS = ("DOP853", "RK4")
-#: sliding-mode switching functions, as the kernels number them
-SWITCHING_CODES = {"sgn": 0, "sat": 1, "tanh": 2, "atan": 3, "sqrt": 4}
+
+
+def compiled_stabilizers() -> list[str]:
+    """The registered methods the compiled kernels run."""
+    return [name for name, cls in STABILIZERS.items() if cls.compiled]
 
 
 def unsupported(data: dict) -> list[str]:
@@ -40,11 +45,11 @@ def unsupported(data: dict) -> list[str]:
         reasons.append(f"formulation.method {formulation!r}: the compiled backend implements the KKT formulation "
                        f"only (the elimination gives the same motion in exact arithmetic); use 'kkt'")
     method = data.get("stabilization", {}).get("method")
-    if method is not None and method not in STABILIZERS:
+    if method is not None and method not in compiled_stabilizers():
         why = {"ggl": "GGL is an index-2 DAE solved by the Python Radau IIA for DAEs",
                "minimal": "coordinate partitioning re-partitions and solves Newton at every evaluation in Python"}
         reasons.append(f"stabilization.method {method!r}: {why.get(method, 'not implemented in compiled code')}; "
-                       f"the compiled backend supports {', '.join(STABILIZERS)}")
+                       f"the compiled backend supports {', '.join(compiled_stabilizers())}")
     integrator = data.get("simulation", {}).get("integrator")
     if integrator is not None and integrator not in INTEGRATORS:
         reasons.append(f"simulation.integrator {integrator!r}: the compiled backend implements "

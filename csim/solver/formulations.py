@@ -15,6 +15,8 @@ import math
 import numpy as np
 
 from csim.errors import SimulationFailure
+from csim.physics.kkt import kkt_solve
+from csim.physics.status import SINGULAR_KKT, failure_message
 
 
 class Formulation:
@@ -56,18 +58,11 @@ class KKT(Formulation):
 
     def solve(self, M, phi_q, p, gamma_star):
         m, r = M.shape[0], phi_q.shape[0]
-        A = np.zeros((m + r, m + r))
-        A[:m, :m] = M
-        A[:m, m:] = phi_q.T
-        A[m:, :m] = phi_q
-        b = np.concatenate((p, gamma_star))
-        try:
-            x = np.linalg.solve(A, b)
-        except np.linalg.LinAlgError:
-            raise SimulationFailure(
-                "singular KKT matrix: the constraint Jacobian Phi_q lost rank (a singular "
-                "configuration of the mechanism) or M is singular"
-            ) from None
+        x = np.empty(m + r)
+        f = np.ascontiguousarray
+        if not kkt_solve(f(M, dtype=float), f(phi_q, dtype=float), f(p, dtype=float), f(gamma_star, dtype=float),
+                         np.empty((m + r, m + r)), x, np.empty(m + r, np.int64)):
+            raise SimulationFailure(failure_message(SINGULAR_KKT, 0.0, 0.0, None))
         return x[:m], x[m:]
 
 

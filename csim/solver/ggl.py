@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from csim.errors import SimulationFailure
-from csim.solver.stabilizers import Projection
+from csim.solver.methods.projection import Projection
 from csim.solver.system import ConstrainedSystem
 
 

@@ -21,6 +21,8 @@ from scipy.integrate import BDF, DOP853, RK45, Radau
 from scipy.optimize import brentq
 
 from csim.errors import PartitionBreakdown, SimulationFailure
+from csim.physics import status as st
+from csim.physics.steps import check_step
 from csim.solver.integrators import INTEGRATORS, make_integrator
 from csim.solver.rk4 import RK4
 from csim.solver.settings import IntegrationSettings, Trajectory, output_times
@@ -54,8 +56,7 @@ class _Counter:
             if self.implicit:
                 self.non_finite_at = t
                 return f
-            raise SimulationFailure(f"blow-up: non-finite right-hand side at t = {t:.6g} s "
-                                    f"(max |y| = {np.max(np.abs(y)):.3g})")
+            raise SimulationFailure(st.failure_message(st.NONFINITE_RHS, t, np.max(np.abs(y)), None))
         return f
 
 
@@ -115,9 +116,7 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
                         msg = solver.step()
                         counters["nsteps"] += 1
                         if counters["nsteps"] > settings.max_steps:
-                            raise SimulationFailure(
-                                f"more than simulation.max_steps = {settings.max_steps} steps by t = {solver.t:.6g} s: "
-                                f"the motion is too fast or too stiff for these settings (raise max_steps to go on)")
+                            raise SimulationFailure(st.failure_message(st.MAX_STEPS, solver.t, 0.0, settings))
                         if solver.status == "failed":
                             if counter.non_finite_at is not None:
                                 msg += (f" (the right-hand side was non-finite at trial states, last at "
@@ -151,10 +150,7 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
                             events_t.append(t)
                             events_label.append("; ".join(labels[j] for j in switched))
                             if len(events_t) > settings.max_events:
-                                raise SimulationFailure(
-                                    f"more than simulation.max_events = {settings.max_events} switching events "
-                                    f"by t = {t:.6g} s: the load law chatters"
-                                )
+                                raise SimulationFailure(st.failure_message(st.MAX_EVENTS, t, 0.0, settings))
                             restarted = True
                             break
                         t, y = t_new, solver.y.copy()
@@ -202,20 +198,13 @@ def _atol(atol: float, system: ConstrainedSystem, y: np.ndarray) -> np.ndarray:
 
 def _check_step(system: ConstrainedSystem, solver, settings: IntegrationSettings, adaptive: bool) -> None:
     """Stop a run that has diverged: non-finite state, constraints torn apart, step collapse."""
-    t = solver.t
-    if not np.all(np.isfinite(solver.y)):
-        raise SimulationFailure(f"blow-up: non-finite state at t = {t:.6g} s")
-    phi = system.max_phi(solver.y)
-    if not phi <= settings.max_phi:
-        raise SimulationFailure(
-            f"constraint violation: max |Phi| = {phi:.3g} at t = {t:.6g} s exceeds simulation.max_phi = "
-            f"{settings.max_phi:g}; the joints have drifted apart (stabilize, or tighten the tolerances)")
-    h = t - solver.t_old
-    # a step cut short by the end of the interval is no collapse
-    if adaptive and t != solver.t_bound and h < settings.min_step:
-        raise SimulationFailure(
-            f"step-size collapse: an accepted step of {h:.3g} s at t = {t:.6g} s is below simulation.min_step "
-            f"= {settings.min_step:g} s (a singular configuration, or stiffness beyond this integrator)")
+    y = np.ascontiguousarray(solver.y, dtype=float)
+    max_phi = system.max_phi(y) if np.all(np.isfinite(y)) else np.nan
+    info = np.zeros(2)
+    code = check_step(y, max_phi, solver.t - solver.t_old, solver.t, solver.t_bound, adaptive, settings.max_phi,
+                      settings.min_step, info)
+    if code != st.OK:
+        raise SimulationFailure(st.failure_message(code, info[0], info[1], settings))
 
 
 def _swap_state(solver, y) -> bool:

@@ -11,13 +11,18 @@ T + V - (T0 + V0) = sum W_k can be checked to the integrator's accuracy).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from csim.loads import LoadSet
 from csim.model.numeric import NumericModel
+from csim.physics.kkt import constraint_rates, generalized_forces
+from csim.physics.loads import load_rates
 from csim.solver.formulations import Formulation
-from csim.solver.stabilizers import Stabilizer
+
+if TYPE_CHECKING:
+    from csim.solver.methods.base import Method
 
 
 @dataclass
@@ -49,11 +54,12 @@ class ConstrainedSystem:
         Parameter values.
     loads : LoadSet
     formulation : Formulation
-    stabilizer : Stabilizer
+    stabilizer : csim.solver.methods.base.Method
+        The stabilization method.
     """
 
     def __init__(self, model: NumericModel, par: np.ndarray, loads: LoadSet,
-                 formulation: Formulation, stabilizer: Stabilizer):
+                 formulation: Formulation, stabilizer: Method):
         self.model = model
         self.par = np.asarray(par, dtype=float)
         self.loads = loads
@@ -129,20 +135,26 @@ class ConstrainedSystem:
         """Switching functions of the load laws at state y (n_switches,)."""
         q, qd, _ = self.split(self.to_full(y))
         s = self.model.load_coordinates(q, self.par)
-        sdot = self.model.load_matrix(q, self.par).T @ qd
-        return self.loads.switching(s, sdot)
+        return self.loads.switching(s, self._load_rates(self.model.load_matrix(q, self.par), qd))
+
+    def _load_rates(self, B, qd):
+        """ds/dt = B^T qd (k,)."""
+        sdot = np.empty(self.k)
+        load_rates(_f(B), _f(qd), sdot)
+        return sdot
 
     def _solve(self, q, qd, u):
         """qdd, lambda and the pieces of the balance at (q, qd) with loads u."""
         model, par = self.model, self.par
         M = model.mass(q, par)
-        phi_q = model.phi_q(q, par)
-        B = model.load_matrix(q, par)
+        phi_q = _f(model.phi_q(q, par))
+        B = _f(model.load_matrix(q, par))
         Q = B @ u
-        # p = Q - C qd - h
-        p = Q - model.velocity_terms(q, qd, par) - model.gravity(q, par)
+        p = np.empty(self.m)  # p = B u - C qd - h
+        generalized_forces(B, u, _f(model.velocity_terms(q, qd, par)), _f(model.gravity(q, par)), p)
         phi = model.phi(q, par)
-        phi_dot = phi_q @ qd
+        phi_dot = np.empty(self.r)  # dPhi/dt = Phi_q qd
+        constraint_rates(phi_q, _f(qd), phi_dot)
         gamma_star = self.stabilizer.gamma_star(model.gamma(q, qd, par), phi, phi_dot)
         qdd, lam = self.formulation.solve(M, phi_q, p, gamma_star)
         return qdd, lam, phi, phi_dot, Q, B
@@ -153,7 +165,7 @@ class ConstrainedSystem:
         u = self.loads.values(mode)
         qdd, _, _, _, _, B = self._solve(q, qd, u)
         # dW/dt = u * ds/dt
-        return np.concatenate((qd, qdd, u * (B.T @ qd)))
+        return np.concatenate((qd, qdd, u * self._load_rates(B, qd)))
 
     def rhs_unlocated(self, t: float, y: np.ndarray) -> np.ndarray:
         """dy/dt with the load laws evaluated at the state itself (discontinuous in y)."""
@@ -161,8 +173,8 @@ class ConstrainedSystem:
 
     @property
     def projects(self) -> bool:
-        """Whether the stabilizer projects the state after every step."""
-        return hasattr(self.stabilizer, "project")
+        """Whether the method projects the state after every step."""
+        return self.stabilizer.projects
 
     def project(self, y: np.ndarray) -> np.ndarray:
         """The state with (q, qd) projected onto the constraint manifold (a new array)."""
@@ -180,3 +192,8 @@ class ConstrainedSystem:
             kinetic=self.model.kinetic_energy(q, qd, self.par),
             potential=self.model.potential_energy(q, self.par),
         )
+
+
+def _f(a) -> np.ndarray:
+    """``a`` as a C-contiguous float array, the layout the core functions are compiled for."""
+    return np.ascontiguousarray(a, dtype=float)

@@ -1,0 +1,34 @@
+"""``kernel``: compile a core function with numba when numba loads, else leave it as Python.
+
+The functions of :mod:`csim.physics` are called both from Python (the reference driver)
+and from inside compiled loops. Compiled, the Python driver calls the machine code (a
+dispatcher call costs about a microsecond); without numba the same source runs as plain
+Python, slower but identical in what it computes. ``CSIM_PURE_PYTHON=1`` forces the
+latter (for debugging, and to test that the core never depends on numba).
+"""
+from __future__ import annotations
+
+import os
+
+_OPTIONS = dict(cache=True, error_model="numpy")
+
+
+def _numba_njit():
+    if os.environ.get("CSIM_PURE_PYTHON", "") not in ("", "0"):
+        return None
+    try:
+        from numba import njit
+    except Exception:  # numba missing or broken: the Python driver still runs
+        return None
+    return njit
+
+
+_NJIT = _numba_njit()
+
+#: whether core functions are compiled in this process
+COMPILED = _NJIT is not None
+
+
+def kernel(fn):
+    """Decorator: ``fn`` compiled by numba (njit, cached on disk, numpy's error model), or ``fn`` itself."""
+    return fn if _NJIT is None else _NJIT(**_OPTIONS)(fn)

@@ -1,0 +1,64 @@
+"""Small dense linear algebra: LU with partial pivoting, in place (LAPACK getrf/getrs order).
+
+The systems of a mechanism are small (a few to a few dozen unknowns), where a plain loop
+beats a LAPACK call through its wrapper. Both backends solve every KKT and projection
+system with these two functions, so they agree to the last bit.
+"""
+from __future__ import annotations
+
+from csim.physics.jit import kernel
+
+
+@kernel
+def lu_factor(A, piv):
+    """Factor A (n, n) in place into L (unit lower, below the diagonal) and U; pivots into piv (n,).
+
+    Returns False if a pivot is exactly zero (A singular), True otherwise.
+    """
+    n = A.shape[0]
+    for c in range(n):
+        p = c
+        big = abs(A[c, c])
+        for i in range(c + 1, n):
+            v = abs(A[i, c])
+            if v > big:
+                big = v
+                p = i
+        piv[c] = p
+        if A[p, c] == 0.0:
+            return False
+        if p != c:
+            for j in range(n):
+                tmp = A[c, j]
+                A[c, j] = A[p, j]
+                A[p, j] = tmp
+        inv = 1.0 / A[c, c]
+        for i in range(c + 1, n):
+            A[i, c] *= inv
+            lic = A[i, c]
+            if lic != 0.0:
+                for j in range(c + 1, n):
+                    A[i, j] -= lic * A[c, j]
+    return True
+
+
+@kernel
+def lu_solve(A, piv, b):
+    """Solve A x = b with the factors of :func:`lu_factor`; b (n,) is overwritten by x."""
+    n = A.shape[0]
+    for c in range(n):
+        p = piv[c]
+        if p != c:
+            tmp = b[c]
+            b[c] = b[p]
+            b[p] = tmp
+    for i in range(n):  # L y = P b
+        s = b[i]
+        for j in range(i):
+            s -= A[i, j] * b[j]
+        b[i] = s
+    for i in range(n - 1, -1, -1):  # U x = y
+        s = b[i]
+        for j in range(i + 1, n):
+            s -= A[i, j] * b[j]
+        b[i] = s / A[i, i]

@@ -1,0 +1,63 @@
+"""Switched load laws (:mod:`csim.loads`) as arrays: switching functions, mode, load values.
+
+A load set with n_sw switching functions is packed (by :class:`csim.loads.LoadSet`) into
+
+``sw_load`` (n_sw,) int
+    the load each function belongs to;
+``sw_kind`` (n_sw,) int
+    :data:`LOWER` s - lo, :data:`UPPER` hi - s, :data:`RISING` ds/dt, :data:`FALLING` -ds/dt;
+``sw_value`` (n_sw,) float
+    lo or hi (0 for the velocity conditions).
+
+Each function is positive where its condition holds; load k takes its magnitude while
+every condition of load k holds (the *mode*), and 0 otherwise.
+"""
+from __future__ import annotations
+
+from csim.physics.jit import kernel
+
+LOWER, UPPER, RISING, FALLING = range(4)
+
+
+@kernel
+def load_rates(B, qd, sdot):
+    """ds/dt = B^T qd into sdot (k,), from the load matrix B = ds/dq^T (m, k) and qd (m,)."""
+    m, k = B.shape
+    for kk in range(k):
+        v = 0.0
+        for i in range(m):
+            v += B[i, kk] * qd[i]
+        sdot[kk] = v
+
+
+@kernel
+def switching_functions(s, sdot, sw_load, sw_kind, sw_value, g):
+    """The switching functions g (n_sw,) at load coordinates s (k,) and rates sdot (k,)."""
+    for j in range(g.size):
+        kk = sw_load[j]
+        kind = sw_kind[j]
+        if kind == LOWER:
+            g[j] = s[kk] - sw_value[j]
+        elif kind == UPPER:
+            g[j] = sw_value[j] - s[kk]
+        elif kind == RISING:
+            g[j] = sdot[kk]
+        else:
+            g[j] = -sdot[kk]
+
+
+@kernel
+def mode_of(g, mode):
+    """The conditions that hold where the switching functions are g: mode[j] = g[j] > 0."""
+    for j in range(g.size):
+        mode[j] = g[j] > 0.0
+
+
+@kernel
+def load_values(magnitudes, mode, sw_load, u):
+    """u (k,): each load's magnitude while all its conditions hold in ``mode`` (n_sw,) bool, else 0."""
+    for kk in range(u.size):
+        u[kk] = magnitudes[kk]
+    for j in range(mode.size):
+        if not mode[j]:
+            u[sw_load[j]] = 0.0

@@ -1,0 +1,107 @@
+"""Projection onto the constraint manifold: the Gauss-Newton correction and its stopping rules.
+
+With the metric W (the identity, or the mass matrix M), one correction of a residual res
+(Phi for positions, Phi_q qd for velocities) is
+
+    dq = W^-1 Phi_q^T (Phi_q W^-1 Phi_q^T)^-1 res,
+
+the smallest step in the W-norm that removes res to first order. Positions iterate
+q <- q - dq until max |Phi| <= tol or dq is down to the round-off of q; velocities need
+one correction (the velocity constraint is linear in qd).
+"""
+from __future__ import annotations
+
+from csim.physics.jit import kernel
+from csim.physics.linalg import lu_factor, lu_solve
+
+EPS = 2.220446049250313e-16
+
+
+@kernel
+def max_abs(x):
+    """max |x_i| (0 for an empty x); NaN if any entry is NaN, as numpy's max."""
+    out = 0.0
+    for i in range(x.size):
+        v = abs(x[i])
+        if v != v:
+            return v
+        if v > out:
+            out = v
+    return out
+
+
+@kernel
+def at_round_off(dq, q):
+    """Whether a Newton correction dq is down to the round-off of q: max |dq| <= 8 eps max(1, max |q|).
+
+    Phi evaluated at large coordinates (a crank after many turns) carries a round-off of
+    about eps |q|, below which no correction can go.
+    """
+    return max_abs(dq) <= 8 * EPS * max(1.0, max_abs(q))
+
+
+@kernel
+def invert(M, LU, piv, col, Minv):
+    """Minv = M^-1 (m, m), column by column through the LU factors of M (copied into LU).
+
+    ``col`` (m,) is scratch. Returns False if M is singular.
+    """
+    m = M.shape[0]
+    for i in range(m):
+        for j in range(m):
+            LU[i, j] = M[i, j]
+    if not lu_factor(LU, piv):
+        return False
+    for c in range(m):
+        for i in range(m):
+            col[i] = 1.0 if i == c else 0.0
+        lu_solve(LU, piv, col)
+        for i in range(m):
+            Minv[i, c] = col[i]
+    return True
+
+
+@kernel
+def correction(J, Winv, mass_metric, res, WJt, S, z, piv, dq):
+    """dq (m,) = W^-1 J^T (J W^-1 J^T)^-1 res, with W^-1 = Winv (mass metric) or the identity.
+
+    Parameters
+    ----------
+    J : ndarray (r, m)
+        Constraint Jacobian Phi_q.
+    Winv : ndarray (m, m)
+        M^-1 (read only when ``mass_metric``).
+    res : ndarray (r,)
+        The residual to remove.
+    WJt, S, z, piv : ndarray (m, r), (r, r), (r,), (r,) int
+        Scratch.
+
+    Returns False if J W^-1 J^T is singular (J has lost rank).
+    """
+    r, m = J.shape
+    for i in range(m):
+        for c in range(r):
+            if mass_metric:
+                v = 0.0
+                for j in range(m):
+                    v += Winv[i, j] * J[c, j]
+                WJt[i, c] = v
+            else:
+                WJt[i, c] = J[c, i]
+    for a in range(r):
+        for b in range(r):
+            v = 0.0
+            for j in range(m):
+                v += J[a, j] * WJt[j, b]
+            S[a, b] = v
+    for a in range(r):
+        z[a] = res[a]
+    if not lu_factor(S, piv):
+        return False
+    lu_solve(S, piv, z)
+    for i in range(m):
+        v = 0.0
+        for c in range(r):
+            v += WJt[i, c] * z[c]
+        dq[i] = v
+    return True

@@ -1,0 +1,74 @@
+"""Status codes of a run and the one message each gives, for both backends.
+
+The core functions return these codes (0 is success) with up to two numbers of detail,
+``a`` and ``b``; :func:`failure_message` turns a code into the text a user reads. The Python
+driver raises :class:`csim.errors.SimulationFailure` with it; the compiled loop returns
+the code and the runner calls the same function, so a failure reads the same on both.
+"""
+from __future__ import annotations
+
+OK = 0
+NONFINITE_RHS = 1  # a: t, b: max |y|
+NONFINITE_STATE = 2  # a: t
+MAX_PHI = 3  # a: max |Phi|, b: t
+STEP_COLLAPSE = 4  # a: h, b: t
+MAX_STEPS = 5  # a: t
+STEP_TOO_SMALL = 6  # a: t (scipy: "Required step size is less than spacing between numbers.")
+SINGULAR_KKT = 7  # a: t
+PROJ_SINGULAR = 8  # a: t
+PROJ_NO_CONVERGENCE = 9  # a: max |Phi|, b: t
+MAX_EVENTS = 10  # a: t
+RK4_RESOLUTION = 11  # a: t
+SINGULAR_MASS = 12  # b: t
+NO_SIGN_CHANGE = 13  # a: t
+
+
+def failure_message(code: int, a: float, b: float, settings, method=None) -> str:
+    """What went wrong, for status ``code`` with details ``a``, ``b``.
+
+    Parameters
+    ----------
+    code : int
+        A status code of this module (not OK).
+    a, b : float
+        The details the code's comment above names.
+    settings : csim.solver.settings.IntegrationSettings
+        The run's settings (limits are quoted by their case-file keys).
+    method : object, optional
+        The stabilization method (the projection's messages quote its tolerance).
+    """
+    s = settings
+    if code == NONFINITE_RHS:
+        return f"blow-up: non-finite right-hand side at t = {a:.6g} s (max |y| = {b:.3g})"
+    if code == NONFINITE_STATE:
+        return f"blow-up: non-finite state at t = {a:.6g} s"
+    if code == MAX_PHI:
+        return (f"constraint violation: max |Phi| = {a:.3g} at t = {b:.6g} s exceeds simulation.max_phi = "
+                f"{s.max_phi:g}; the joints have drifted apart (stabilize, or tighten the tolerances)")
+    if code == STEP_COLLAPSE:
+        return (f"step-size collapse: an accepted step of {a:.3g} s at t = {b:.6g} s is below simulation.min_step "
+                f"= {s.min_step:g} s (a singular configuration, or stiffness beyond this integrator)")
+    if code == MAX_STEPS:
+        return (f"more than simulation.max_steps = {s.max_steps} steps by t = {a:.6g} s: "
+                f"the motion is too fast or too stiff for these settings (raise max_steps to go on)")
+    if code == STEP_TOO_SMALL:
+        return (f"integrator {s.integrator} failed at t = {a:.6g} s: "
+                f"Required step size is less than spacing between numbers.")
+    if code == SINGULAR_KKT:
+        return ("singular KKT matrix: the constraint Jacobian Phi_q lost rank (a singular "
+                "configuration of the mechanism) or M is singular")
+    if code == PROJ_SINGULAR:
+        return "projection: singular constraint Jacobian"
+    if code == PROJ_NO_CONVERGENCE:
+        return (f"projection: Gauss-Newton did not reach max |Phi| <= {method.tol:g} in "
+                f"{method.max_iter} iterations (max |Phi| = {a:.3e})")
+    if code == MAX_EVENTS:
+        return (f"more than simulation.max_events = {s.max_events} switching events "
+                f"by t = {a:.6g} s: the load law chatters")
+    if code == RK4_RESOLUTION:
+        return f"integrator RK4 failed at t = {a:.6g} s: step {s.step:g} s is below the resolution of t = {a:g} s"
+    if code == SINGULAR_MASS:
+        return f"numerical error after t = {b:.6g} s: LinAlgError: Singular matrix"
+    if code == NO_SIGN_CHANGE:
+        return f"numerical error after t = {a:.6g} s: ValueError: f(a) and f(b) must have different signs"
+    return f"integration failed with status {code}"

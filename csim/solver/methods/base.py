@@ -1,0 +1,145 @@
+"""What every stabilization method is: its options, its gamma*, the system it integrates.
+
+A method is a subclass of :class:`Method` in a file of its own in this package:
+
+``name``
+    the registry key (``stabilization.method`` in a case file);
+``Options``
+    a frozen dataclass of its settings, each declared with :func:`option` (default, unit,
+    bounds, one line of documentation). The case schema's ``stabilization`` section and
+    the README's table are generated from these declarations;
+``system``
+    the system class that integrates it (:class:`csim.solver.system.ConstrainedSystem`
+    unless the method changes what is integrated);
+``gamma_star_kernel``
+    a core function (:func:`csim.physics.jit.kernel`) computing gamma* from
+    (gamma, Phi, Phi'), with the method's gains packed by :meth:`Method.pack`. The
+    Python driver and the compiled loop call this same function;
+``compiled``
+    whether the compiled kernels run the method (they do whenever it is expressed by
+    gamma* and, optionally, the projection after every step: ``projects``).
+
+Adding a method is adding one file here; :mod:`csim.solver.methods` registers every
+subclass it finds (:func:`register` takes one defined elsewhere, e.g. in a test).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any, ClassVar
+
+import numpy as np
+
+
+def option(default: Any, doc: str, unit: str = "", *, gain: bool = False, gt: float | None = None,
+           ge: float | None = None, le: float | None = None, choices: tuple | None = None):
+    """A method setting: a dataclass field whose metadata the case schema is generated from.
+
+    Parameters
+    ----------
+    default : float, int or str
+        The value when the case file leaves the key out; its type is the key's type.
+    doc : str
+        One line for a person (schema help, README).
+    unit : str
+        SI unit, or a unit relative to the constraints ("unit of Phi/s").
+    gain : bool
+        A gain: a positive number, or a list of positive numbers, one per constraint.
+    gt, ge, le : float, optional
+        Bounds on a number.
+    choices : tuple of str, optional
+        The allowed strings.
+    """
+    meta = dict(doc=doc, unit=unit, gain=gain, gt=gt, ge=ge, le=le, choices=choices)
+    return dataclasses.field(default=default, metadata=meta)
+
+
+@dataclasses.dataclass(frozen=True)
+class NoOptions:
+    """A method without settings."""
+
+
+def _gain_array(value, r: int) -> np.ndarray:
+    """A gain (a number, or one per constraint) as an (r,) float array."""
+    return np.ascontiguousarray(np.broadcast_to(np.asarray(value, dtype=float), (r,)), dtype=float)
+
+
+class Method:
+    """A constraint stabilization method (see the module docstring for what a subclass declares).
+
+    Parameters
+    ----------
+    **options
+        Settings, by their case-file key; each must be a field of ``Options``.
+    """
+
+    name: ClassVar[str] = "abstract"
+    #: position in listings (registry order, ``csim compare``'s default method order)
+    rank: ClassVar[int] = 100
+    Options: ClassVar[type] = NoOptions
+    #: the integrators that can run the method (None: every one)
+    integrators: ClassVar[tuple[str, ...] | None] = None
+    #: whether the compiled kernels run it (gamma* and, with ``projects``, the projection)
+    compiled: ClassVar[bool] = False
+    #: whether the state is projected onto Phi = 0, Phi_q qd = 0 after every accepted step
+    projects: ClassVar[bool] = False
+    #: gamma_star_kernel(gamma, phi, phi_dot, gains, fpar, ipar, out); None: gamma* = gamma
+    gamma_star_kernel: ClassVar[Any] = None
+
+    def __init__(self, **options):
+        self.options = self.Options(**options)
+        self._packed: dict[int, tuple] = {}
+
+    @classmethod
+    def system_class(cls):
+        """The system that integrates the method (the constrained ODE unless overridden)."""
+        from csim.solver.system import ConstrainedSystem
+
+        return ConstrainedSystem
+
+    # -- the packing the core functions read ------------------------------------------
+    def gains(self, r: int) -> list[np.ndarray]:
+        """Per-constraint gains, each (r,), in the order ``gamma_star_kernel`` reads them."""
+        return []
+
+    def parameters(self) -> tuple[list[float], list[int]]:
+        """Scalar settings the core functions read: (floats, integers)."""
+        return [], []
+
+    def pack(self, r: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(gains (G, r), fpar (F,), ipar (I,)): the method as arrays, for ``r`` constraints.
+
+        G, F and I are at least 1, so that every method passes arrays of the same kinds.
+        """
+        if r not in self._packed:
+            rows = self.gains(r)
+            gains = np.zeros((max(1, len(rows)), r))
+            for i, row in enumerate(rows):
+                gains[i] = row
+            floats, ints = self.parameters()
+            fpar = np.array([*floats, 0.0], dtype=float)
+            ipar = np.array([*ints, 0], dtype=np.int64)
+            self._packed[r] = (np.ascontiguousarray(gains), fpar, ipar)
+        return self._packed[r]
+
+    def gamma_star(self, gamma: np.ndarray, phi: np.ndarray, phi_dot: np.ndarray) -> np.ndarray:
+        """gamma* (r,) from gamma (r,), Phi (r,) and dPhi/dt = Phi_q qd (r,)."""
+        if self.gamma_star_kernel is None:
+            return gamma
+        gamma, phi, phi_dot = (np.ascontiguousarray(a, dtype=float) for a in (gamma, phi, phi_dot))
+        out = np.empty(gamma.size)
+        type(self).gamma_star_kernel(gamma, phi, phi_dot, *self.pack(gamma.size), out)
+        return out
+
+    @classmethod
+    def option_fields(cls) -> list[dataclasses.Field]:
+        """The declared settings (dataclass fields with :func:`option` metadata)."""
+        return list(dataclasses.fields(cls.Options))
+
+
+def positive_gains(value) -> str | None:
+    """None if ``value`` is a positive number or a non-empty list of them, else what was expected."""
+    values = value if isinstance(value, list) else [value]
+    ok = bool(values) and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0
+                              for v in values)
+    return None if ok else "a positive number, or a list of positive numbers (one per constraint)"
