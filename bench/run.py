@@ -92,9 +92,9 @@ def rhs_costs(n_eval):
     y = initial_state(case, system)
     mode = system.mode_at(y)
     mod = load_module(system.model.definition)
-    problem = pack_problem(system)
-    mod.rhs_repeat(y, mode, *problem, 10)
-    numba_ns = statistics.median(timed(lambda: mod.rhs_repeat(y, mode, *problem, n_eval), 1)[0] / n_eval * 1e9
+    par, pf, pi = pack_problem(system)
+    mod.rhs_repeat(y, mode, par, pf, pi, 10)
+    numba_ns = statistics.median(timed(lambda: mod.rhs_repeat(y, mode, par, pf, pi, n_eval), 1)[0] / n_eval * 1e9
                                  for _ in range(5))
     exe, tmp = c_rhs.build(system.model.definition, y, system.par, system.loads.values(mode), n_eval)
     try:

@@ -40,12 +40,12 @@ def test_compiled_rhs_equals_python_rhs(kernels, method):
              "sliding_mode": ["stabilization.Lambda=[20, 35]", "stabilization.K=[15, 40]",
                               "stabilization.k=[0.5, 2.0]", "stabilization.switching=sqrt", "stabilization.eps=1e-3"]}
     _, system, y0 = _system(f"stabilization.method={method}", *gains.get(method, []))
-    problem = pack_problem(system)
+    par, pf, pi = pack_problem(system)
     rng = np.random.default_rng(1)
     for _ in range(20):
         y = y0 + rng.normal(scale=[0.3, 0.05, 0.05, 2, 2, 2, 10, 10])
         mode = rng.random(system.loads.n_switches) < 0.5
-        code, f, x = kernels.rhs_entry(y, mode, *problem)
+        code, f, x = kernels.rhs_entry(y, mode, par, pf, pi)
         assert code == 0
         expected = system.rhs(0.0, y, mode)
         scale = np.maximum(1.0, np.abs(expected))
@@ -56,9 +56,9 @@ def test_compiled_rhs_equals_python_rhs(kernels, method):
 
 def test_compiled_projection_equals_python(kernels):
     _, system, y0 = _system("stabilization.method=projection")
-    problem = pack_problem(system)
+    par, pf, pi = pack_problem(system)
     y = y0 + np.array([1e-3, -2e-3, 1e-3, 0.01, -0.02, 0.03, 0, 0])
-    code, _, out = kernels.project_entry(y, *problem)
+    code, _, out = kernels.project_entry(y, par, pf, pi)
     assert code == 0
     assert np.allclose(out, system.project(y), rtol=0, atol=1e-13)
 

@@ -43,7 +43,7 @@ FUNCTIONS = {
 #: scalar functions: name -> DerivedModel attribute
 SCALARS = {"kinetic": "kinetic_energy", "potential": "potential_energy"}
 
-DECORATOR = '@njit(cache=True, error_model="numpy")'
+DECORATOR = '@njit(cache=True, error_model="numpy", _nrt=False)'  # they allocate nothing
 
 
 class _Printer(PythonCodePrinter):

@@ -16,13 +16,16 @@ scipy's ``DOP853`` (step-size control, error estimate, dense output) and ``brent
 cubic Hermite dense output of :class:`csim.solver.rk4.RK4`, and the glue that evaluates
 the model into the workspace.
 
-The problem is passed as flat arrays (no tuples of arrays: numba would count references
-to each member at every call): ``par`` the parameters; ``mag`` (k,), ``sw_load``,
-``sw_kind``, ``sw_value`` (n_sw,) the load laws (:mod:`csim.physics.loads`); ``mk`` the
-method's code in the dispatch and ``gains`` (G, r), ``fpar``, ``ipar`` its packed settings
-(:meth:`csim.solver.methods.base.Method.pack`). The workspace w holds the model terms
-(offsets W_M ... from the generated part), then the scratch of the right-hand side and
-of the projection (offsets below); views into it are made where they are used.
+The problem is passed as three flat arrays, ``par`` (the parameters), ``pf`` and ``pi``
+(:func:`csim.fast.runner.pack_problem`), because numba counts a reference to every array
+argument at every call of a function it does not inline: few arguments keep the
+evaluation as fast as plain C. ``pi`` starts with a header (offsets PI_* below), then the
+switching functions' loads and kinds (:mod:`csim.physics.loads`) and the method's integer
+settings; ``pf`` holds the load magnitudes, the switching bounds, the method's float
+settings and its gains (:meth:`csim.solver.methods.base.Method.pack`). The workspace w holds
+the model terms (offsets W_M ... from the generated part), then the scratch of the
+right-hand side and of the projection (offsets below); matrices are flat and row-major,
+and the core functions get 1-D slices of w (a slice costs nothing, a 2-D view a reshape).
 """
 import importlib.util
 import math
@@ -48,6 +51,12 @@ from csim.physics.status import (
     STEP_TOO_SMALL,
 )
 from csim.physics.steps import all_finite, check_step
+
+
+#: the decorator of every loop function that allocates nothing: compiled without numba's
+#: reference counting of arrays (NRT), which would cost two atomic operations per array
+#: argument and per slice at every call; the arrays live as long as ``integrate`` holds them
+hot = njit(cache=True, error_model="numpy", _nrt=False)
 
 
 def _dop853_coefficients():
@@ -107,18 +116,15 @@ W_DQ = W_Z + NC  # projection: correction (NQ)
 W_COL = W_DQ + NQ  # projection: a column of the identity (NQ)
 W_G = W_COL + NQ  # switching functions (n_sw), last
 
+# the header of pi: method code, n_sw, and where the method's settings are in pi and pf
+PI_MK, PI_NSW, PI_IPAR, PI_NIPAR, PI_FPAR, PI_NFPAR, PI_GAINS, PI_NGAINS = range(8)
+PI_HEAD = 8  # then sw_load (n_sw), sw_kind (n_sw), ipar
 # scalars of the loop, in one float array ts_ and one int array cs_
 T, T_OLD, H_ABS, HSTEP, T_STOP, SEG_START = range(6)
 NFEV, NSTEPS, N_REC, I_OUT, N_EV, SEG_STEPS = range(6)
 
 
-@njit(cache=True, error_model="numpy")
-def _mat(w, offset, rows, cols):
-    """The row-major (rows, cols) matrix stored in w from ``offset`` (a view)."""
-    return w[offset:offset + rows * cols].reshape((rows, cols))
-
-
-@njit(cache=True, error_model="numpy")
+@hot
 def spacing(t):
     """|nextafter(t, +inf) - t| for t >= 0 (numpy's nextafter without its overload)."""
     if t == 0.0:
@@ -127,7 +133,7 @@ def spacing(t):
     return 2.0 ** (e - 53)
 
 
-@njit(cache=True, error_model="numpy")
+@hot
 def copy_row(src, dst, row):
     for i in range(src.size):
         dst[row, i] = src[i]
@@ -136,24 +142,25 @@ def copy_row(src, dst, row):
 # ---------------------------------------------------------------------------------------
 # the model at a state: switching functions, right-hand side
 # ---------------------------------------------------------------------------------------
-@njit(cache=True, error_model="numpy")
-def switching_from(y, sw_load, sw_kind, sw_value, w):
+@hot
+def switching_from(y, pf, pi, w):
     """Switching functions into w[W_G:] from s and B in w (loads_ or terms evaluated) and qd in y."""
-    n_sw = sw_load.size
-    load_rates(_mat(w, W_B, NQ, NL), y[NQ:2 * NQ], w[W_SD:W_SD + NL])
-    switching_functions(w[W_S:W_S + NL], w[W_SD:W_SD + NL], sw_load, sw_kind, sw_value, w[W_G:W_G + n_sw])
+    n_sw = pi[PI_NSW]
+    load_rates(w[W_B:W_B + NQ * NL], y[NQ:2 * NQ], w[W_SD:W_SD + NL], NQ, NL)
+    switching_functions(w[W_S:W_S + NL], w[W_SD:W_SD + NL], pi[PI_HEAD:PI_HEAD + n_sw],
+                        pi[PI_HEAD + n_sw:PI_HEAD + 2 * n_sw], pf[NL:NL + n_sw], w[W_G:W_G + n_sw])
 
 
-@njit(cache=True, error_model="numpy")
-def mode_at(y, par, sw_load, sw_kind, sw_value, w, mode):
+@hot
+def mode_at(y, par, pf, pi, w, mode):
     """The load-law conditions that hold at state y (switching functions left in w[W_G:])."""
     loads_(y, par, w)
-    switching_from(y, sw_load, sw_kind, sw_value, w)
-    mode_of(w[W_G:W_G + sw_load.size], mode)
+    switching_from(y, pf, pi, w)
+    mode_of(w[W_G:W_G + pi[PI_NSW]], mode)
 
 
-@njit(cache=True, error_model="numpy")
-def rhs(y, mode, located, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar, w, piv, f):
+@hot
+def rhs(y, mode, located, par, pf, pi, w, piv, f):
     """dy/dt = [qd, qdd, u * ds/dt] into f; [qdd, lambda] left in w[W_X:]. Returns OK or SINGULAR_KKT.
 
     The load laws are held in ``mode``; with ``located`` False they are evaluated at y
@@ -161,24 +168,27 @@ def rhs(y, mode, located, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar,
     """
     terms(y, par, w)
     qd = y[NQ:2 * NQ]
-    B = _mat(w, W_B, NQ, NL)
-    J = _mat(w, W_J, NC, NQ)
+    B = w[W_B:W_B + NQ * NL]
+    J = w[W_J:W_J + NC * NQ]
     if not located:
-        switching_from(y, sw_load, sw_kind, sw_value, w)
-        mode_of(w[W_G:W_G + sw_load.size], mode)
+        switching_from(y, pf, pi, w)
+        mode_of(w[W_G:W_G + pi[PI_NSW]], mode)
     u = w[W_U:W_U + NL]
-    load_values(mag, mode, sw_load, u)
+    load_values(pf[:NL], mode, pi[PI_HEAD:PI_HEAD + pi[PI_NSW]], u)
     p = w[W_P:W_P + NQ]
-    generalized_forces(B, u, w[W_CQD:W_CQD + NQ], w[W_H:W_H + NQ], p)
+    generalized_forces(B, u, w[W_CQD:W_CQD + NQ], w[W_H:W_H + NQ], p, NQ, NL)
     phi_dot = w[W_PD:W_PD + NC]
-    constraint_rates(J, qd, phi_dot)
+    constraint_rates(J, qd, phi_dot, NC, NQ)
     gstar = w[W_GS:W_GS + NC]
-    method_gamma_star(mk, w[W_GAM:W_GAM + NC], w[W_PHI:W_PHI + NC], phi_dot, gains, fpar, ipar, gstar)
+    gains = pf[pi[PI_GAINS]:pi[PI_GAINS] + pi[PI_NGAINS]]
+    fpar = pf[pi[PI_FPAR]:pi[PI_FPAR] + pi[PI_NFPAR]]
+    ipar = pi[pi[PI_IPAR]:pi[PI_IPAR] + pi[PI_NIPAR]]
+    method_gamma_star(pi[PI_MK], NC, w[W_GAM:W_GAM + NC], w[W_PHI:W_PHI + NC], phi_dot, gains, fpar, ipar, gstar)
     x = w[W_X:W_X + NK]
-    if not kkt_solve(_mat(w, W_M, NQ, NQ), J, p, gstar, _mat(w, W_A, NK, NK), x, piv):
+    if not kkt_solve(w[W_M:W_M + NQ * NQ], J, p, gstar, w[W_A:W_A + NK * NK], x, piv, NQ, NC):
         return SINGULAR_KKT
     sdot = w[W_SD:W_SD + NL]
-    load_rates(B, qd, sdot)
+    load_rates(B, qd, sdot, NQ, NL)
     for i in range(NQ):
         f[i] = qd[i]
         f[NQ + i] = x[i]
@@ -187,10 +197,10 @@ def rhs(y, mode, located, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar,
     return OK
 
 
-@njit(cache=True, error_model="numpy")
-def feval(t, y, mode, located, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar, w, piv, f, info):
+@hot
+def feval(t, y, mode, located, par, pf, pi, w, piv, f, info):
     """rhs plus the driver's check of a non-finite result (info = [t, max |y|] then)."""
-    code = rhs(y, mode, located, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar, w, piv, f)
+    code = rhs(y, mode, located, par, pf, pi, w, piv, f)
     if code == OK and not all_finite(f):
         code = NONFINITE_RHS
     if code != OK:
@@ -202,21 +212,23 @@ def feval(t, y, mode, located, par, mag, sw_load, sw_kind, sw_value, mk, gains, 
 # ---------------------------------------------------------------------------------------
 # projection onto Phi = 0, Phi_q qd = 0 (csim.solver.methods.projection)
 # ---------------------------------------------------------------------------------------
-@njit(cache=True, error_model="numpy")
-def project(y, out, par, fpar, ipar, w, piv):
+@hot
+def project(y, out, par, pf, pi, w, piv):
     """out = y with (q, qd) projected; returns (status code, max |Phi| of the last iterate).
 
-    fpar[0] is the tolerance on max |Phi|, ipar = [mass metric (0/1), iteration limit].
+    The method's settings: fpar[0] the tolerance on max |Phi|, ipar = [mass metric (0/1),
+    iteration limit].
     """
+    fpar = pf[pi[PI_FPAR]:pi[PI_FPAR] + pi[PI_NFPAR]]
+    ipar = pi[pi[PI_IPAR]:pi[PI_IPAR] + pi[PI_NIPAR]]
     tol, mass_metric, max_iter = fpar[0], ipar[0] == 1, ipar[1]
     for i in range(y.size):
         out[i] = y[i]
-    Winv = _mat(w, W_WINV, NQ, NQ)
-    J = _mat(w, W_J, NC, NQ)
-    WJt, S, z, dq = _mat(w, W_WJT, NQ, NC), _mat(w, W_S2, NC, NC), w[W_Z:W_Z + NC], w[W_DQ:W_DQ + NQ]
+    Winv, J = w[W_WINV:W_WINV + NQ * NQ], w[W_J:W_J + NC * NQ]
+    WJt, S, z, dq = w[W_WJT:W_WJT + NQ * NC], w[W_S2:W_S2 + NC * NC], w[W_Z:W_Z + NC], w[W_DQ:W_DQ + NQ]
     if mass_metric:  # W^-1 = M^-1
         mass(out, par, w)
-        if not invert(_mat(w, W_M, NQ, NQ), _mat(w, W_M2, NQ, NQ), piv, w[W_COL:W_COL + NQ], Winv):
+        if not invert(w[W_M:W_M + NQ * NQ], w[W_M2:W_M2 + NQ * NQ], piv, w[W_COL:W_COL + NQ], Winv, NQ):
             return SINGULAR_MASS, 0.0
     q = out[:NQ]
     phi = w[W_PHI:W_PHI + NC]
@@ -229,7 +241,7 @@ def project(y, out, par, fpar, ipar, w, piv):
             converged = True
             break
         jac(out, par, w)
-        if not correction(J, Winv, mass_metric, phi, WJt, S, z, piv, dq):
+        if not correction(J, Winv, mass_metric, phi, WJt, S, z, piv, dq, NC, NQ):
             return PROJ_SINGULAR, mx
         for i in range(NQ):
             q[i] -= dq[i]
@@ -240,8 +252,8 @@ def project(y, out, par, fpar, ipar, w, piv):
         return PROJ_NO_CONVERGENCE, mx
     jac(out, par, w)
     phi_dot = w[W_PD:W_PD + NC]
-    constraint_rates(J, out[NQ:2 * NQ], phi_dot)
-    if not correction(J, Winv, mass_metric, phi_dot, WJt, S, z, piv, dq):
+    constraint_rates(J, out[NQ:2 * NQ], phi_dot, NC, NQ)
+    if not correction(J, Winv, mass_metric, phi_dot, WJt, S, z, piv, dq, NC, NQ):
         return PROJ_SINGULAR, mx
     for i in range(NQ):
         out[NQ + i] -= dq[i]
@@ -251,7 +263,7 @@ def project(y, out, par, fpar, ipar, w, piv):
 # ---------------------------------------------------------------------------------------
 # dense output and the zeros of the switching functions on it
 # ---------------------------------------------------------------------------------------
-@njit(cache=True, error_model="numpy")
+@hot
 def dense_eval(kind, tau, t_old, h, y_old, F, out):
     """The last step's interpolant at tau into out (kind: DOP853, RK4 (Hermite), CONSTANT)."""
     n = y_old.size
@@ -281,24 +293,24 @@ def dense_eval(kind, tau, t_old, h, y_old, F, out):
             out[i] = h00 * F[0, i] + h10 * h * F[1, i] + h01 * F[2, i] + h11 * h * F[3, i]
 
 
-@njit(cache=True, error_model="numpy")
-def _g_at(j, tau, kind, t_old, h, y_old, F, par, sw_load, sw_kind, sw_value, w, ytmp):
+@hot
+def _g_at(j, tau, kind, t_old, h, y_old, F, par, pf, pi, w, ytmp):
     """Switching function j on the dense output at tau."""
     dense_eval(kind, tau, t_old, h, y_old, F, ytmp)
     loads_(ytmp, par, w)
-    switching_from(ytmp, sw_load, sw_kind, sw_value, w)
+    switching_from(ytmp, pf, pi, w)
     return w[W_G + j]
 
 
-@njit(cache=True, error_model="numpy")
-def brentq(j, xa, xb, kind, t_old, h, y_old, F, par, sw_load, sw_kind, sw_value, w, ytmp):
+@hot
+def brentq(j, xa, xb, kind, t_old, h, y_old, F, par, pf, pi, w, ytmp):
     """scipy's brentq (xtol = rtol = 4 eps, 100 iterations) on switching function j: (root, ok)."""
     xtol = 4 * EPS
     rtol = 4 * EPS
     xpre, xcur = xa, xb
     xblk, fblk, spre, scur = 0.0, 0.0, 0.0, 0.0
-    fpre = _g_at(j, xpre, kind, t_old, h, y_old, F, par, sw_load, sw_kind, sw_value, w, ytmp)
-    fcur = _g_at(j, xcur, kind, t_old, h, y_old, F, par, sw_load, sw_kind, sw_value, w, ytmp)
+    fpre = _g_at(j, xpre, kind, t_old, h, y_old, F, par, pf, pi, w, ytmp)
+    fcur = _g_at(j, xcur, kind, t_old, h, y_old, F, par, pf, pi, w, ytmp)
     if fpre == 0:
         return xpre, True
     if fcur == 0:
@@ -343,14 +355,14 @@ def brentq(j, xa, xb, kind, t_old, h, y_old, F, par, sw_load, sw_kind, sw_value,
             xcur += scur
         else:
             xcur += delta if sbis > 0 else -delta
-        fcur = _g_at(j, xcur, kind, t_old, h, y_old, F, par, sw_load, sw_kind, sw_value, w, ytmp)
+        fcur = _g_at(j, xcur, kind, t_old, h, y_old, F, par, pf, pi, w, ytmp)
     return xcur, True
 
 
 # ---------------------------------------------------------------------------------------
 # one step of each integrator
 # ---------------------------------------------------------------------------------------
-@njit(cache=True, error_model="numpy")
+@hot
 def _rms(x, scale):
     s = 0.0
     for i in range(x.size):
@@ -359,9 +371,8 @@ def _rms(x, scale):
     return math.sqrt(s) / x.size**0.5
 
 
-@njit(cache=True, error_model="numpy")
-def _initial_step(t, y, f, t_end, rtol, tolv, max_step, first_step, par, mag, sw_load, sw_kind, sw_value, rmode,
-                  locate, mk, gains, fpar, ipar, w, piv, ytmp, f1, scl, cs, info):
+@hot
+def _initial_step(t, y, f, t_end, rtol, tolv, max_step, first_step, par, pf, pi, rmode, locate, w, piv, ytmp, f1, scl, cs, info):
     """DOP853's first step: given, or scipy's select_initial_step (one evaluation). Returns (status, h)."""
     n = y.size
     interval = abs(t_end - t)
@@ -381,8 +392,7 @@ def _initial_step(t, y, f, t_end, rtol, tolv, max_step, first_step, par, mag, sw
     for i in range(n):
         ytmp[i] = y[i] + h0 * f[i]
     cs[NFEV] += 1
-    status = feval(t + h0, ytmp, rmode, locate, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar, w,
-                   piv, f1, info)
+    status = feval(t + h0, ytmp, rmode, locate, par, pf, pi, w, piv, f1, info)
     if status != OK:
         return status, 0.0
     for i in range(n):
@@ -395,7 +405,7 @@ def _initial_step(t, y, f, t_end, rtol, tolv, max_step, first_step, par, mag, sw
     return OK, min(100 * h0, h1, interval, max_step)
 
 
-@njit(cache=True, error_model="numpy")
+@hot
 def _dop853_error(K, y, y_new, tolv, rtol, hstep):
     """scipy DOP853._estimate_error_norm: the scaled error norm of the step."""
     n = y.size
@@ -417,9 +427,8 @@ def _dop853_error(K, y, y_new, tolv, rtol, hstep):
     return abs(hstep) * e5 / math.sqrt((e5 + 0.01 * e3) * n)
 
 
-@njit(cache=True, error_model="numpy")
-def _dop853_stages(t, hstep, y, f, K, ytmp, y_new, f_new, par, mag, sw_load, sw_kind, sw_value, rmode, locate, mk,
-                   gains, fpar, ipar, w, piv, cs, info):
+@hot
+def _dop853_stages(t, hstep, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmode, locate, w, piv, cs, info):
     """scipy's rk_step: the 12 stages, y_new and f_new = f(t + h, y_new) into K[DOP_NS]. Returns the status."""
     n = y.size
     for i in range(n):
@@ -431,8 +440,7 @@ def _dop853_stages(t, hstep, y, f, K, ytmp, y_new, f_new, par, mag, sw_load, sw_
                 acc += K[jj, i] * DOP_A[s, jj]
             ytmp[i] = y[i] + acc * hstep
         cs[NFEV] += 1
-        status = feval(t + DOP_C[s] * hstep, ytmp, rmode, locate, par, mag, sw_load, sw_kind, sw_value, mk, gains,
-                       fpar, ipar, w, piv, K[s], info)
+        status = feval(t + DOP_C[s] * hstep, ytmp, rmode, locate, par, pf, pi, w, piv, K[s], info)
         if status != OK:
             return status
     for i in range(n):
@@ -441,8 +449,7 @@ def _dop853_stages(t, hstep, y, f, K, ytmp, y_new, f_new, par, mag, sw_load, sw_
             acc += K[jj, i] * DOP_B[jj]
         y_new[i] = y[i] + hstep * acc
     cs[NFEV] += 1
-    status = feval(t + hstep, y_new, rmode, locate, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar, w,
-                   piv, f_new, info)
+    status = feval(t + hstep, y_new, rmode, locate, par, pf, pi, w, piv, f_new, info)
     if status != OK:
         return status
     for i in range(n):
@@ -450,9 +457,8 @@ def _dop853_stages(t, hstep, y, f, K, ytmp, y_new, f_new, par, mag, sw_load, sw_
     return OK
 
 
-@njit(cache=True, error_model="numpy")
-def _dop853_step(ts_, t_end, rtol, tolv, max_step, y, f, K, ytmp, y_new, f_new, par, mag, sw_load, sw_kind, sw_value,
-                 rmode, locate, mk, gains, fpar, ipar, w, piv, cs, info):
+@hot
+def _dop853_step(ts_, t_end, rtol, tolv, max_step, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmode, locate, w, piv, cs, info):
     """One accepted DOP853 step from ts_[T] (scipy's _step_impl). Returns (status, t_new, step_ok).
 
     ts_[H_ABS] carries the step size over; ts_[HSTEP] gets the accepted step.
@@ -474,8 +480,7 @@ def _dop853_step(ts_, t_end, rtol, tolv, max_step, y, f, K, ytmp, y_new, f_new, 
             t_new = t_end
         hstep = t_new - t
         h_abs = abs(hstep)
-        status = _dop853_stages(t, hstep, y, f, K, ytmp, y_new, f_new, par, mag, sw_load, sw_kind, sw_value, rmode,
-                                locate, mk, gains, fpar, ipar, w, piv, cs, info)
+        status = _dop853_stages(t, hstep, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmode, locate, w, piv, cs, info)
         if status != OK:
             return status, t, True
         err = _dop853_error(K, y, y_new, tolv, rtol, hstep)
@@ -490,9 +495,8 @@ def _dop853_step(ts_, t_end, rtol, tolv, max_step, y, f, K, ytmp, y_new, f_new, 
         rejected = True
 
 
-@njit(cache=True, error_model="numpy")
-def _rk4_step(ts_, t_end, fixed_h, y, f, K, ytmp, y_new, f_new, par, mag, sw_load, sw_kind, sw_value, rmode, locate,
-              mk, gains, fpar, ipar, w, piv, cs, info):
+@hot
+def _rk4_step(ts_, t_end, fixed_h, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmode, locate, w, piv, cs, info):
     """One classic RK4 step on the grid seg_start + n h (csim.solver.rk4.RK4). Returns (status, t_new, step_ok)."""
     n = y.size
     t = ts_[T]
@@ -509,14 +513,13 @@ def _rk4_step(ts_, t_end, fixed_h, y, f, K, ytmp, y_new, f_new, par, mag, sw_loa
         for i in range(n):
             ytmp[i] = y[i] + (hstep if s == 3 else hstep / 2) * K[s - 1, i]
         cs[NFEV] += 1
-        status = feval(t + c * hstep, ytmp, rmode, locate, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar,
-                       w, piv, K[s], info)
+        status = feval(t + c * hstep, ytmp, rmode, locate, par, pf, pi, w, piv, K[s], info)
         if status != OK:
             return status, t, True
     for i in range(n):
         y_new[i] = y[i] + hstep / 6 * (K[0, i] + 2 * K[1, i] + 2 * K[2, i] + K[3, i])
     cs[NFEV] += 1
-    status = feval(t_new, y_new, rmode, locate, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar, w, piv,
+    status = feval(t_new, y_new, rmode, locate, par, pf, pi, w, piv,
                    f_new, info)
     if status != OK:
         return status, t, True
@@ -525,9 +528,8 @@ def _rk4_step(ts_, t_end, fixed_h, y, f, K, ytmp, y_new, f_new, par, mag, sw_loa
     return OK, t_new, True
 
 
-@njit(cache=True, error_model="numpy")
-def _dop_dense(t_old, h, y_old, y, f, mode, locate, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar, w,
-               piv, K, F, ytmp, info):
+@hot
+def _dop_dense(t_old, h, y_old, y, f, mode, locate, par, pf, pi, w, piv, K, F, ytmp, info):
     """scipy's DOP853._dense_output_impl: three extra stages, then the interpolant F (7, n)."""
     n = y_old.size
     for e in range(DOP_NX - DOP_NS - 1):
@@ -537,8 +539,7 @@ def _dop_dense(t_old, h, y_old, y, f, mode, locate, par, mag, sw_load, sw_kind, 
             for jj in range(s):
                 acc += K[jj, i] * DOP_A_EXTRA[e, jj]
             ytmp[i] = y_old[i] + acc * h
-        code = feval(t_old + DOP_C_EXTRA[e] * h, ytmp, mode, locate, par, mag, sw_load, sw_kind, sw_value, mk, gains,
-                     fpar, ipar, w, piv, K[s], info)
+        code = feval(t_old + DOP_C_EXTRA[e] * h, ytmp, mode, locate, par, pf, pi, w, piv, K[s], info)
         if code != OK:
             return code
     for i in range(n):
@@ -554,9 +555,8 @@ def _dop_dense(t_old, h, y_old, y, f, mode, locate, par, mag, sw_load, sw_kind, 
     return OK
 
 
-@njit(cache=True, error_model="numpy")
-def _ensure_dense(dense_ready, dense_kind, t_old, h, y_old, y, f, mode, locate, par, mag, sw_load, sw_kind, sw_value,
-                  mk, gains, fpar, ipar, w, piv, K, F, ytmp, cs, info):
+@hot
+def _ensure_dense(dense_ready, dense_kind, t_old, h, y_old, y, f, mode, locate, par, pf, pi, w, piv, K, F, ytmp, cs, info):
     """The step's dense output, built on its first use (DOP853's three extra stages); returns the status.
 
     RK4's Hermite data and an empty step's constant need no evaluation.
@@ -564,15 +564,14 @@ def _ensure_dense(dense_ready, dense_kind, t_old, h, y_old, y, f, mode, locate, 
     if dense_ready or dense_kind != DOP853:
         return OK
     cs[NFEV] += 3
-    return _dop_dense(t_old, h, y_old, y, f, mode, locate, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar,
-                      ipar, w, piv, K, F, ytmp, info)
+    return _dop_dense(t_old, h, y_old, y, f, mode, locate, par, pf, pi, w, piv, K, F, ytmp, info)
 
 
 # ---------------------------------------------------------------------------------------
 # events: where a switching function leaves the sign its mode says
 # ---------------------------------------------------------------------------------------
-@njit(cache=True, error_model="numpy")
-def _locate(a, b, dense_kind, t_old, h, y_old, FF, mode, mode_b, par, sw_load, sw_kind, sw_value, w, ytmp, roots,
+@hot
+def _locate(a, b, dense_kind, t_old, h, y_old, FF, mode, mode_b, par, pf, pi, w, ytmp, roots,
             has_root, info):
     """Earliest zero in (a, b] of the switching functions whose mode differs at b. Returns (status, t_event).
 
@@ -580,12 +579,12 @@ def _locate(a, b, dense_kind, t_old, h, y_old, FF, mode, mode_b, par, sw_load, s
     switches at a. ``roots`` and ``has_root`` record each function's zero.
     """
     t_event = np.inf
-    for jj in range(sw_load.size):
+    for jj in range(pi[PI_NSW]):
         has_root[jj] = False
         if mode_b[jj] != mode[jj]:
-            g_old = _g_at(jj, a, dense_kind, t_old, h, y_old, FF, par, sw_load, sw_kind, sw_value, w, ytmp)
+            g_old = _g_at(jj, a, dense_kind, t_old, h, y_old, FF, par, pf, pi, w, ytmp)
             if (g_old > 0) == mode[jj]:
-                root, ok = brentq(jj, a, b, dense_kind, t_old, h, y_old, FF, par, sw_load, sw_kind, sw_value, w, ytmp)
+                root, ok = brentq(jj, a, b, dense_kind, t_old, h, y_old, FF, par, pf, pi, w, ytmp)
                 if not ok:
                     info[0] = t_old + h
                     return NO_SIGN_CHANGE, t_event
@@ -597,9 +596,8 @@ def _locate(a, b, dense_kind, t_old, h, y_old, FF, mode, mode_b, par, sw_load, s
     return OK, t_event
 
 
-@njit(cache=True, error_model="numpy")
-def _find_event(ts_, n_interior, dense_kind, y_old, y, f_new, mode, mode_b, rmode, locate, par, mag, sw_load, sw_kind,
-                sw_value, mk, gains, fpar, ipar, w, piv, K, F, Fh, ytmp, roots, has_root, dense, cs, info):
+@hot
+def _find_event(ts_, n_interior, dense_kind, y_old, y, f_new, mode, mode_b, rmode, locate, par, pf, pi, w, piv, K, F, Fh, ytmp, roots, has_root, dense, cs, info):
     """The earliest switch inside the last step (csim.solver.simulate._find_event). Returns (status, event).
 
     The mode is checked at ``n_interior`` equally spaced points of the step and at its end,
@@ -615,26 +613,23 @@ def _find_event(ts_, n_interior, dense_kind, y_old, y, f_new, mode, mode_b, rmod
             for i in range(y.size):
                 ytmp[i] = y[i]
         else:
-            status = _ensure_dense(dense[0], dense_kind, t_old, h, y_old, y, f_new, rmode, locate, par, mag, sw_load,
-                                   sw_kind, sw_value, mk, gains, fpar, ipar, w, piv, K, F, ytmp, cs, info)
+            status = _ensure_dense(dense[0], dense_kind, t_old, h, y_old, y, f_new, rmode, locate, par, pf, pi, w, piv, K, F, ytmp, cs, info)
             if status != OK:
                 return status, False
             dense[0] = True
             dense_eval(dense_kind, b, t_old, h, y_old, FF, ytmp)
-        mode_at(ytmp, par, sw_load, sw_kind, sw_value, w, mode_b)
+        mode_at(ytmp, par, pf, pi, w, mode_b)
         found = False
-        for jj in range(sw_load.size):
+        for jj in range(pi[PI_NSW]):
             if mode_b[jj] != mode[jj]:
                 found = True
         if found:
-            status = _ensure_dense(dense[0], dense_kind, t_old, h, y_old, y, f_new, rmode, locate, par, mag, sw_load,
-                                   sw_kind, sw_value, mk, gains, fpar, ipar, w, piv, K, F, ytmp, cs, info)
+            status = _ensure_dense(dense[0], dense_kind, t_old, h, y_old, y, f_new, rmode, locate, par, pf, pi, w, piv, K, F, ytmp, cs, info)
             if status != OK:
                 return status, False
             dense[0] = True
             a = t_old if rep == 0 else t_old + (t - t_old) * rep / (n_interior + 1)
-            status, t_event = _locate(a, b, dense_kind, t_old, h, y_old, FF, mode, mode_b, par, sw_load, sw_kind,
-                                      sw_value, w, ytmp, roots, has_root, info)
+            status, t_event = _locate(a, b, dense_kind, t_old, h, y_old, FF, mode, mode_b, par, pf, pi, w, ytmp, roots, has_root, info)
             if status != OK:
                 return status, False
             ts_[T_STOP] = t_event
@@ -642,9 +637,8 @@ def _find_event(ts_, n_interior, dense_kind, y_old, y, f_new, mode, mode_b, rmod
     return OK, False
 
 
-@njit(cache=True, error_model="numpy")
-def _sample(ts_, t_out, dense_kind, y_old, y, f_new, mode, rmode, locate, projects, par, mag, sw_load, sw_kind,
-            sw_value, mk, gains, fpar, ipar, w, piv, K, F, Fh, ytmp, yp, dense, tr, ys, modes, cs, info):
+@hot
+def _sample(ts_, t_out, dense_kind, y_old, y, f_new, mode, rmode, locate, projects, par, pf, pi, w, piv, K, F, Fh, ytmp, yp, dense, tr, ys, modes, cs, info):
     """Record the output times in (t_old, t_stop] from the step's dense output (projected, for projection)."""
     t_old, t, t_stop = ts_[T_OLD], ts_[T], ts_[T_STOP]
     FF = F if dense_kind == DOP853 else Fh
@@ -654,14 +648,13 @@ def _sample(ts_, t_out, dense_kind, y_old, y, f_new, mode, rmode, locate, projec
             for i in range(y.size):
                 ytmp[i] = y[i]
         else:
-            status = _ensure_dense(dense[0], dense_kind, t_old, t - t_old, y_old, y, f_new, rmode, locate, par, mag,
-                                   sw_load, sw_kind, sw_value, mk, gains, fpar, ipar, w, piv, K, F, ytmp, cs, info)
+            status = _ensure_dense(dense[0], dense_kind, t_old, t - t_old, y_old, y, f_new, rmode, locate, par, pf, pi, w, piv, K, F, ytmp, cs, info)
             if status != OK:
                 return status
             dense[0] = True
             dense_eval(dense_kind, t_i, t_old, t - t_old, y_old, FF, ytmp)
         if projects:
-            code, mx = project(ytmp, yp, par, fpar, ipar, w, piv)
+            code, mx = project(ytmp, yp, par, pf, pi, w, piv)
             if code != OK:
                 info[0] = mx
                 info[1] = t_i
@@ -677,8 +670,8 @@ def _sample(ts_, t_out, dense_kind, y_old, y, f_new, mode, rmode, locate, projec
     return OK
 
 
-@njit(cache=True, error_model="numpy")
-def _event_state(ts_, dense_kind, y_old, y, F, Fh, projects, par, fpar, ipar, w, piv, ytmp, yp, info):
+@hot
+def _event_state(ts_, dense_kind, y_old, y, F, Fh, projects, par, pf, pi, w, piv, ytmp, yp, info):
     """y = the state at the event ts_[T_STOP] (projected, for projection); t = t_stop. Returns the status."""
     t_old, t, t_stop = ts_[T_OLD], ts_[T], ts_[T_STOP]
     if t_stop < t:
@@ -687,7 +680,7 @@ def _event_state(ts_, dense_kind, y_old, y, F, Fh, projects, par, fpar, ipar, w,
         for i in range(y.size):
             ytmp[i] = y[i]
     if projects:
-        code, mx = project(ytmp, yp, par, fpar, ipar, w, piv)
+        code, mx = project(ytmp, yp, par, pf, pi, w, piv)
         if code != OK:
             info[0] = mx
             info[1] = t_stop
@@ -728,19 +721,19 @@ def _record_event(t, mode, roots, has_root, ev_t, ev_sw, n_ev):
 # ---------------------------------------------------------------------------------------
 # the integration loop (csim.solver.simulate.integrate)
 # ---------------------------------------------------------------------------------------
-@njit(cache=True, error_model="numpy")
-def _start(y, yp, mode, projects, par, sw_load, sw_kind, sw_value, fpar, ipar, w, piv, tr, ys, modes, info):
+@hot
+def _start(y, yp, mode, projects, par, pf, pi, w, piv, tr, ys, modes, info):
     """Project the initial state (projection), find its mode and record it. Returns the status."""
     if projects:
-        code, mx = project(y, yp, par, fpar, ipar, w, piv)
+        code, mx = project(y, yp, par, pf, pi, w, piv)
         if code != OK:
             info[0] = mx
             return code
         for i in range(y.size):
             y[i] = yp[i]
-    mode_at(y, par, sw_load, sw_kind, sw_value, w, mode)
+    mode_at(y, par, pf, pi, w, mode)
     if projects:  # the recorded sample, projected as every recorded sample is
-        code, mx = project(y, yp, par, fpar, ipar, w, piv)
+        code, mx = project(y, yp, par, pf, pi, w, piv)
         if code != OK:
             info[0] = mx
             return code
@@ -753,16 +746,15 @@ def _start(y, yp, mode, projects, par, sw_load, sw_kind, sw_value, fpar, ipar, w
     return OK
 
 
-@njit(cache=True, error_model="numpy")
-def _start_segment(method, ts_, y, f, t_end, rtol, atol, max_step, first_step, tolv, par, mag, sw_load, sw_kind,
-                   sw_value, rmode, locate, mk, gains, fpar, ipar, w, piv, ytmp, f1, scl, cs, info):
+@hot
+def _start_segment(method, ts_, y, f, t_end, rtol, atol, max_step, first_step, tolv, par, pf, pi, rmode, locate, w, piv, ytmp, f1, scl, cs, info):
     """Start the integrator at (t, y): tolerances, f(t, y), and DOP853's first step. Returns the status."""
     n = y.size
     scale_w = max(1.0, abs(kinetic(y, par)))  # the work states are in J: atol scaled to the energy
     for i in range(n):
         tolv[i] = atol * scale_w if i >= 2 * NQ else atol
     cs[NFEV] += 1
-    status = feval(ts_[T], y, rmode, locate, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar, w, piv, f,
+    status = feval(ts_[T], y, rmode, locate, par, pf, pi, w, piv, f,
                    info)
     if status != OK:
         return status
@@ -770,15 +762,13 @@ def _start_segment(method, ts_, y, f, t_end, rtol, atol, max_step, first_step, t
     ts_[SEG_START] = ts_[T]
     cs[SEG_STEPS] = 0
     if method == DOP853:
-        status, h = _initial_step(ts_[T], y, f, t_end, rtol, tolv, max_step, first_step, par, mag, sw_load, sw_kind,
-                                  sw_value, rmode, locate, mk, gains, fpar, ipar, w, piv, ytmp, f1, scl, cs, info)
+        status, h = _initial_step(ts_[T], y, f, t_end, rtol, tolv, max_step, first_step, par, pf, pi, rmode, locate, w, piv, ytmp, f1, scl, cs, info)
         ts_[H_ABS] = h
     return status
 
 
-@njit(cache=True, error_model="numpy")
-def _take_step(method, ts_, t_end, rtol, tolv, fixed_h, max_step, y, f, K, ytmp, y_new, f_new, par, mag, sw_load,
-               sw_kind, sw_value, rmode, locate, mk, gains, fpar, ipar, w, piv, cs, info):
+@hot
+def _take_step(method, ts_, t_end, rtol, tolv, fixed_h, max_step, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmode, locate, w, piv, cs, info):
     """One step of the integrator from (t, y), or scipy's empty step at t_end.
 
     Returns (status, t_new, step_ok, dense kind); step_ok is False where no step can be
@@ -791,24 +781,21 @@ def _take_step(method, ts_, t_end, rtol, tolv, fixed_h, max_step, y, f, K, ytmp,
         ts_[HSTEP] = 0.0
         return OK, t_end, True, CONSTANT
     if method == DOP853:
-        status, t_new, ok = _dop853_step(ts_, t_end, rtol, tolv, max_step, y, f, K, ytmp, y_new, f_new, par, mag,
-                                         sw_load, sw_kind, sw_value, rmode, locate, mk, gains, fpar, ipar, w, piv, cs,
+        status, t_new, ok = _dop853_step(ts_, t_end, rtol, tolv, max_step, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmode, locate, w, piv, cs,
                                          info)
     else:
-        status, t_new, ok = _rk4_step(ts_, t_end, fixed_h, y, f, K, ytmp, y_new, f_new, par, mag, sw_load, sw_kind,
-                                      sw_value, rmode, locate, mk, gains, fpar, ipar, w, piv, cs, info)
+        status, t_new, ok = _rk4_step(ts_, t_end, fixed_h, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmode, locate, w, piv, cs, info)
     return status, t_new, ok, method
 
 
-@njit(cache=True, error_model="numpy")
-def _after_step(ts_, y, f, f_new, yp, projects, par, mag, sw_load, sw_kind, sw_value, rmode, locate, mk, gains, fpar,
-                ipar, w, piv, cs, info):
+@hot
+def _after_step(ts_, y, f, f_new, yp, projects, par, pf, pi, rmode, locate, w, piv, cs, info):
     """Go on from the accepted step: project and hand the state back (projection), else keep f_new."""
     if not projects:
         for i in range(y.size):
             f[i] = f_new[i]
         return OK
-    code, mx = project(y, yp, par, fpar, ipar, w, piv)
+    code, mx = project(y, yp, par, pf, pi, w, piv)
     if code != OK:
         info[0] = mx
         info[1] = ts_[T]
@@ -816,12 +803,12 @@ def _after_step(ts_, y, f, f_new, yp, projects, par, mag, sw_load, sw_kind, sw_v
     for i in range(y.size):
         y[i] = yp[i]
     cs[NFEV] += 1
-    return feval(ts_[T], y, rmode, locate, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar, w, piv, f,
+    return feval(ts_[T], y, rmode, locate, par, pf, pi, w, piv, f,
                  info)
 
 
 @njit(cache=True, error_model="numpy")
-def integrate(method, y0, t_out, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar, projects, iset, fset):
+def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset):
     """Integrate from t = 0, state y0 (n,), sampling at t_out (csim.solver.simulate.integrate).
 
     The problem arrays are the module docstring's; ``projects``: project after every step;
@@ -832,7 +819,7 @@ def integrate(method, y0, t_out, par, mag, sw_load, sw_kind, sw_value, mk, gains
     locate, n_interior, max_events, max_steps = iset[0] != 0, iset[1], iset[2], iset[3]
     t_end, rtol, atol, fixed_h, max_step, first_step, max_phi, min_step = fset[0], fset[1], fset[2], fset[3], \
         fset[4], fset[5], fset[6], fset[7]
-    n, n_sw = y0.size, sw_load.size
+    n, n_sw = y0.size, pi[PI_NSW]
     w = np.zeros(W_G + n_sw)
     piv = np.zeros(NK, np.int64)
     tr, ys, modes = np.empty(t_out.size), np.empty((t_out.size, n)), np.zeros((t_out.size, n_sw), np.bool_)
@@ -845,20 +832,18 @@ def integrate(method, y0, t_out, par, mag, sw_load, sw_kind, sw_value, mk, gains
     mode, mode_b = np.zeros(n_sw, np.bool_), np.zeros(n_sw, np.bool_)
     rmode = mode if locate else np.zeros(n_sw, np.bool_)  # the right-hand side's mode, or a scratch it overwrites
     roots, has_root, dense = np.empty(n_sw), np.zeros(n_sw, np.bool_), np.zeros(1, np.bool_)
-    status = _start(y, yp, mode, projects, par, sw_load, sw_kind, sw_value, fpar, ipar, w, piv, tr, ys, modes, info)
+    status = _start(y, yp, mode, projects, par, pf, pi, w, piv, tr, ys, modes, info)
     cs[I_OUT] = 1
     if status == OK:
         cs[N_REC] = 1
     while status == OK and ts_[T] < t_end:
         restarted = False
-        status = _start_segment(method, ts_, y, f, t_end, rtol, atol, max_step, first_step, tolv, par, mag, sw_load,
-                                sw_kind, sw_value, rmode, locate, mk, gains, fpar, ipar, w, piv, ytmp, f_new, scl, cs,
+        status = _start_segment(method, ts_, y, f, t_end, rtol, atol, max_step, first_step, tolv, par, pf, pi, rmode, locate, w, piv, ytmp, f_new, scl, cs,
                                 info)
         while status == OK:
             ts_[T_OLD] = ts_[T]
             status, t_new, ok, dense_kind = _take_step(method, ts_, t_end, rtol, tolv, fixed_h, max_step, y, f, K,
-                                                       ytmp, y_new, f_new, par, mag, sw_load, sw_kind, sw_value, rmode,
-                                                       locate, mk, gains, fpar, ipar, w, piv, cs, info)
+                                                       ytmp, y_new, f_new, par, pf, pi, rmode, locate, w, piv, cs, info)
             if status != OK:
                 break
             cs[NSTEPS] += 1
@@ -890,17 +875,16 @@ def integrate(method, y0, t_out, par, mag, sw_load, sw_kind, sw_value, mk, gains
             event = False
             if locate:
                 status, event = _find_event(ts_, n_interior, dense_kind, y_old, y, f_new, mode, mode_b, rmode, locate,
-                                            par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar, w, piv, K, F,
+                                            par, pf, pi, w, piv, K, F,
                                             Fh, ytmp, roots, has_root, dense, cs, info)
                 if status != OK:
                     break
-            status = _sample(ts_, t_out, dense_kind, y_old, y, f_new, mode, rmode, locate, projects, par, mag, sw_load,
-                             sw_kind, sw_value, mk, gains, fpar, ipar, w, piv, K, F, Fh, ytmp, yp, dense, tr, ys,
+            status = _sample(ts_, t_out, dense_kind, y_old, y, f_new, mode, rmode, locate, projects, par, pf, pi, w, piv, K, F, Fh, ytmp, yp, dense, tr, ys,
                              modes, cs, info)
             if status != OK:
                 break
             if event:  # restart from the event state with the switched conditions flipped
-                status = _event_state(ts_, dense_kind, y_old, y, F, Fh, projects, par, fpar, ipar, w, piv, ytmp, yp,
+                status = _event_state(ts_, dense_kind, y_old, y, F, Fh, projects, par, pf, pi, w, piv, ytmp, yp,
                                       info)
                 if status != OK:
                     break
@@ -912,8 +896,7 @@ def integrate(method, y0, t_out, par, mag, sw_load, sw_kind, sw_value, mk, gains
                     break
                 restarted = True
                 break
-            status = _after_step(ts_, y, f, f_new, yp, projects, par, mag, sw_load, sw_kind, sw_value, rmode, locate,
-                                 mk, gains, fpar, ipar, w, piv, cs, info)
+            status = _after_step(ts_, y, f, f_new, yp, projects, par, pf, pi, rmode, locate, w, piv, cs, info)
             if t_new >= t_end:
                 break
         if not restarted:
@@ -925,32 +908,32 @@ def integrate(method, y0, t_out, par, mag, sw_load, sw_kind, sw_value, mk, gains
 # entry points for the tests and the benchmark
 # ---------------------------------------------------------------------------------------
 @njit(cache=True, error_model="numpy")
-def rhs_entry(y, mode, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar):
+def rhs_entry(y, mode, par, pf, pi):
     """dy/dt and [qdd, lambda] at one state (mode held), for comparison with the Python path."""
-    w = np.zeros(W_G + sw_load.size)
+    w = np.zeros(W_G + pi[PI_NSW])
     piv = np.zeros(NK, np.int64)
     f = np.empty(y.size)
-    code = rhs(y, mode.copy(), True, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar, w, piv, f)
+    code = rhs(y, mode.copy(), True, par, pf, pi, w, piv, f)
     return code, f, w[W_X:W_X + NK].copy()
 
 
 @njit(cache=True, error_model="numpy")
-def rhs_repeat(y, mode, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar, n_eval):
+def rhs_repeat(y, mode, par, pf, pi, n_eval):
     """n_eval evaluations of the right-hand side (a timing loop for the benchmark)."""
-    w = np.zeros(W_G + sw_load.size)
+    w = np.zeros(W_G + pi[PI_NSW])
     piv = np.zeros(NK, np.int64)
     f = np.empty(y.size)
     acc = 0.0
     for _ in range(n_eval):
-        rhs(y, mode, True, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar, w, piv, f)
+        rhs(y, mode, True, par, pf, pi, w, piv, f)
         acc += f[NQ]
     return acc
 
 
 @njit(cache=True, error_model="numpy")
-def project_entry(y, par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar):
-    w = np.zeros(W_G + sw_load.size)
+def project_entry(y, par, pf, pi):
+    w = np.zeros(W_G + pi[PI_NSW])
     piv = np.zeros(NK, np.int64)
     out = np.empty(y.size)
-    code, mx = project(y, out, par, fpar, ipar, w, piv)
+    code, mx = project(y, out, par, pf, pi, w, piv)
     return code, mx, out

@@ -71,18 +71,18 @@ def _kernel_function(cls):
 
 
 def method_dispatch_source() -> str:
-    """``method_gamma_star(mk, gamma, phi, phi_dot, gains, fpar, ipar, out)``: gamma* by method code."""
+    """``method_gamma_star(mk, r, gamma, phi, phi_dot, gains, fpar, ipar, out)``: gamma* by method code."""
     lines = ["# ---- gamma* of the stabilization methods with a compiled path (csim.solver.methods), by code ----"]
     for code, cls in enumerate(compiled_methods(), start=1):
         fn = _kernel_function(cls)
         lines.append(f"from {fn.__module__} import {fn.__name__} as _gamma_star_{code}  # {cls.name}")
-    lines += ["", "", '@njit(cache=True, error_model="numpy")',
-              "def method_gamma_star(mk, gamma, phi, phi_dot, gains, fpar, ipar, out):",
+    lines += ["", "", "@hot",
+              "def method_gamma_star(mk, r, gamma, phi, phi_dot, gains, fpar, ipar, out):",
               '    """gamma* (r,) into out by the method\'s code; 0 is gamma* = gamma."""']
     for code, _ in enumerate(compiled_methods(), start=1):
         lines += [f"    {'if' if code == 1 else 'elif'} mk == {code}:",
-                  f"        _gamma_star_{code}(gamma, phi, phi_dot, gains, fpar, ipar, out)", "        return"]
-    lines += ["    for i in range(gamma.size):", "        out[i] = gamma[i]"]
+                  f"        _gamma_star_{code}(r, gamma, phi, phi_dot, gains, fpar, ipar, out)", "        return"]
+    lines += ["    for i in range(r):", "        out[i] = gamma[i]"]
     return "\n".join(lines) + "\n"
 
 

@@ -17,17 +17,27 @@ from csim.solver.system import ConstrainedSystem
 INTEGRATOR_CODES = {"DOP853": 0, "RK4": 1}
 
 
-def pack_problem(system: ConstrainedSystem) -> tuple:
-    """The problem as the flat arrays of :mod:`csim.fast.kernels`.
+#: entries of the header of ``pi`` (csim.fast.kernels: PI_MK ... PI_NGAINS), then sw_load, sw_kind, ipar
+PI_HEAD = 8
 
-    Returns ``(par, mag, sw_load, sw_kind, sw_value, mk, gains, fpar, ipar)``: the
-    parameters, the load laws (:class:`csim.loads.LoadSet`'s packing), the method's
-    dispatch code and its packed settings (:meth:`csim.solver.methods.base.Method.pack`).
+
+def pack_problem(system: ConstrainedSystem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(par, pf, pi)``: the problem as the flat arrays of :mod:`csim.fast.kernels`.
+
+    pf = [magnitudes (k), sw_value (n_sw), fpar (F), gains (G * r)];
+    pi = [mk, n_sw, at(ipar), I, at(fpar), F, at(gains), G * r, sw_load (n_sw), sw_kind (n_sw), ipar (I)],
+    where mk is the method's dispatch code and ``at(x)`` where x starts in pi or pf. The load
+    laws are :class:`csim.loads.LoadSet`'s packing, the method's settings
+    :meth:`csim.solver.methods.base.Method.pack`'s.
     """
     loads, method = system.loads, system.stabilizer
     gains, fpar, ipar = method.pack(system.r)
-    return (np.ascontiguousarray(system.par, dtype=float), loads.magnitudes, loads.sw_load, loads.sw_kind,
-            loads.sw_value, method_code(method), gains, fpar, ipar)
+    n_sw, k = loads.n_switches, loads.magnitudes.size
+    at_ipar, at_fpar = PI_HEAD + 2 * n_sw, k + n_sw
+    header = [method_code(method), n_sw, at_ipar, ipar.size, at_fpar, fpar.size, at_fpar + fpar.size, gains.size]
+    pf = np.concatenate((loads.magnitudes, loads.sw_value, fpar, gains)).astype(float)
+    pi = np.concatenate((header, loads.sw_load, loads.sw_kind, ipar)).astype(np.int64)
+    return np.ascontiguousarray(system.par, dtype=float), pf, pi
 
 
 def _arguments(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSettings, max_steps: int) -> tuple:

@@ -3,6 +3,9 @@
 The systems of a mechanism are small (a few to a few dozen unknowns), where a plain loop
 beats a LAPACK call through its wrapper. Both backends solve every KKT and projection
 system with these two functions, so they agree to the last bit.
+
+Matrices are passed as flat row-major arrays (an n x n matrix A is A_flat[i * n + j]):
+compiled, a 1-D slice of a workspace is free where a reshaped 2-D view costs tens of ns.
 """
 from __future__ import annotations
 
@@ -10,42 +13,40 @@ from csim.physics.jit import kernel
 
 
 @kernel
-def lu_factor(A, piv):
-    """Factor A (n, n) in place into L (unit lower, below the diagonal) and U; pivots into piv (n,).
+def lu_factor(A, n, piv):
+    """Factor A (n * n, row-major) in place into L (unit lower, below the diagonal) and U; pivots into piv.
 
     Returns False if a pivot is exactly zero (A singular), True otherwise.
     """
-    n = A.shape[0]
     for c in range(n):
         p = c
-        big = abs(A[c, c])
+        big = abs(A[c * n + c])
         for i in range(c + 1, n):
-            v = abs(A[i, c])
+            v = abs(A[i * n + c])
             if v > big:
                 big = v
                 p = i
         piv[c] = p
-        if A[p, c] == 0.0:
+        if A[p * n + c] == 0.0:
             return False
         if p != c:
             for j in range(n):
-                tmp = A[c, j]
-                A[c, j] = A[p, j]
-                A[p, j] = tmp
-        inv = 1.0 / A[c, c]
+                tmp = A[c * n + j]
+                A[c * n + j] = A[p * n + j]
+                A[p * n + j] = tmp
+        inv = 1.0 / A[c * n + c]
         for i in range(c + 1, n):
-            A[i, c] *= inv
-            lic = A[i, c]
+            A[i * n + c] *= inv
+            lic = A[i * n + c]
             if lic != 0.0:
                 for j in range(c + 1, n):
-                    A[i, j] -= lic * A[c, j]
+                    A[i * n + j] -= lic * A[c * n + j]
     return True
 
 
 @kernel
-def lu_solve(A, piv, b):
+def lu_solve(A, n, piv, b):
     """Solve A x = b with the factors of :func:`lu_factor`; b (n,) is overwritten by x."""
-    n = A.shape[0]
     for c in range(n):
         p = piv[c]
         if p != c:
@@ -55,10 +56,10 @@ def lu_solve(A, piv, b):
     for i in range(n):  # L y = P b
         s = b[i]
         for j in range(i):
-            s -= A[i, j] * b[j]
+            s -= A[i * n + j] * b[j]
         b[i] = s
     for i in range(n - 1, -1, -1):  # U x = y
         s = b[i]
         for j in range(i + 1, n):
-            s -= A[i, j] * b[j]
-        b[i] = s / A[i, i]
+            s -= A[i * n + j] * b[j]
+        b[i] = s / A[i * n + i]

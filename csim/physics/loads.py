@@ -20,13 +20,12 @@ LOWER, UPPER, RISING, FALLING = range(4)
 
 
 @kernel
-def load_rates(B, qd, sdot):
-    """ds/dt = B^T qd into sdot (k,), from the load matrix B = ds/dq^T (m, k) and qd (m,)."""
-    m, k = B.shape
+def load_rates(B, qd, sdot, m, k):
+    """ds/dt = B^T qd into sdot (k,), from the load matrix B = ds/dq^T (m * k, row-major) and qd (m,)."""
     for kk in range(k):
         v = 0.0
         for i in range(m):
-            v += B[i, kk] * qd[i]
+            v += B[i * k + kk] * qd[i]
         sdot[kk] = v
 
 

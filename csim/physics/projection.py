@@ -7,7 +7,7 @@ With the metric W (the identity, or the mass matrix M), one correction of a resi
 
 the smallest step in the W-norm that removes res to first order. Positions iterate
 q <- q - dq until max |Phi| <= tol or dq is down to the round-off of q; velocities need
-one correction (the velocity constraint is linear in qd).
+one correction (the velocity constraint is linear in qd). Matrices are flat, row-major.
 """
 from __future__ import annotations
 
@@ -41,67 +41,69 @@ def at_round_off(dq, q):
 
 
 @kernel
-def invert(M, LU, piv, col, Minv):
-    """Minv = M^-1 (m, m), column by column through the LU factors of M (copied into LU).
+def invert(M, LU, piv, col, Minv, m):
+    """Minv = M^-1 (m * m), column by column through the LU factors of M (copied into LU).
 
     ``col`` (m,) is scratch. Returns False if M is singular.
     """
-    m = M.shape[0]
-    for i in range(m):
-        for j in range(m):
-            LU[i, j] = M[i, j]
-    if not lu_factor(LU, piv):
+    for i in range(m * m):
+        LU[i] = M[i]
+    if not lu_factor(LU, m, piv):
         return False
     for c in range(m):
         for i in range(m):
             col[i] = 1.0 if i == c else 0.0
-        lu_solve(LU, piv, col)
+        lu_solve(LU, m, piv, col)
         for i in range(m):
-            Minv[i, c] = col[i]
+            Minv[i * m + c] = col[i]
     return True
 
 
 @kernel
-def correction(J, Winv, mass_metric, res, WJt, S, z, piv, dq):
+def correction(J, Winv, mass_metric, res, WJt, S, z, piv, dq, r, m):
     """dq (m,) = W^-1 J^T (J W^-1 J^T)^-1 res, with W^-1 = Winv (mass metric) or the identity.
 
     Parameters
     ----------
-    J : ndarray (r, m)
+    J : ndarray (r * m,)
         Constraint Jacobian Phi_q.
-    Winv : ndarray (m, m)
+    Winv : ndarray (m * m,)
         M^-1 (read only when ``mass_metric``).
     res : ndarray (r,)
         The residual to remove.
-    WJt, S, z, piv : ndarray (m, r), (r, r), (r,), (r,) int
+    WJt, S, z, piv : ndarray (m * r,), (r * r,), (r,), (>= r,) int
         Scratch.
+    dq : ndarray (m,)
+        Out: the correction.
+
+    r, m : int
+        Constraints and coordinates.
 
     Returns False if J W^-1 J^T is singular (J has lost rank).
     """
-    r, m = J.shape
     for i in range(m):
         for c in range(r):
             if mass_metric:
                 v = 0.0
                 for j in range(m):
-                    v += Winv[i, j] * J[c, j]
-                WJt[i, c] = v
+                    v += Winv[i * m + j] * J[c * m + j]
+                WJt[i * r + c] = v
             else:
-                WJt[i, c] = J[c, i]
+                WJt[i * r + c] = J[c * m + i]
     for a in range(r):
         for b in range(r):
             v = 0.0
             for j in range(m):
-                v += J[a, j] * WJt[j, b]
-            S[a, b] = v
+                v += J[a * m + j] * WJt[j * r + b]
+            S[a * r + b] = v
     for a in range(r):
         z[a] = res[a]
-    if not lu_factor(S, piv):
+    if not lu_factor(S, r, piv):
         return False
-    lu_solve(S, piv, z)
+    lu_solve(S, r, piv, z)
     for i in range(m):
         v = 0.0
         for c in range(r):
-            v += WJt[i, c] * z[c]
+            v += WJt[i * r + c] * z[c]
         dq[i] = v
     return True

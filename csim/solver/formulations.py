@@ -60,8 +60,9 @@ class KKT(Formulation):
         m, r = M.shape[0], phi_q.shape[0]
         x = np.empty(m + r)
         f = np.ascontiguousarray
-        if not kkt_solve(f(M, dtype=float), f(phi_q, dtype=float), f(p, dtype=float), f(gamma_star, dtype=float),
-                         np.empty((m + r, m + r)), x, np.empty(m + r, np.int64)):
+        # matrices flat and row-major, as the core function takes them
+        if not kkt_solve(f(M, dtype=float).ravel(), f(phi_q, dtype=float).ravel(), f(p, dtype=float),
+                         f(gamma_star, dtype=float), np.empty((m + r) ** 2), x, np.empty(m + r, np.int64), m, r):
             raise SimulationFailure(failure_message(SINGULAR_KKT, 0.0, 0.0, None))
         return x[:m], x[m:]
 

@@ -140,7 +140,7 @@ class ConstrainedSystem:
     def _load_rates(self, B, qd):
         """ds/dt = B^T qd (k,)."""
         sdot = np.empty(self.k)
-        load_rates(_f(B), _f(qd), sdot)
+        load_rates(_f(B).ravel(), _f(qd), sdot, self.m, self.k)
         return sdot
 
     def _solve(self, q, qd, u):
@@ -151,10 +151,11 @@ class ConstrainedSystem:
         B = _f(model.load_matrix(q, par))
         Q = B @ u
         p = np.empty(self.m)  # p = B u - C qd - h
-        generalized_forces(B, u, _f(model.velocity_terms(q, qd, par)), _f(model.gravity(q, par)), p)
+        generalized_forces(B.ravel(), u, _f(model.velocity_terms(q, qd, par)), _f(model.gravity(q, par)), p, self.m,
+                           self.k)
         phi = model.phi(q, par)
         phi_dot = np.empty(self.r)  # dPhi/dt = Phi_q qd
-        constraint_rates(phi_q, _f(qd), phi_dot)
+        constraint_rates(phi_q.ravel(), _f(qd), phi_dot, self.r, self.m)
         gamma_star = self.stabilizer.gamma_star(model.gamma(q, qd, par), phi, phi_dot)
         qdd, lam = self.formulation.solve(M, phi_q, p, gamma_star)
         return qdd, lam, phi, phi_dot, Q, B

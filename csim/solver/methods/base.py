@@ -83,7 +83,8 @@ class Method:
     compiled: ClassVar[bool] = False
     #: whether the state is projected onto Phi = 0, Phi_q qd = 0 after every accepted step
     projects: ClassVar[bool] = False
-    #: gamma_star_kernel(gamma, phi, phi_dot, gains, fpar, ipar, out); None: gamma* = gamma
+    #: gamma_star_kernel(r, gamma, phi, phi_dot, gains, fpar, ipar, out) with :meth:`pack`'s arrays;
+    #: None: gamma* = gamma
     gamma_star_kernel: ClassVar[Any] = None
 
     def __init__(self, **options):
@@ -107,19 +108,19 @@ class Method:
         return [], []
 
     def pack(self, r: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(gains (G, r), fpar (F,), ipar (I,)): the method as arrays, for ``r`` constraints.
+        """(gains (G * r,), fpar (F,), ipar (I,)): the method as arrays, for ``r`` constraints.
 
-        G, F and I are at least 1, so that every method passes arrays of the same kinds.
+        ``gains`` holds the G rows of :meth:`gains` one after the other (gain g of
+        constraint i at g * r + i). Each array has at least one entry, so that every
+        method passes arrays of the same kinds.
         """
         if r not in self._packed:
             rows = self.gains(r)
-            gains = np.zeros((max(1, len(rows)), r))
-            for i, row in enumerate(rows):
-                gains[i] = row
+            gains = np.concatenate([*rows, [0.0]]) if rows else np.zeros(1)
             floats, ints = self.parameters()
             fpar = np.array([*floats, 0.0], dtype=float)
             ipar = np.array([*ints, 0], dtype=np.int64)
-            self._packed[r] = (np.ascontiguousarray(gains), fpar, ipar)
+            self._packed[r] = (np.ascontiguousarray(gains, dtype=float), fpar, ipar)
         return self._packed[r]
 
     def gamma_star(self, gamma: np.ndarray, phi: np.ndarray, phi_dot: np.ndarray) -> np.ndarray:
@@ -128,7 +129,7 @@ class Method:
             return gamma
         gamma, phi, phi_dot = (np.ascontiguousarray(a, dtype=float) for a in (gamma, phi, phi_dot))
         out = np.empty(gamma.size)
-        type(self).gamma_star_kernel(gamma, phi, phi_dot, *self.pack(gamma.size), out)
+        type(self).gamma_star_kernel(gamma.size, gamma, phi, phi_dot, *self.pack(gamma.size), out)
         return out
 
     @classmethod

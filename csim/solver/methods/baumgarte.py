@@ -13,10 +13,10 @@ from csim.solver.methods.base import Method, _gain_array, option
 
 
 @kernel
-def baumgarte_gamma_star(gamma, phi, phi_dot, gains, fpar, ipar, out):
-    """gamma*_i = gamma_i - 2 d_i w_i Phi'_i - w_i^2 Phi_i, with gains = [d, w] (2, r)."""
-    for i in range(gamma.size):
-        d, w = gains[0, i], gains[1, i]
+def baumgarte_gamma_star(r, gamma, phi, phi_dot, gains, fpar, ipar, out):
+    """gamma*_i = gamma_i - 2 d_i w_i Phi'_i - w_i^2 Phi_i, with gains = [d (r), w (r)]."""
+    for i in range(r):
+        d, w = gains[i], gains[r + i]
         out[i] = gamma[i] - 2.0 * d * w * phi_dot[i] - w**2 * phi[i]
 
 

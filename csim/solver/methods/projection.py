@@ -65,10 +65,10 @@ class Projection(Method):
         """Projected (q, qd); raises SimulationFailure when Gauss-Newton does not converge."""
         m, r = q.size, model.n_constraints
         mass_metric = self.metric == "mass"
-        Winv = np.zeros((m, m))
-        WJt, S, z, piv, dq = np.empty((m, r)), np.empty((r, r)), np.empty(r), np.zeros(max(m, r), np.int64), \
-            np.empty(m)
-        if mass_metric and not core.invert(model.mass(q, par), np.empty((m, m)), piv, np.empty(m), Winv):
+        # the core functions' scratch; matrices flat and row-major
+        Winv, WJt, S, z, dq = np.zeros(m * m), np.empty(m * r), np.empty(r * r), np.empty(r), np.empty(m)
+        piv = np.zeros(max(m, r), np.int64)
+        if mass_metric and not core.invert(_flat(model.mass(q, par)), np.empty(m * m), piv, np.empty(m), Winv, m):
             raise np.linalg.LinAlgError("Singular matrix")  # the driver says when
         q = np.array(q, dtype=float)
         phi = model.phi(q, par)
@@ -76,19 +76,24 @@ class Projection(Method):
             phi = model.phi(q, par)
             if core.max_abs(phi) <= self.tol:
                 break
-            if not core.correction(model.phi_q(q, par), Winv, mass_metric, phi, WJt, S, z, piv, dq):
+            if not core.correction(_flat(model.phi_q(q, par)), Winv, mass_metric, phi, WJt, S, z, piv, dq, r, m):
                 raise SimulationFailure(_failure(PROJ_SINGULAR, self))
             q -= dq
             if core.at_round_off(dq, q):  # |Phi| cannot go lower: its round-off grows with |q|
                 break
         else:
             raise SimulationFailure(_failure(PROJ_NO_CONVERGENCE, self, core.max_abs(phi)))
-        phi_q = model.phi_q(q, par)
+        phi_q = _flat(model.phi_q(q, par))
         phi_dot = np.empty(r)
-        constraint_rates(phi_q, qd, phi_dot)
-        if not core.correction(phi_q, Winv, mass_metric, phi_dot, WJt, S, z, piv, dq):
+        constraint_rates(phi_q, qd, phi_dot, r, m)
+        if not core.correction(phi_q, Winv, mass_metric, phi_dot, WJt, S, z, piv, dq, r, m):
             raise SimulationFailure(_failure(PROJ_SINGULAR, self))
         return q, qd - dq
+
+
+def _flat(a) -> np.ndarray:
+    """A matrix as the flat row-major float array the core functions take."""
+    return np.ascontiguousarray(a, dtype=float).ravel()
 
 
 def _failure(code: int, method: Projection, a: float = 0.0) -> str:

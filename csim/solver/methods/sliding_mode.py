@@ -18,13 +18,13 @@ from csim.solver.methods.base import Method, _gain_array, option
 
 
 @kernel
-def sliding_mode_gamma_star(gamma, phi, phi_dot, gains, fpar, ipar, out):
+def sliding_mode_gamma_star(r, gamma, phi, phi_dot, gains, fpar, ipar, out):
     """gamma*_i = gamma_i - Lambda_i Phi'_i - K_i s_i - k_i sw(s_i), s_i = Phi'_i + Lambda_i Phi_i.
 
-    gains = [Lambda, K, k] (3, r); ipar[0] the switching function's code, fpar[0] its width.
+    gains = [Lambda (r), K (r), k (r)]; ipar[0] the switching function's code, fpar[0] its width.
     """
-    for i in range(gamma.size):
-        lam, K, k = gains[0, i], gains[1, i], gains[2, i]
+    for i in range(r):
+        lam, K, k = gains[i], gains[r + i], gains[2 * r + i]
         s = phi_dot[i] + lam * phi[i]
         out[i] = gamma[i] - lam * phi_dot[i] - K * s - k * switch(ipar[0], s, fpar[0])
 
