@@ -91,8 +91,9 @@ def settings_table() -> str:
             kind = "gain: a number or one per constraint" if meta["gain"] else ""
             choices = f"one of {', '.join(meta['choices'])}" if meta["choices"] else ""
             extra = "; ".join(x for x in (kind, choices) if x)
-            rows.append(f"| `stabilization.{f.name}` | `{cls.name}` | `{f.default}` | {meta['unit'] or '-'} | "
-                        f"{meta['doc']}{f' ({extra})' if extra else ''} |")
+            default = f"{f.default:g}" if isinstance(f.default, float) else f"{f.default}"
+            doc = f"{meta['doc']}{f' ({extra})' if extra else ''}".replace("|", "\\|")
+            rows.append(f"| `stabilization.{f.name}` | `{cls.name}` | `{default}` | {meta['unit'] or '-'} | {doc} |")
     return "\n".join(rows)
 
 
