@@ -1,21 +1,63 @@
 """Command-line interface: a thin layer over :mod:`csim.pipeline` and :mod:`csim.io`.
 
-Exit codes: 0 success; 1 the simulation ran but failed (the result file says why);
-2 bad input (case file, option or result file), reported without a traceback.
+Exit codes: 0 success; 1 the simulation ran but failed (the result file says why); 2 bad
+input (case file, option, result file, or a mechanism that cannot be assembled at its
+initial values), reported without a traceback; 130 interrupted (Ctrl-C): an existing
+result file is left as it was, and the partial result goes beside it (``OUT.interrupted.h5``).
 """
 from __future__ import annotations
 
+import functools
+import inspect
+import signal
 import sys
 import tempfile
+import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, NoReturn
 
 import typer
+from typer.core import TyperCommand, TyperGroup
 
 from csim import __version__
 from csim.errors import CaseError, CsimError, ResultFileError
 
+
+class _FlagsWithoutType:
+    """Help that lists a flag as ``--quiet``, not ``--quiet <bool>``, and flows each paragraph.
+
+    typer's rich help prints the value type of every option, flags (``--help`` included)
+    too; an empty metavar leaves the type column of a flag blank. It also keeps the line
+    breaks of a docstring's later paragraphs, which then break again where the terminal
+    wraps them; the paragraphs are joined into one line each (the help wraps them).
+    """
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        if self.help:
+            paragraphs = inspect.cleandoc(self.help).split("\n\n")
+            self.help = "\n\n".join(" ".join(p.split("\n")) for p in paragraphs)
+
+    def get_params(self, ctx):
+        params = super().get_params(ctx)
+        for param in params:
+            if getattr(param, "is_flag", False) and param.metavar is None:
+                param.metavar = ""
+        return params
+
+
+class _Command(_FlagsWithoutType, TyperCommand):
+    """A csim command (see :class:`_FlagsWithoutType`)."""
+
+
+class _Group(_FlagsWithoutType, TyperGroup):
+    """The csim command group (see :class:`_FlagsWithoutType`)."""
+
+
 app = typer.Typer(
+    cls=_Group,
     add_completion=False,
     no_args_is_help=True,
     pretty_exceptions_enable=False,
@@ -25,9 +67,14 @@ app = typer.Typer(
 
 EXIT_FAILED = 1
 EXIT_BAD_INPUT = 2
+#: 128 + SIGINT, as a shell reports a process that Ctrl-C stopped
+EXIT_INTERRUPTED = 130
+
+#: file name endings accepted for an HDF5 result or comparison file (``--output``)
+RESULT_SUFFIXES = (".h5", ".hdf5")
 
 
-def _fail_input(exc: CsimError) -> None:
+def _fail_input(exc: CsimError) -> NoReturn:
     lines = exc.problems if isinstance(exc, CaseError) else [str(exc)]
     typer.echo(f"csim: error: {len(lines)} problem(s):" if len(lines) > 1 else "csim: error:", err=True)
     for line in lines:
@@ -35,22 +82,122 @@ def _fail_input(exc: CsimError) -> None:
     raise typer.Exit(EXIT_BAD_INPUT)
 
 
-def check_writable(out: Path, protect: list[Path] = ()) -> None:
+def check_writable(out: Path, protect: list[Path] = (), suffixes: tuple[str, ...] = ()) -> None:
     """Fail before a run, not after it, when the result file cannot be written.
 
-    Creates the output's folder, tries a scratch file in it, and refuses to overwrite the
-    input files in ``protect``.
+    Refuses to overwrite the input files in ``protect`` and a name without one of
+    ``suffixes`` (any case), creates the output's folder and tries a scratch file in it.
+
+    Parameters
+    ----------
+    out : Path
+        The result file to be written (``--output``).
+    protect : list of Path
+        Input files that ``out`` must not be.
+    suffixes : tuple of str
+        Accepted endings, lower case (``RESULT_SUFFIXES``); empty: any name.
+
+    Raises
+    ------
+    ResultFileError
+        Naming ``--output``, the path and what was expected.
     """
     if out.exists() and any(out.resolve() == p.resolve() for p in protect):
         raise ResultFileError(f"--output {out}: that is an input file; choose another result path")
     if out.is_dir():
         raise ResultFileError(f"--output {out}: cannot write, it is a directory")
+    if suffixes and out.suffix.lower() not in suffixes:
+        raise ResultFileError(f"--output {out}: expected an HDF5 file name ending in {' or '.join(suffixes)}, "
+                              f"e.g. {out.with_suffix(suffixes[0])}")
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryFile(dir=out.parent):
             pass
     except OSError as exc:
         raise ResultFileError(f"--output {out}: cannot write there ({exc.strerror or exc})") from None
+
+
+#: what the summary adds to the result path when -o was left out
+DEFAULT_NOTE = " (the default for this case file; -o names another)"
+
+
+def default_output(case: Path, tail: str = "") -> Path:
+    """The result path when ``-o`` is left out.
+
+    Parameters
+    ----------
+    case : Path
+        The case file.
+    tail : str
+        Added to its stem (``"_compare"`` for ``csim compare``).
+
+    Returns
+    -------
+    Path
+        ``results/<case file stem><tail>.h5``, relative to the current folder
+        (``results/quick_return.h5`` for ``configs/quick_return.yaml``, as ``make run`` writes).
+    """
+    return Path("results") / f"{case.stem}{tail}.h5"
+
+
+def interrupted_path(out: Path) -> Path:
+    """Where an interrupted command puts its partial result, so that ``out`` stays as it was.
+
+    Parameters
+    ----------
+    out : Path
+        The result path, e.g. ``results/qr.h5``.
+
+    Returns
+    -------
+    Path
+        ``OUT.interrupted.h5`` beside it, e.g. ``results/qr.interrupted.h5``.
+    """
+    return out.with_name(f"{out.stem}.interrupted{out.suffix}")
+
+
+class _CtrlC:
+    """Whether Ctrl-C (SIGINT) arrived, including one that the integration caught itself."""
+
+    interrupted = False
+
+
+@contextmanager
+def _watch_ctrl_c() -> Iterator[_CtrlC]:
+    """Record SIGINT inside the block while passing it on (as KeyboardInterrupt).
+
+    The Python driver turns a KeyboardInterrupt inside an integration into a failed run
+    with its samples so far; the record tells the command that the user stopped it.
+    """
+    watch = _CtrlC()
+    old = signal.getsignal(signal.SIGINT)
+    hooked = threading.current_thread() is threading.main_thread() and callable(old)
+    if hooked:
+        def handler(signum, frame):
+            watch.interrupted = True
+            old(signum, frame)
+        signal.signal(signal.SIGINT, handler)
+    try:
+        yield watch
+    except KeyboardInterrupt:
+        watch.interrupted = True
+        raise
+    finally:
+        if hooked:
+            signal.signal(signal.SIGINT, old)
+
+
+def _interruptible(command):
+    """Ctrl-C anywhere in ``command`` outside the run itself: exit 130 with one line, no
+    traceback (result files are written atomically, so none is left half-written)."""
+    @functools.wraps(command)
+    def wrapper(*args, **kwargs):
+        try:
+            return command(*args, **kwargs)
+        except KeyboardInterrupt:
+            typer.echo("\ncsim: interrupted (Ctrl-C); result files are written whole or not at all", err=True)
+            raise typer.Exit(EXIT_INTERRUPTED) from None
+    return wrapper
 
 
 def _version(value: bool):
@@ -71,13 +218,15 @@ SET_HELP = ("Override a case-file value, KEY=VALUE with a dotted key path; repea
             "Example: --set simulation.t_end=10 --set simulation.integrator=RK4 --set simulation.step=1e-3")
 
 
-@app.command()
+@app.command(cls=_Command)
+@_interruptible
 def run(
     case: Annotated[Path, typer.Argument(help="Case file (YAML). Example: configs/quick_return.yaml",
                                          show_default=False, metavar="CASE.yaml")],
     output: Annotated[Path | None, typer.Option(
-        "--output", "-o", metavar="OUT.h5", help="Result file (HDF5), written atomically. Default: results/CASE.h5. "
-                               "Example: -o out/qr.h5")] = None,
+        "--output", "-o", metavar="OUT.h5",
+        help="Result file (HDF5, a name ending in .h5 or .hdf5), written atomically. Default: "
+             "results/CASE.h5 (the case file's name, under the current folder). Example: -o out/qr.h5")] = None,
     set_: Annotated[list[str] | None, typer.Option("--set", "-s", metavar="KEY=VALUE", help=SET_HELP)] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing but errors; no progress bar.")] = False,
 ):
@@ -86,42 +235,94 @@ def run(
     Finds consistent initial conditions by Newton-Raphson, integrates, writes HDF5 and
     prints a summary (final state, constraint errors, energy balance, cost).
 
+    Exit codes: 0 success; 1 the simulation failed (the file is still written); 2 bad
+    input, or a mechanism that cannot be assembled; 130 interrupted (Ctrl-C: the
+    partial result goes to OUT.interrupted.h5, OUT is left as it was).
+
     Example: csim run configs/quick_return.yaml -o results/qr.h5 --set simulation.t_end=10
     """
     from csim.case import load_case
-    from csim.io.hdf5 import write_result
     from csim.pipeline import run_case
-    from csim.progress import ProgressBar
+    from csim.progress import RunProgress, reporting, status
 
     try:
         c = load_case(case, set_ or [])
+        out = output or default_output(case)
+        check_writable(out, protect=[case], suffixes=RESULT_SUFFIXES)
     except CsimError as exc:
         _fail_input(exc)
-    out = output or Path("results") / f"{case.stem}.h5"
-    try:
-        check_writable(out, protect=[case])
-    except CsimError as exc:
-        _fail_input(exc)
-    bar = ProgressBar.for_terminal(c.data["simulation"]["t_end"], quiet)
-    try:
-        result = run_case(c, progress=bar)
-    finally:
-        bar.close()
-    try:
-        write_result(out, result, c.mechanism.coordinate_units)
-    except OSError as exc:  # e.g. the disk filled up during the run
-        typer.echo(f"csim: error: cannot write {out}: {exc}", err=True)
-        raise typer.Exit(EXIT_BAD_INPUT) from None
+    result = None
+    with reporting(not quiet), _watch_ctrl_c() as ctrl_c:
+        try:
+            with status(f"simulating {case.name} to t = {c.data['simulation']['t_end']:g} s"), \
+                    RunProgress(c.data["simulation"]["t_end"]) as bar:
+                result = run_case(c, progress=bar)
+        except KeyboardInterrupt:
+            pass  # no result came back (interrupted before the integration, or in compiled code)
+        except Exception:
+            if not ctrl_c.interrupted:
+                raise
+            # Ctrl-C inside a numba kernel comes back as SystemError ("returned a result with an exception set")
+    if ctrl_c.interrupted:
+        _keep_interrupted(c, result, out, quiet)
+    replaced = out.exists()
+    _write(out, result, c.mechanism.coordinate_units)
     if not quiet:
+        where = "" if output else DEFAULT_NOTE
         typer.echo(f"case:              {case}")
         typer.echo(result.summary())
-        typer.echo(f"result:            {out}")
+        typer.echo(f"result:            {out}{where}" + (", replacing the file there" if replaced else ""))
+    if result.failure == "assembly":
+        typer.echo(f"csim: error: the mechanism cannot be assembled at its initial values: {result.message} "
+                   f"(result file with status failed: {out})", err=True)
+        raise typer.Exit(EXIT_BAD_INPUT)
     if not result.ok:
         typer.echo(f"csim: simulation failed: {result.message} (partial result in {out})", err=True)
         raise typer.Exit(EXIT_FAILED)
 
 
-@app.command()
+def _write(out: Path, result, coordinate_units: list[str], code: int = EXIT_BAD_INPUT) -> None:
+    """Write a run's result file; an OSError (e.g. the disk filled up during the run) exits ``code``."""
+    from csim.io.hdf5 import write_result
+
+    try:
+        write_result(out, result, coordinate_units)
+    except OSError as exc:
+        typer.echo(f"csim: error: cannot write {out}: {exc}", err=True)
+        raise typer.Exit(code) from None
+
+
+def _keep_interrupted(c, result, out: Path, quiet: bool) -> NoReturn:
+    """Write an interrupted run beside ``out`` (``out`` is left as it was), say where, exit 130.
+
+    ``result`` is the run up to the interrupt, or None when none came back (it is then
+    written without samples). Either way it is marked: status failed, failure interrupted.
+    """
+    from csim.result import Result
+
+    if result is None:
+        from csim.fast import resolve_backend
+
+        m = c.mechanism
+        result = Result.empty(
+            m.name, m.coordinate_names, [ld.name for ld in m.loads], [ob.name for ob in m.observables],
+            m.n_constraints, c.to_yaml(), message="interrupted by the user (Ctrl-C) before the run returned samples",
+            run_kind="kinematic" if c.kinematic else "simulation", backend=resolve_backend(c.data))
+    result.status, result.failure = "failed", "interrupted"
+    if not result.message.startswith("interrupted"):
+        result.message = f"interrupted by the user (Ctrl-C); {result.message}"
+    partial = interrupted_path(out)
+    _write(partial, result, c.mechanism.coordinate_units, code=EXIT_INTERRUPTED)
+    if not quiet:
+        typer.echo(result.summary())
+        typer.echo(f"result:            {partial} (partial)")
+    kept = f"{out} was left as it was" if out.exists() else f"nothing was written to {out}"
+    typer.echo(f"csim: interrupted (Ctrl-C): partial result in {partial}; {kept}", err=True)
+    raise typer.Exit(EXIT_INTERRUPTED)
+
+
+@app.command(cls=_Command)
+@_interruptible
 def compare(
     case: Annotated[Path, typer.Argument(help="Case file (YAML). Example: configs/quick_return.yaml",
                                          show_default=False, metavar="CASE.yaml")],
@@ -135,8 +336,8 @@ def compare(
              "simulation.atol (simulation.step in s for RK4). Example: --tolerances 1e-4,1e-6,1e-8,1e-10")] = None,
     output: Annotated[Path | None, typer.Option(
         "--output", "-o", metavar="OUT.h5",
-        help="Comparison file (HDF5), written atomically: one group per method. "
-             "Default: results/CASE_compare.h5")] = None,
+        help="Comparison file (HDF5, a name ending in .h5 or .hdf5), written atomically: one group per "
+             "method. Default: results/CASE_compare.h5 (the case file's name, under the current folder)")] = None,
     set_: Annotated[list[str] | None, typer.Option("--set", "-s", metavar="KEY=VALUE", help=SET_HELP)] = None,
     jobs: Annotated[int | None, typer.Option(
         "--jobs", "-j", metavar="N",
@@ -159,7 +360,8 @@ def compare(
     --tolerances, each method runs at each tolerance (work-precision).
 
     Exit codes: 0 every run succeeded; 1 a run failed (the file is still
-    written); 2 bad input.
+    written); 2 bad input; 130 interrupted (Ctrl-C: the runs so far go to
+    OUT.interrupted.h5, OUT is left as it was).
 
     Example: csim compare configs/quick_return.yaml
     --methods none,baumgarte,projection --tolerances 1e-6,1e-8,1e-10
@@ -186,36 +388,47 @@ def compare(
         problems.append(f"--jobs: got {jobs}; expected a whole number >= 1")
     if problems:
         _fail_input(CaseError(problems))
-    out = output or Path("results") / f"{case.stem}_compare.h5"
+    out = output or default_output(case, "_compare")
     progress = None
     if not quiet and sys.stderr.isatty():
         def progress(run, done, total):
             typer.echo(f"[{done}/{total}] {run.method} {run.tolerance:g}: {run.status} "
                        f"({run.wall_time:.2f} s)", err=True)
     try:
-        check_writable(out, protect=[case])
+        check_writable(out, protect=[case], suffixes=RESULT_SUFFIXES)
         comparison = run_comparison(case, methods=method_list, tolerances=tol_list, overrides=set_ or [],
                                     reference=ReferenceSettings(method=reference_method, tol=ref_tol[0]),
                                     jobs=jobs, progress=progress)
     except CsimError as exc:
         _fail_input(exc)
+    _finish_comparison(comparison, out, default=output is None, quiet=quiet)
+
+
+def _finish_comparison(comparison, out: Path, default: bool, quiet: bool) -> None:
+    """Write a comparison (after Ctrl-C beside ``out``, as ``OUT.interrupted.h5``), print its
+    table, and exit 130 when interrupted, 1 when a run failed."""
+    target = interrupted_path(out) if comparison.interrupted else out
     try:
-        comparison.write(out)
+        comparison.write(target)
     except OSError as exc:
-        typer.echo(f"csim: error: cannot write {out}: {exc}", err=True)
-        raise typer.Exit(EXIT_BAD_INPUT) from None
+        typer.echo(f"csim: error: cannot write {target}: {exc}", err=True)
+        raise typer.Exit(EXIT_INTERRUPTED if comparison.interrupted else EXIT_BAD_INPUT) from None
     if not quiet:
         typer.echo(comparison.table())
-        typer.echo(f"\nresult:     {out}")
+        typer.echo(f"\nresult:     {target}" + (DEFAULT_NOTE if default else ""))
+    if comparison.interrupted:
+        kept = f"{out} was left as it was" if out.exists() else f"nothing was written to {out}"
+        typer.echo(f"csim: comparison interrupted (Ctrl-C): partial results in {target}; {kept}", err=True)
+        raise typer.Exit(EXIT_INTERRUPTED)
     if not comparison.ok:
-        failed = comparison.failed
-        names = ", ".join(comparison.label(r) for r in failed)
-        what = "interrupted" if comparison.interrupted else f"{len(failed)} run(s) failed: {names}"
-        typer.echo(f"csim: comparison incomplete, {what} (results in {out})", err=True)
+        names = ", ".join(comparison.label(r) for r in comparison.failed)
+        typer.echo(f"csim: comparison incomplete, {len(comparison.failed)} run(s) failed: {names} "
+                   f"(results in {out})", err=True)
         raise typer.Exit(EXIT_FAILED)
 
 
-@app.command()
+@app.command(cls=_Command)
+@_interruptible
 def plot(
     result: Annotated[Path, typer.Argument(help="Result file (csim run) or comparison file (csim compare).",
                                            show_default=False, metavar="RESULT.h5")],
@@ -262,7 +475,8 @@ def plot(
             typer.echo(f"skipped {name}: {reason}")
 
 
-@app.command()
+@app.command(cls=_Command)
+@_interruptible
 def animate(
     result: Annotated[Path, typer.Argument(help="Result file (csim run), or a comparison file with --group.",
                                            show_default=False, metavar="RESULT.h5")],
@@ -297,7 +511,8 @@ def animate(
         typer.echo(f"wrote {out} ({len(animation)} frames at {fps:g} fps, {animation.speed:.3g}x real time)")
 
 
-@app.command()
+@app.command(cls=_Command)
+@_interruptible
 def describe(
     case: Annotated[Path, typer.Argument(help="Link-coupling case file (YAML). Example: configs/rrr3_planar.yaml",
                                          show_default=False, metavar="CASE.yaml")],

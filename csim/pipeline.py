@@ -93,7 +93,9 @@ def run_case(case: Case, progress: Callable[[float], None] | None = None) -> Res
     except SimulationFailure as exc:
         empty = Trajectory(t=np.zeros(0), y=np.zeros((0, system.n_state)),
                            mode=np.zeros((0, system.loads.n_switches), bool), status="failed", message=str(exc))
-        return assemble_result(case, system, empty, time.perf_counter() - start)
+        failed = assemble_result(case, system, empty, time.perf_counter() - start)
+        failed.failure = "assembly"  # the initial state cannot be assembled: bad input (csim run exits 2)
+        return failed
     backend, note, load_time = resolve_backend(case.data), "", 0.0
     if backend == "compiled":
         loading = time.perf_counter()
@@ -115,6 +117,12 @@ def run_case(case: Case, progress: Callable[[float], None] | None = None) -> Res
     trajectory.message += note
     result = assemble_result(case, system, trajectory, time.perf_counter() - start, backend=backend)
     result.kernel_load_time = load_time
+    if backend == "python" and case.data["simulation"]["backend"] == "auto":  # why auto fell back (run summary)
+        from csim.fast.support import numba_available, unsupported
+
+        why = note.strip().removeprefix("(on the Python path: ").removesuffix(")")  # kernels failed to load
+        result.backend_reason = why or "; ".join(unsupported(case.data)) or (
+            "" if numba_available() else "numba is not installed")
     return result
 
 

@@ -12,6 +12,13 @@ import numpy as np
 #: a kernel load longer than this [s] was a compilation, and the summary says so
 COMPILE_NOTICE = 3.0
 
+#: the energy scale counts as zero (a run at rest) when it is below this fraction of the largest
+#: energy the run records: the relative energy balance is then round-off over round-off
+TINY_ENERGY_SCALE = 1e-9
+
+#: values of :attr:`Result.failure`
+FAILURES = ("", "assembly", "interrupted")
+
 
 @dataclass
 class Result:
@@ -42,6 +49,14 @@ class Result:
     run_kind : {"simulation", "kinematic"}
         A dynamic simulation, or a kinematic analysis of prescribed motion (no forces:
         lam, work, loads and generalized forces are NaN).
+    failure : {"", "assembly", "interrupted"}
+        What kind of failure a failed run is, where csim knows: ``"assembly"`` the initial
+        state cannot be assembled (Newton-Raphson on Phi(q) = 0 failed: bad input),
+        ``"interrupted"`` stopped by the user (Ctrl-C); ``""`` otherwise.
+    backend_reason : str
+        Why a run under ``simulation.backend: auto`` ran on the Python path (the combination
+        has no compiled path, numba is missing, or the kernels could not be loaded); ``""``
+        when it ran compiled or the Python path was asked for.
     """
 
     mechanism: str
@@ -75,6 +90,33 @@ class Result:
     run_kind: str = "simulation"
     backend: str = "python"
     kernel_load_time: float = 0.0
+    failure: str = ""
+    backend_reason: str = ""
+
+    @classmethod
+    def empty(cls, mechanism: str, coordinate_names: list[str], load_names: list[str],
+              observable_names: list[str], n_constraints: int, case_yaml: str, status: str = "failed",
+              message: str = "", **fields) -> Result:
+        """A run with no samples (N = 0), e.g. one interrupted before its first step.
+
+        Parameters
+        ----------
+        mechanism, coordinate_names, load_names, observable_names, case_yaml
+            As the attributes of the same names.
+        n_constraints : int
+            r, the number of constraint equations (the width of ``lam``, ``phi``, ``phi_dot``).
+        status, message : str
+            The run's status and why.
+        **fields
+            Any other attribute (``failure``, ``run_kind``, ...).
+        """
+        m, r, k, o = len(coordinate_names), int(n_constraints), len(load_names), len(observable_names)
+        zeros = {name: np.zeros((0, width)) for name, width in dict(
+            q=m, qd=m, qdd=m, lam=r, phi=r, phi_dot=r, work=k, loads=k, generalized_forces=m, observables=o,
+            observable_rates=o).items()}
+        return cls(mechanism=mechanism, coordinate_names=list(coordinate_names), load_names=list(load_names),
+                   observable_names=list(observable_names), case_yaml=case_yaml, t=np.zeros(0),
+                   kinetic=np.zeros(0), potential=np.zeros(0), status=status, message=message, **zeros, **fields)
 
     @property
     def ok(self) -> bool:
@@ -94,6 +136,23 @@ class Result:
             return 1.0
         return float(max(np.max(np.abs(self.kinetic)), np.max(np.abs(self.potential - self.potential[0])),
                          np.max(np.abs(self.work.sum(axis=1))), np.finfo(float).tiny))
+
+    @property
+    def energy_scale_is_zero(self) -> bool:
+        """Whether the energy scale is zero or round-off (below :data:`TINY_ENERGY_SCALE` times
+        the largest of max T, max |V| and max |sum W|): a run that stays at rest, whose balance
+        is best read in J, not relative to the scale."""
+        if self.t.size == 0:
+            return False
+        work = np.abs(self.work.sum(axis=1))
+        moved = max(np.max(np.abs(self.kinetic)), np.max(np.abs(self.potential - self.potential[0])), np.max(work))
+        magnitude = max(np.max(np.abs(self.kinetic)), np.max(np.abs(self.potential)), np.max(work))
+        return bool(moved <= TINY_ENERGY_SCALE * magnitude)  # False for NaN (a blow-up)
+
+    @property
+    def energy_error_max(self) -> float:
+        """max |energy_error| over the run [J] (NaN without samples)."""
+        return float(np.max(np.abs(self.energy_error))) if self.t.size else float("nan")
 
     @property
     def energy_error_relative(self) -> float:
@@ -122,11 +181,16 @@ class Result:
             lines.append(f"max |Phi_q qd|:    {self.max_phi_dot:.3e}")
             if self.run_kind == "kinematic":
                 lines.append("energy balance:    - (a kinematic analysis of prescribed motion: no forces)")
+            elif self.energy_scale_is_zero:
+                lines.append(f"energy balance:    {self.energy_error_max:.3e} J (max |T + V - T0 - V0 - W|, in J: "
+                             f"the energy scale is zero, the mechanism stays at rest)")
             else:
                 lines.append(f"energy balance:    {self.energy_error_relative:.3e} (max |T + V - T0 - V0 - W|"
                              f" / {self.energy_scale:.4g} J)")
         lines.append(f"events:            {len(self.event_times)}")
         lines.append(f"wall time:         {self.wall_time:.3f} s ({self.backend} backend)")
+        if self.backend_reason:
+            lines.append(f"python backend:    not compiled because {self.backend_reason}")
         if self.backend == "compiled" and self.kernel_load_time > COMPILE_NOTICE:
             lines.append(f"compilation:       {self.kernel_load_time:.1f} s before the run (the first run of this "
                          f"mechanism; later runs load the kernels from the cache)")

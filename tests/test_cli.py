@@ -23,7 +23,8 @@ MINIMAL = "mechanism:\n  name: quick_return\n"
 
 DATASETS = ["t", "q", "qd", "qdd", "lambda", "phi", "phi_dot", "energy/kinetic", "energy/potential",
             "energy/work", "forces/loads"]
-ATTRIBUTES = ["csim_version", "case", "coordinate_names", "status", "message", "wall_time", "nfev", "event_times"]
+ATTRIBUTES = ["csim_version", "case", "coordinate_names", "status", "message", "failure", "backend", "backend_reason",
+              "wall_time", "nfev"]
 
 
 def invoke(*args: str):
@@ -36,6 +37,11 @@ def assert_clean_exit(result, code: int) -> None:
     assert result.exit_code == code, result.output
     assert result.exception is None or isinstance(result.exception, SystemExit), result.exc_info
     assert "Traceback" not in result.output
+
+
+def errors(result) -> str:
+    """stderr without the status line of a slow run ("csim: simulating CASE ..." where stderr is no terminal)."""
+    return "".join(line for line in result.stderr.splitlines(keepends=True) if not line.startswith("csim: simulating "))
 
 
 def text_attr(fh, name: str) -> str:
@@ -93,7 +99,9 @@ def test_good_run_writes_a_complete_result_file(good_run):
         assert [x.decode() if isinstance(x, bytes) else x for x in fh.attrs["coordinate_names"]] == ["q1", "q2", "q3"]
         assert float(fh.attrs["wall_time"]) > 0
         assert int(fh.attrs["nfev"]) > 0
-        events = np.asarray(fh.attrs["event_times"])
+        assert "event_times" not in fh.attrs  # a dataset: an attribute cannot hold 100,000 of them
+        events = fh["events/times"][()]
+        assert fh["events/labels"].shape == events.shape
         assert events.ndim == 1 and np.all((events > 0) & (events < 0.2))
         case_yaml = text_attr(fh, "case")
     expected = load_case(case, ["simulation.t_end=0.2"]).data
@@ -109,13 +117,20 @@ def test_quiet_run_prints_nothing(tmp_path):
     assert out.is_file()
 
 
-def test_default_output_is_results_slash_case_stem(tmp_path, monkeypatch):
+def test_default_output_is_results_slash_case_stem_and_the_summary_says_so(tmp_path, monkeypatch):
     case = tmp_path / "my_case.yaml"
     case.write_text(MINIMAL)
     monkeypatch.chdir(tmp_path)
     result = invoke("run", case, *SHORT)
     assert_clean_exit(result, 0)
     assert (tmp_path / "results" / "my_case.h5").is_file()
+    line = [x for x in result.stdout.splitlines() if x.startswith("result:")][0]
+    default = Path("results") / "my_case.h5"
+    assert line == f"result:            {default} (the default for this case file; -o names another)"
+    again = invoke("run", case, *SHORT)
+    assert "replacing the file there" in again.stdout
+    named = invoke("run", case, "-o", tmp_path / "named.h5", *SHORT)
+    assert f"result:            {tmp_path / 'named.h5'}\n" in named.stdout
 
 
 def test_output_in_a_new_nested_directory_is_created(tmp_path):
@@ -256,26 +271,46 @@ def test_bad_command_line_usage_exits_2(tmp_path):
 # --------------------------------------------------------------------------- a failed run: exit 1
 
 
-def test_mechanism_that_cannot_assemble_exits_1_and_keeps_a_result_file(tmp_path):
+def test_mechanism_that_cannot_assemble_exits_2_and_keeps_a_marked_result_file(tmp_path):
     case = tmp_path / "far_guide.yaml"
     case.write_text(CONFIG.read_text())
     out = tmp_path / "far_guide.h5"
     result = invoke("run", case, "-o", out, *SHORT, "--set", "mechanism.parameters.h2=100")
-    assert_clean_exit(result, 1)
+    assert_clean_exit(result, 2)  # bad input, as for a link-coupling mechanism that cannot be assembled
     assert "status:            failed" in result.stdout
-    err = result.stderr
-    assert err.startswith("csim: simulation failed:")
+    err = errors(result)
+    assert err.startswith("csim: error: the mechanism cannot be assembled at its initial values:")
     assert "Newton-Raphson did not converge" in err
     assert "residuals" in err and "Phi[0] =" in err and "Phi[1] =" in err
-    assert f"partial result in {out}" in err
+    assert f"result file with status failed: {out}" in err
     assert out.is_file()
     with h5py.File(out, "r") as fh:
         assert text_attr(fh, "status") == "failed"
+        assert text_attr(fh, "failure") == "assembly"
         assert "Newton-Raphson did not converge" in text_attr(fh, "message")
         for name in DATASETS:
             assert name in fh, name
         assert fh["t"].shape == (0,)
         assert yaml.safe_load(text_attr(fh, "case"))["mechanism"]["parameters"]["h2"] == 100.0
+
+
+def test_link_coupling_mechanism_that_cannot_assemble_exits_2(tmp_path):
+    out = tmp_path / "fourbar.h5"
+    result = invoke("run", CONFIG.parent / "fourbar.yaml", "-o", out, "--set", "mechanism.parameters.b=10")
+    assert_clean_exit(result, 2)
+    assert result.stderr.startswith("csim: error:")
+    assert "cannot be assembled at the given values" in result.stderr and "residuals" in result.stderr
+    assert not out.exists()  # rejected with the case, before a run
+
+
+def test_a_run_that_fails_exits_1_and_is_not_marked_as_bad_input(tmp_path):
+    out = tmp_path / "blow_up.h5"
+    result = invoke("run", CONFIG.parent / "pendulum.yaml", "-o", out, "--set", "simulation.t_end=0.5",
+                    "--set", "simulation.max_steps=3")
+    assert_clean_exit(result, 1)
+    assert errors(result).startswith("csim: simulation failed:") and "max_steps" in result.stderr
+    with h5py.File(out, "r") as fh:
+        assert text_attr(fh, "status") == "failed" and text_attr(fh, "failure") == ""
 
 
 # --------------------------------------------------------------------------- help and version
@@ -296,3 +331,129 @@ def test_version():
     result = invoke("--version")
     assert_clean_exit(result, 0)
     assert result.stdout.strip() == f"csim {__version__}"
+
+
+def test_help_lists_flags_without_a_value_type():
+    for command in ([], ["run"], ["compare"], ["plot"], ["animate"], ["describe"]):
+        result = invoke(*command, "--help")
+        assert_clean_exit(result, 0)
+        assert "<bool>" not in result.stdout, command
+        assert "--help" in result.stdout
+    result = invoke("run", "--help")
+    assert "--quiet" in result.stdout and "Print nothing but errors" in result.stdout
+    assert "130" in result.stdout  # the exit codes, interruption included
+
+
+# --------------------------------------------------------------------------- output paths
+
+
+@pytest.mark.parametrize("name", ["qr.txt", "qr", "qr.h5.bak"])
+def test_output_without_an_hdf5_suffix_is_rejected_before_the_run(tmp_path, name):
+    out = tmp_path / name
+    result = invoke("run", CONFIG, "-o", out, *SHORT)
+    assert_clean_exit(result, 2)
+    assert f"--output {out}: expected an HDF5 file name ending in .h5 or .hdf5" in result.stderr
+    assert "status:" not in result.stdout
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_compare_output_without_an_hdf5_suffix_is_rejected(tmp_path):
+    result = invoke("compare", CONFIG, "-o", tmp_path / "cmp.txt", "--methods", "none", *SHORT)
+    assert_clean_exit(result, 2)
+    assert "expected an HDF5 file name ending in .h5 or .hdf5" in result.stderr
+
+
+@pytest.mark.parametrize("name", ["qr.hdf5", "QR.H5"])
+def test_hdf5_suffixes_are_accepted_in_any_case(tmp_path, name):
+    result = invoke("run", CONFIG, "-o", tmp_path / name, "-q", *SHORT)
+    assert_clean_exit(result, 0)
+    assert (tmp_path / name).is_file()
+
+
+def test_readme_use_examples_each_name_their_own_output():
+    """No README example overwrites another's result, nor make run's results/quick_return.h5."""
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    use = readme.split("\n## Use\n", 1)[1].split("\n## ", 1)[0]
+    commands = [line.split() for line in use.splitlines() if line.startswith(".venv/bin/csim ")]
+    writers = [c for c in commands if c[1] in ("run", "compare", "plot", "animate") and "--help" not in c]
+    assert len(writers) >= 6
+    outputs = []
+    for c in writers:
+        assert "-o" in c, " ".join(c)
+        outputs.append(c[c.index("-o") + 1])
+    assert len(set(outputs)) == len(outputs), outputs
+    assert "results/quick_return.h5" not in outputs
+    makefile = (Path(__file__).resolve().parents[1] / "Makefile").read_text()
+    assert "csim run configs/quick_return.yaml -o results/quick_return.h5" in makefile
+
+
+# --------------------------------------------------------------------------- the run summary
+
+
+def test_a_run_at_rest_reports_its_energy_balance_in_joules(tmp_path):
+    out = tmp_path / "rest.h5"
+    result = invoke("run", CONFIG.parent / "pendulum.yaml", "-o", out, "--set", "initial.q.x=0",
+                    "--set", "initial.q_offset.y=0", "--set", "stabilization.method=none",
+                    "--set", "simulation.t_end=0.2")
+    assert_clean_exit(result, 0)
+    line = [x for x in result.stdout.splitlines() if x.startswith("energy balance:")][0]
+    assert line.endswith("J (max |T + V - T0 - V0 - W|, in J: the energy scale is zero, the mechanism stays at rest)")
+    assert "e-308" not in result.stdout
+
+
+def test_a_python_fallback_says_why_in_the_summary(tmp_path):
+    result = invoke("run", CONFIG, "-o", tmp_path / "elim.h5", *SHORT, "--set", "formulation.method=elimination")
+    assert_clean_exit(result, 0)
+    assert "(python backend)" in result.stdout
+    assert ("python backend:    not compiled because formulation.method 'elimination': the compiled backend "
+            "implements the KKT formulation only") in result.stdout
+    with h5py.File(tmp_path / "elim.h5") as fh:
+        assert "formulation.method 'elimination'" in text_attr(fh, "backend_reason")
+    asked = invoke("run", CONFIG, "-o", tmp_path / "py.h5", *SHORT, "--set", "simulation.backend=python")
+    assert_clean_exit(asked, 0)
+    assert "python backend:" not in asked.stdout  # asked for, not a fallback
+
+
+def test_a_slow_run_says_what_it_is_doing_in_one_plain_line_off_a_terminal(tmp_path, monkeypatch):
+    import time
+
+    import csim.pipeline
+
+    real = csim.pipeline.run_case
+
+    def slow(case, progress=None):
+        time.sleep(2.2)  # past the status line's delay of 2 s
+        return real(case, progress=progress)
+
+    monkeypatch.setattr(csim.pipeline, "run_case", slow)
+    result = invoke("run", CONFIG, "-o", tmp_path / "slow.h5", *SHORT)
+    assert_clean_exit(result, 0)
+    assert result.stderr == "csim: simulating quick_return.yaml to t = 0.2 s ...\n"
+    quiet = invoke("run", CONFIG, "-o", tmp_path / "slow.h5", "-q", *SHORT)
+    assert_clean_exit(quiet, 0)
+    assert quiet.output == ""
+
+
+def test_kernels_that_cannot_load_give_the_reason_of_the_fallback(tmp_path, monkeypatch):
+    import csim.pipeline
+
+    def broken(system, y0, settings):
+        raise RuntimeError("no LLVM here")
+
+    monkeypatch.setattr(csim.pipeline, "prepare_compiled", broken)
+    result = invoke("run", CONFIG, "-o", tmp_path / "fallback.h5", *SHORT)
+    assert_clean_exit(result, 0)
+    assert ("python backend:    not compiled because the compiled kernels could not be loaded, "
+            "RuntimeError: no LLVM here") in result.stdout
+
+
+@pytest.mark.slow
+def test_a_run_stopped_at_max_events_still_writes_its_file(tmp_path):
+    """Issue 13: with this torque the load law chatters until simulation.max_events (100,000)."""
+    out = tmp_path / "chatter.h5"
+    result = invoke("run", CONFIG, "-o", out, "--set", "loads.torque=160000")
+    assert_clean_exit(result, 1)
+    assert "max_events" in result.stderr and f"partial result in {out}" in result.stderr
+    with h5py.File(out, "r") as fh:
+        assert text_attr(fh, "status") == "failed"
+        assert fh["events/times"].shape[0] > 100_000

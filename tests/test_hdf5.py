@@ -92,3 +92,66 @@ def test_reading_a_non_result_is_a_clear_error(tmp_path):
         fh["x"] = 1
     with pytest.raises(ResultFileError, match="not a csim result"):
         read_result(other)
+
+
+def test_a_hundred_thousand_events_are_written_and_read_back(tmp_path, short_result):
+    """A run stopped at simulation.max_events (100,000) still gets its file: events are datasets."""
+    import dataclasses
+
+    n = 100_000
+    many = dataclasses.replace(short_result, status="failed", message="more than simulation.max_events",
+                               event_times=np.linspace(0.0, 0.3, n),
+                               event_labels=[f"cutting_force: switch {i}" for i in range(n)])
+    path = tmp_path / "chatter.h5"
+    write_result(path, many)
+    back = read_result(path)
+    np.testing.assert_array_equal(back.event_times, many.event_times)
+    assert back.event_labels == many.event_labels
+    assert back.status == "failed"
+    with h5py.File(path) as fh:
+        assert "event_times" not in fh.attrs and fh["events/times"].shape == (n,)
+
+
+def test_files_with_event_times_as_attributes_are_still_read(tmp_path, short_result):
+    path = tmp_path / "old.h5"
+    write_result(path, short_result)
+    with h5py.File(path, "r+") as fh:  # the layout of earlier versions: attributes, no events group
+        del fh["events"]
+        for name in ("failure", "backend_reason"):
+            del fh.attrs[name]
+        fh.attrs["event_times"] = np.asarray(short_result.event_times)
+        fh.attrs["event_labels"] = np.array(short_result.event_labels, dtype=h5py.string_dtype())
+    back = read_result(path)
+    np.testing.assert_array_equal(back.event_times, short_result.event_times)
+    assert back.event_labels == short_result.event_labels and len(back.event_labels) > 0
+    assert back.failure == "" and back.backend_reason == ""
+
+
+def test_failure_and_backend_reason_round_trip(tmp_path, short_result):
+    import dataclasses
+
+    marked = dataclasses.replace(short_result, status="failed", failure="interrupted",
+                                 backend_reason="numba is not installed")
+    write_result(tmp_path / "m.h5", marked)
+    back = read_result(tmp_path / "m.h5")
+    assert (back.failure, back.backend_reason) == ("interrupted", "numba is not installed")
+
+
+def test_an_empty_result_is_a_valid_file(tmp_path):
+    from csim.result import Result
+
+    empty = Result.empty("quick_return", ["q1", "q2", "q3"], ["torque", "cutting_force"], ["ram_x"], 2,
+                         "mechanism: {name: quick_return}\n", message="interrupted", failure="interrupted")
+    write_result(tmp_path / "e.h5", empty)
+    back = read_result(tmp_path / "e.h5")
+    assert back.t.shape == (0,) and back.q.shape == (0, 3) and back.phi.shape == (0, 2)
+    assert back.work.shape == (0, 2) and back.observables.shape == (0, 1)
+    assert back.failure == "interrupted" and "status:            failed (interrupted)" in back.summary()
+
+
+def test_failed_initial_conditions_are_marked_as_an_assembly_failure(tmp_path):
+    res = run_case(qr_case("mechanism.parameters.h2=100"))
+    assert res.failure == "assembly"
+    write_result(tmp_path / "a.h5", res)
+    assert read_result(tmp_path / "a.h5").failure == "assembly"
+    assert run_case(qr_case("simulation.t_end=0.05")).failure == ""

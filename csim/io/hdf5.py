@@ -8,8 +8,12 @@ Layout of a single run (a comparison file has one such group per method)::
     /observables/NAME (N,)  /observables/NAME_rate (N,)
     /events/times (E,)  /events/labels (E,)
     attributes: csim_version, format_version, mechanism, case (YAML), coordinate_names,
-    load_names, observable_names, status, message, wall_time, nfev, njev, nlu, nsteps,
-    event_times
+    load_names, observable_names, status, message, failure, run_kind, backend,
+    backend_reason, kernel_load_time, wall_time, nfev, njev, nlu, nsteps
+
+The event times and labels are datasets, never attributes: an attribute holds at most 64 kB,
+and a run stopped at ``simulation.max_events`` has 100,000 of them. Files written before
+that (with a root attribute ``event_times``) are still read.
 
 Every dataset carries a ``units`` attribute (see :mod:`csim.io.units`).
 
@@ -91,13 +95,14 @@ def write_result_group(group: h5py.Group, result: Result, coordinate_units: list
     a["observable_names"] = np.array(result.observable_names, dtype=_STR)
     a["status"] = result.status
     a["message"] = result.message
+    a["failure"] = result.failure
     a["run_kind"] = result.run_kind
     a["backend"] = result.backend
+    a["backend_reason"] = result.backend_reason
     a["kernel_load_time"] = result.kernel_load_time
     a["wall_time"] = result.wall_time
     for name in ("nfev", "njev", "nlu", "nsteps"):
         a[name] = int(getattr(result, name))
-    a["event_times"] = np.asarray(result.event_times, dtype=float)
 
     _dataset(group, "t", result.t)
     units = coordinate_units or ["rad"] * len(result.coordinate_names)
@@ -133,11 +138,25 @@ def _text(value) -> str:
     return value.decode() if isinstance(value, bytes) else str(value)
 
 
+def _read_events(group: h5py.Group) -> tuple[np.ndarray, list[str]]:
+    """Event times and labels: the datasets ``events/times`` and ``events/labels``, or in files
+    of earlier versions without them, the root attributes ``event_times`` (and ``event_labels``)."""
+    a = group.attrs
+    ev = group.get("events")
+    if ev is not None and "times" in ev:
+        times = ev["times"][()]
+        labels = [_text(x) for x in ev["labels"][()]] if "labels" in ev else []
+    else:
+        times = np.asarray(a["event_times"], dtype=float).reshape(-1)
+        labels = [_text(x) for x in np.atleast_1d(a["event_labels"])] if "event_labels" in a else []
+    return times, labels if len(labels) == len(times) else [""] * len(times)
+
+
 def read_result_group(group: h5py.Group) -> Result:
     """Read one run from an HDF5 group written by :func:`write_result_group`."""
     a = group.attrs
     try:
-        ev = group["events"]
+        event_times, event_labels = _read_events(group)
         obs_names = [_text(x) for x in a["observable_names"]]
         N = group["t"].shape[0]
         observables, rates = np.zeros((N, 0)), np.zeros((N, 0))
@@ -158,9 +177,10 @@ def read_result_group(group: h5py.Group) -> Result:
             observables=observables, observable_rates=rates,
             status=_text(a["status"]), message=_text(a["message"]), wall_time=float(a["wall_time"]),
             nfev=int(a["nfev"]), njev=int(a["njev"]), nlu=int(a["nlu"]), nsteps=int(a["nsteps"]),
-            event_times=ev["times"][()], event_labels=[_text(x) for x in ev["labels"][()]],
+            event_times=event_times, event_labels=event_labels,
             run_kind=_text(a.get("run_kind", "simulation")), backend=_text(a.get("backend", "python")),
-            kernel_load_time=float(a.get("kernel_load_time", 0.0)),
+            kernel_load_time=float(a.get("kernel_load_time", 0.0)), failure=_text(a.get("failure", "")),
+            backend_reason=_text(a.get("backend_reason", "")),
         )
     except KeyError as exc:
         raise ResultFileError(f"{group.file.filename}: not a csim result (missing {exc})") from None
