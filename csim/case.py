@@ -15,7 +15,6 @@ Units are SI throughout (m, kg, s, rad, N, N m, J); see ``csim.io.units``.
 """
 from __future__ import annotations
 
-import math
 import re
 from collections.abc import Hashable
 from dataclasses import dataclass
@@ -42,9 +41,9 @@ from csim.schema import (
 )
 from csim.solver.formulations import FORMULATIONS
 from csim.solver.integrators import DAE_INTEGRATORS, INTEGRATORS
-from csim.solver.settings import IntegrationSettings
 from csim.solver.methods import STABILIZERS
 from csim.solver.methods import schema_fields as stabilization_fields
+from csim.solver.settings import IntegrationSettings
 
 if TYPE_CHECKING:
     from csim.linkage.model import Linkage

@@ -57,6 +57,10 @@ class LoadLaw:
             labels.append(f"{self.name}: ds/dt = 0 (velocity sign)")
         return labels
 
+    def switching(self, s: float, sdot: float) -> list[float]:
+        """Switching functions at (s, ds/dt); each is > 0 where its condition holds."""
+        return LoadSet([self]).switching(np.array([s], dtype=float), np.array([sdot], dtype=float)).tolist()
+
     def conditions(self) -> list[tuple[int, float]]:
         """Its switching functions as (kind, value) pairs of :mod:`csim.physics.loads`, in label order."""
         out = []

@@ -52,7 +52,6 @@ from csim.physics.status import (
 )
 from csim.physics.steps import all_finite, check_step
 
-
 #: the decorator of every loop function that allocates nothing: compiled without numba's
 #: reference counting of arrays (NRT), which would cost two atomic operations per array
 #: argument and per slice at every call; the arrays live as long as ``integrate`` holds them
@@ -372,7 +371,8 @@ def _rms(x, scale):
 
 
 @hot
-def _initial_step(t, y, f, t_end, rtol, tolv, max_step, first_step, par, pf, pi, rmode, locate, w, piv, ytmp, f1, scl, cs, info):
+def _initial_step(t, y, f, t_end, rtol, tolv, max_step, first_step, par, pf, pi, rmode, locate, w, piv, ytmp, f1, scl,
+                  cs, info):
     """DOP853's first step: given, or scipy's select_initial_step (one evaluation). Returns (status, h)."""
     n = y.size
     interval = abs(t_end - t)
@@ -458,7 +458,8 @@ def _dop853_stages(t, hstep, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmode, lo
 
 
 @hot
-def _dop853_step(ts_, t_end, rtol, tolv, max_step, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmode, locate, w, piv, cs, info):
+def _dop853_step(ts_, t_end, rtol, tolv, max_step, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmode, locate, w, piv, cs,
+                 info):
     """One accepted DOP853 step from ts_[T] (scipy's _step_impl). Returns (status, t_new, step_ok).
 
     ts_[H_ABS] carries the step size over; ts_[HSTEP] gets the accepted step.
@@ -556,7 +557,8 @@ def _dop_dense(t_old, h, y_old, y, f, mode, locate, par, pf, pi, w, piv, K, F, y
 
 
 @hot
-def _ensure_dense(dense_ready, dense_kind, t_old, h, y_old, y, f, mode, locate, par, pf, pi, w, piv, K, F, ytmp, cs, info):
+def _ensure_dense(dense_ready, dense_kind, t_old, h, y_old, y, f, mode, locate, par, pf, pi, w, piv, K, F, ytmp, cs,
+                  info):
     """The step's dense output, built on its first use (DOP853's three extra stages); returns the status.
 
     RK4's Hermite data and an empty step's constant need no evaluation.
@@ -597,7 +599,8 @@ def _locate(a, b, dense_kind, t_old, h, y_old, FF, mode, mode_b, par, pf, pi, w,
 
 
 @hot
-def _find_event(ts_, n_interior, dense_kind, y_old, y, f_new, mode, mode_b, rmode, locate, par, pf, pi, w, piv, K, F, Fh, ytmp, roots, has_root, dense, cs, info):
+def _find_event(ts_, n_interior, dense_kind, y_old, y, f_new, mode, mode_b, rmode, locate, par, pf, pi, w, piv, K, F,
+                Fh, ytmp, roots, has_root, dense, cs, info):
     """The earliest switch inside the last step (csim.solver.simulate._find_event). Returns (status, event).
 
     The mode is checked at ``n_interior`` equally spaced points of the step and at its end,
@@ -613,7 +616,8 @@ def _find_event(ts_, n_interior, dense_kind, y_old, y, f_new, mode, mode_b, rmod
             for i in range(y.size):
                 ytmp[i] = y[i]
         else:
-            status = _ensure_dense(dense[0], dense_kind, t_old, h, y_old, y, f_new, rmode, locate, par, pf, pi, w, piv, K, F, ytmp, cs, info)
+            status = _ensure_dense(dense[0], dense_kind, t_old, h, y_old, y, f_new, rmode, locate, par, pf, pi, w, piv,
+                                   K, F, ytmp, cs, info)
             if status != OK:
                 return status, False
             dense[0] = True
@@ -624,12 +628,14 @@ def _find_event(ts_, n_interior, dense_kind, y_old, y, f_new, mode, mode_b, rmod
             if mode_b[jj] != mode[jj]:
                 found = True
         if found:
-            status = _ensure_dense(dense[0], dense_kind, t_old, h, y_old, y, f_new, rmode, locate, par, pf, pi, w, piv, K, F, ytmp, cs, info)
+            status = _ensure_dense(dense[0], dense_kind, t_old, h, y_old, y, f_new, rmode, locate, par, pf, pi, w, piv,
+                                   K, F, ytmp, cs, info)
             if status != OK:
                 return status, False
             dense[0] = True
             a = t_old if rep == 0 else t_old + (t - t_old) * rep / (n_interior + 1)
-            status, t_event = _locate(a, b, dense_kind, t_old, h, y_old, FF, mode, mode_b, par, pf, pi, w, ytmp, roots, has_root, info)
+            status, t_event = _locate(a, b, dense_kind, t_old, h, y_old, FF, mode, mode_b, par, pf, pi, w, ytmp, roots,
+                                      has_root, info)
             if status != OK:
                 return status, False
             ts_[T_STOP] = t_event
@@ -638,7 +644,8 @@ def _find_event(ts_, n_interior, dense_kind, y_old, y, f_new, mode, mode_b, rmod
 
 
 @hot
-def _sample(ts_, t_out, dense_kind, y_old, y, f_new, mode, rmode, locate, projects, par, pf, pi, w, piv, K, F, Fh, ytmp, yp, dense, tr, ys, modes, cs, info):
+def _sample(ts_, t_out, dense_kind, y_old, y, f_new, mode, rmode, locate, projects, par, pf, pi, w, piv, K, F, Fh, ytmp,
+            yp, dense, tr, ys, modes, cs, info):
     """Record the output times in (t_old, t_stop] from the step's dense output (projected, for projection)."""
     t_old, t, t_stop = ts_[T_OLD], ts_[T], ts_[T_STOP]
     FF = F if dense_kind == DOP853 else Fh
@@ -648,7 +655,8 @@ def _sample(ts_, t_out, dense_kind, y_old, y, f_new, mode, rmode, locate, projec
             for i in range(y.size):
                 ytmp[i] = y[i]
         else:
-            status = _ensure_dense(dense[0], dense_kind, t_old, t - t_old, y_old, y, f_new, rmode, locate, par, pf, pi, w, piv, K, F, ytmp, cs, info)
+            status = _ensure_dense(dense[0], dense_kind, t_old, t - t_old, y_old, y, f_new, rmode, locate, par, pf, pi,
+                                   w, piv, K, F, ytmp, cs, info)
             if status != OK:
                 return status
             dense[0] = True
@@ -747,7 +755,8 @@ def _start(y, yp, mode, projects, par, pf, pi, w, piv, tr, ys, modes, info):
 
 
 @hot
-def _start_segment(method, ts_, y, f, t_end, rtol, atol, max_step, first_step, tolv, par, pf, pi, rmode, locate, w, piv, ytmp, f1, scl, cs, info):
+def _start_segment(method, ts_, y, f, t_end, rtol, atol, max_step, first_step, tolv, par, pf, pi, rmode, locate, w, piv,
+                   ytmp, f1, scl, cs, info):
     """Start the integrator at (t, y): tolerances, f(t, y), and DOP853's first step. Returns the status."""
     n = y.size
     scale_w = max(1.0, abs(kinetic(y, par)))  # the work states are in J: atol scaled to the energy
@@ -762,13 +771,15 @@ def _start_segment(method, ts_, y, f, t_end, rtol, atol, max_step, first_step, t
     ts_[SEG_START] = ts_[T]
     cs[SEG_STEPS] = 0
     if method == DOP853:
-        status, h = _initial_step(ts_[T], y, f, t_end, rtol, tolv, max_step, first_step, par, pf, pi, rmode, locate, w, piv, ytmp, f1, scl, cs, info)
+        status, h = _initial_step(ts_[T], y, f, t_end, rtol, tolv, max_step, first_step, par, pf, pi, rmode, locate, w,
+                                  piv, ytmp, f1, scl, cs, info)
         ts_[H_ABS] = h
     return status
 
 
 @hot
-def _take_step(method, ts_, t_end, rtol, tolv, fixed_h, max_step, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmode, locate, w, piv, cs, info):
+def _take_step(method, ts_, t_end, rtol, tolv, fixed_h, max_step, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmode,
+               locate, w, piv, cs, info):
     """One step of the integrator from (t, y), or scipy's empty step at t_end.
 
     Returns (status, t_new, step_ok, dense kind); step_ok is False where no step can be
@@ -781,10 +792,12 @@ def _take_step(method, ts_, t_end, rtol, tolv, fixed_h, max_step, y, f, K, ytmp,
         ts_[HSTEP] = 0.0
         return OK, t_end, True, CONSTANT
     if method == DOP853:
-        status, t_new, ok = _dop853_step(ts_, t_end, rtol, tolv, max_step, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmode, locate, w, piv, cs,
+        status, t_new, ok = _dop853_step(ts_, t_end, rtol, tolv, max_step, y, f, K, ytmp, y_new, f_new, par, pf, pi,
+                                         rmode, locate, w, piv, cs,
                                          info)
     else:
-        status, t_new, ok = _rk4_step(ts_, t_end, fixed_h, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmode, locate, w, piv, cs, info)
+        status, t_new, ok = _rk4_step(ts_, t_end, fixed_h, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmode, locate, w,
+                                      piv, cs, info)
     return status, t_new, ok, method
 
 
@@ -838,7 +851,8 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset):
         cs[N_REC] = 1
     while status == OK and ts_[T] < t_end:
         restarted = False
-        status = _start_segment(method, ts_, y, f, t_end, rtol, atol, max_step, first_step, tolv, par, pf, pi, rmode, locate, w, piv, ytmp, f_new, scl, cs,
+        status = _start_segment(method, ts_, y, f, t_end, rtol, atol, max_step, first_step, tolv, par, pf, pi, rmode,
+                                locate, w, piv, ytmp, f_new, scl, cs,
                                 info)
         while status == OK:
             ts_[T_OLD] = ts_[T]
@@ -879,7 +893,8 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset):
                                             Fh, ytmp, roots, has_root, dense, cs, info)
                 if status != OK:
                     break
-            status = _sample(ts_, t_out, dense_kind, y_old, y, f_new, mode, rmode, locate, projects, par, pf, pi, w, piv, K, F, Fh, ytmp, yp, dense, tr, ys,
+            status = _sample(ts_, t_out, dense_kind, y_old, y, f_new, mode, rmode, locate, projects, par, pf, pi, w,
+                             piv, K, F, Fh, ytmp, yp, dense, tr, ys,
                              modes, cs, info)
             if status != OK:
                 break

@@ -12,8 +12,8 @@ from csim.physics.status import MAX_PHI, NONFINITE_STATE, OK, STEP_COLLAPSE
 
 @kernel
 def all_finite(x):
-    """Whether every entry of x is finite."""
-    for i in range(x.size):
+    """Whether every entry of x is finite (a loop: numba does not compile all() over a generator)."""
+    for i in range(x.size):  # noqa: SIM110
         if not math.isfinite(x[i]):
             return False
     return True
