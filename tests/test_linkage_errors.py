@@ -101,8 +101,8 @@ def test_drive_must_match_the_degrees_of_freedom():
     data = yaml.safe_load(RRR3.read_text())
     del data["mechanism"]["drive"][5]
     msg = problems(data["mechanism"], data["initial"])
-    assert msg == ["mechanism.drive: got 2 driving joint variable(s) (q1, q4); the mechanism has 3 degree(s) "
-                   "of freedom; expected exactly 3"]
+    assert msg == ["mechanism.drive: 2 drives for 3 degrees of freedom (q1, q4 driven); expected exactly 3 driven "
+                   "joint variable(s) (under-driven: the drives leave the motion undetermined)"]
     msg = problems(changed(drive={"crankshaft": 1.0}))
     assert msg[0].startswith("mechanism.drive.crankshaft: no such joint; expected a coupling number or name")
 

@@ -1,22 +1,8 @@
 """Cut-joint constraint equations, the removal of trivial and dependent ones, DOF counts.
 
-With r the global position of a joint-frame origin, x, y, z its global unit axes and
-d = r_jm - r_ik, a cut joint (i, k)-(j, m) contributes (the brief's table):
-
-======  ===============================================  =====================
-joint   equations                                        reactions
-======  ===============================================  =====================
-R       d = 0 (global x, y, z); x_ik.z_jm = y_ik.z_jm = 0  force (3), moment m_x, m_y
-P       x_ik.d = y_ik.d = 0; y_ik.z_jm = x_ik.z_jm =      force f_x, f_y, moment (3)
-        x_ik.y_jm = 0 (A_ik = A_jm)
-C       x_ik.d = y_ik.d = 0; y_ik.z_jm = x_ik.z_jm = 0    force f_x, f_y, moment m_x, m_y
-U       d = 0; z_ik.z_jm = 0                             force (3), moment along z_ik x z_jm
-S       d = 0                                            force (3)
-======  ===============================================  =====================
-
-z_ik = z_jm is written as its two independent components in frame ik (x_ik.z_jm and
-y_ik.z_jm vanish), A_ik = A_jm as three; each holds near the assembled branch (z_jm = z_ik,
-not -z_ik). Every equation has one reaction unknown, its multiplier.
+A cut joint (i, k)-(j, m) contributes the equations of its type's record in
+:data:`csim.linkage.joints.JOINT_TYPES` (the brief's table: R gives r_ik = r_jm and
+z_ik = z_jm, ..., S gives r_ik = r_jm), each with one reaction unknown, its multiplier.
 
 Of these, equations that vanish identically (every out-of-plane one of a planar mechanism)
 are removed: symbolically when sympy reduces them to 0, otherwise when they vanish at
@@ -28,6 +14,7 @@ linkage) loses its dependent rows this way.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -36,19 +23,11 @@ import sympy as sp
 
 from csim.errors import CaseError
 from csim.linkage.frames import Frames
+from csim.linkage.joints import JOINT_TYPES, CutGeometry
 from csim.linkage.kinematics import residual_report, solve_positions
 from csim.linkage.tables import Coupling, Tables
 from csim.linkage.topology import JointVariable
 from csim.linkage.transforms import simplify_entry
-
-#: Reaction unknowns of each cut-joint type, in the joint frame ik (the brief's table).
-REACTIONS = {
-    "R": ["f_x", "f_y", "f_z", "m_x", "m_y"],
-    "P": ["f_x", "f_y", "m_x", "m_y", "m_z"],
-    "C": ["f_x", "f_y", "m_x", "m_y"],
-    "U": ["f_x", "f_y", "f_z", "m"],
-    "S": ["f_x", "f_y", "f_z"],
-}
 
 KEPT, ZERO, DEPENDENT = "kept", "identically zero", "dependent"
 
@@ -82,27 +61,12 @@ class Equation:
 
 
 def cut_joint_equations(coupling: Coupling, frames: Frames) -> list[Equation]:
-    """The brief's equations of one cut joint, symbolic and simplified."""
-    T_ik = frames.joint_frame(coupling.i, coupling.k)
-    T_jm = frames.joint_frame(coupling.j, coupling.m)
-    r_ik, r_jm = T_ik[:3, 3], T_jm[:3, 3]
-    x_ik, y_ik, z_ik = (T_ik[:3, a] for a in range(3))
-    y_jm, z_jm = T_jm[:3, 1], T_jm[:3, 2]
-    d = r_jm - r_ik
-    rows: list[tuple[str, str, sp.Expr]] = []
-    if coupling.type in ("R", "U", "S"):
-        rows += [(f"{a}: (r_jm - r_ik).e_{a}", f"force along global {a}", d[n]) for n, a in enumerate("xyz")]
-    else:
-        rows += [("x_ik . (r_jm - r_ik)", "force f_x along x_ik", x_ik.dot(d)),
-                 ("y_ik . (r_jm - r_ik)", "force f_y along y_ik", y_ik.dot(d))]
-    if coupling.type in ("R", "P", "C"):
-        rows += [("y_ik . z_jm", "moment m_x about x_ik", y_ik.dot(z_jm)),
-                 ("x_ik . z_jm", "moment m_y about y_ik", x_ik.dot(z_jm))]
-    if coupling.type == "P":
-        rows.append(("x_ik . y_jm", "moment m_z about z_ik", x_ik.dot(y_jm)))
-    if coupling.type == "U":
-        rows.append(("z_ik . z_jm", "moment m along z_ik x z_jm", z_ik.dot(z_jm)))
-    return [Equation(coupling, comp, reaction, simplify_entry(expr)) for comp, reaction, expr in rows]
+    """The equations of one cut joint, from its type's record (:data:`JOINT_TYPES`),
+    symbolic and simplified."""
+    geometry = CutGeometry.from_transforms(frames.joint_frame(coupling.i, coupling.k),
+                                           frames.joint_frame(coupling.j, coupling.m))
+    return [Equation(coupling, eq.component, eq.reaction, simplify_entry(eq.expression(geometry)))
+            for eq in JOINT_TYPES[coupling.type].cut_equations]
 
 
 @dataclass
@@ -161,9 +125,79 @@ def _rank(J: np.ndarray) -> int:
     return int(np.sum(s > 1e-9 * max(s[0], 1.0)))
 
 
+def _generic_configurations(phi: Callable, phi_q: Callable, q_start: np.ndarray, rng: np.random.Generator,
+                            tol: float, max_iter: int) -> tuple[list[np.ndarray], list[int]]:
+    """Assembled configurations near ``q_start``: it, then up to 4 more, each moved along the
+    free motion (the null space of Phi_q) and projected back by Newton-Raphson.
+
+    Returns
+    -------
+    points : list of ndarray (n,)
+    ranks : list of int
+        The rank of Phi_q at each point.
+    """
+    n = q_start.size
+    points = [q_start]
+    J0 = phi_q(q_start)
+    if J0.size:
+        _, _, vt = np.linalg.svd(J0)
+        null = vt[_rank(J0):].T
+    else:
+        null = np.eye(n)
+    all_free = np.arange(n)
+    for _ in range(8):
+        if null.shape[1] == 0 or len(points) >= 5:
+            break
+        for scale in (0.3, 0.1, 0.03):
+            trial = q_start + scale * (null @ rng.standard_normal(null.shape[1]))
+            moved = solve_positions(phi, phi_q, trial, all_free, tol, max_iter)
+            if moved.converged:
+                points.append(moved.q)
+                break
+    return points, [_rank(phi_q(q)) for q in points]
+
+
+def free_mobility(phi: Callable, phi_q: Callable, q0: np.ndarray, tol: float, max_iter: int,
+                  seed: int = 1) -> int | None:
+    """Degrees of freedom found with every joint variable free: Newton-Raphson from ``q0``
+    (which cannot fail for holding too many variables), then the number of variables minus
+    the generic rank around the assembled point. None when even that does not assemble."""
+    sol = solve_positions(phi, phi_q, q0, np.arange(q0.size), tol, max_iter)
+    if not sol.converged:
+        return None
+    _, ranks = _generic_configurations(phi, phi_q, sol.q, np.random.default_rng(seed), tol, max_iter)
+    return q0.size - max(ranks)
+
+
+def _remove_zero(equations: list[Equation], q_syms: list[sp.Symbol], tables: Tables, rng: np.random.Generator):
+    """Mark the identically zero equations: symbolically, else numerically at random
+    configurations. Returns the others and phi, phi_q of them (numpy functions of q)."""
+    n = len(q_syms)
+    length = max([1.0] + [abs(v) for v in tables.parameters.values()])
+    for eq in equations:
+        if eq.expression == 0:
+            eq.status = ZERO
+    candidates = [e for e in equations if e.status != ZERO]
+    phi_all, phi_q_all = _numeric([e.expression for e in candidates], q_syms, tables.values)
+    randoms = [rng.uniform(-np.pi, np.pi, n) for _ in range(6)]
+    values = np.array([phi_all(q) for q in randoms]) if candidates else np.zeros((6, 0))
+    for col, eq in enumerate(candidates):
+        if np.max(np.abs(values[:, col])) <= 1e-11 * length:
+            eq.status = ZERO
+    rows = [i for i, e in enumerate(candidates) if e.status != ZERO]
+
+    def phi(q):
+        return phi_all(q)[rows]
+
+    def phi_q(q):
+        return phi_q_all(q)[rows]
+
+    return [candidates[i] for i in rows], phi, phi_q
+
+
 def reduce_equations(equations: list[Equation], variables: list[JointVariable], tables: Tables,
                      start: dict[str, float], fixed: list[str], tol: float = 1e-12, max_iter: int = 50,
-                     seed: int = 0) -> Reduction:
+                     seed: int = 0, mobility_check: Callable[[int], list[str]] | None = None) -> Reduction:
     """Remove identically satisfied and dependent equations (see the module docstring).
 
     Parameters
@@ -181,41 +215,28 @@ def reduce_equations(equations: list[Equation], variables: list[JointVariable], 
     seed : int
         Seed of the random configurations (the result does not depend on it, except in
         degenerate cases).
+    mobility_check : callable dof -> list of str, optional
+        Called before the assembly that holds ``fixed``, with the degrees of freedom found
+        with every variable free (:func:`free_mobility`); the problems it returns are
+        raised. So "3 drives for 1 degree of freedom" is said instead of an assembly failure.
 
     Raises
     ------
     CaseError
-        The mechanism cannot be assembled at the given values (the message lists the
-        residual of every equation, by cut joint).
+        ``mobility_check`` found problems, or the mechanism cannot be assembled at the given
+        values (the message lists the residual of every equation, by cut joint).
     """
     rng = np.random.default_rng(seed)
     q_syms = [v.symbol for v in variables]
-    n = len(q_syms)
-    subs = {tables.symbols[k]: v for k, v in tables.parameters.items()}
-    length = max([1.0] + [abs(v) for v in tables.parameters.values()])
     # 1. identically zero: symbolically, else numerically at random configurations
-    for eq in equations:
-        if eq.expression == 0:
-            eq.status = ZERO
-    candidates = [e for e in equations if e.status != ZERO]
-    phi_all, phi_q_all = _numeric([e.expression for e in candidates], q_syms, subs)
-    randoms = [rng.uniform(-np.pi, np.pi, n) for _ in range(6)]
-    values = np.array([phi_all(q) for q in randoms]) if candidates else np.zeros((6, 0))
-    for col, eq in enumerate(candidates):
-        if np.max(np.abs(values[:, col])) <= 1e-11 * length:
-            eq.status = ZERO
-    rows = [i for i, e in enumerate(candidates) if e.status != ZERO]
-    live = [candidates[i] for i in rows]
-    labels = [e.label for e in live]
-
-    def phi(q):
-        return phi_all(q)[rows]
-
-    def phi_q(q):
-        return phi_q_all(q)[rows]
-
+    live, phi, phi_q = _remove_zero(equations, q_syms, tables, rng)
     names = [v.name for v in variables]
     q0 = np.array([float(start.get(name, 0.0)) for name in names])
+    if mobility_check is not None:
+        dof = free_mobility(phi, phi_q, q0, tol, max_iter, seed + 1)
+        problems = [] if dof is None else mobility_check(dof)
+        if problems:
+            raise CaseError(problems)
     free = np.array([i for i, name in enumerate(names) if name not in fixed], dtype=int)
     # 2. assemble at the given values
     sol = solve_positions(phi, phi_q, q0, free, tol, max_iter)
@@ -224,31 +245,14 @@ def reduce_equations(equations: list[Equation], variables: list[JointVariable], 
         raise CaseError([
             f"mechanism: cannot be assembled at the given values (Newton-Raphson on the cut-joint equations "
             f"did not converge in {max_iter} iterations; held fixed: {held}; start: initial.guess or 0); "
-            f"residuals: {residual_report(labels, sol.residual)}; expected dimensions that close every loop, "
-            f"or an initial.guess near an assembled configuration"])
+            f"residuals: {residual_report([e.label for e in live], sol.residual)}; expected dimensions that "
+            f"close every loop, or an initial.guess near an assembled configuration"])
     q_start = sol.q
     # 3. generic configurations: move along the free motion, project back
-    points = [q_start]
-    J0 = phi_q(q_start)
-    if J0.size:
-        _, s, vt = np.linalg.svd(J0)
-        null = vt[_rank(J0):].T
-    else:
-        null = np.eye(n)
-    all_free = np.arange(n)
-    for _ in range(8):
-        if null.shape[1] == 0 or len(points) >= 5:
-            break
-        for scale in (0.3, 0.1, 0.03):
-            trial = q_start + scale * (null @ rng.standard_normal(null.shape[1]))
-            moved = solve_positions(phi, phi_q, trial, all_free, tol, max_iter)
-            if moved.converged:
-                points.append(moved.q)
-                break
-    ranks = [_rank(phi_q(q)) for q in points]
-    generic = max(ranks) if ranks else 0
-    best = points[int(np.argmax(ranks))] if points else q_start
-    rank_start = ranks[0] if ranks else 0
+    points, ranks = _generic_configurations(phi, phi_q, q_start, rng, tol, max_iter)
+    generic = max(ranks)
+    best = points[int(np.argmax(ranks))]
+    rank_start = ranks[0]
     notes = []
     # 4. an independent subset, by pivoted QR of Phi_q^T at a generic point
     if live:
@@ -265,26 +269,47 @@ def reduce_equations(equations: list[Equation], variables: list[JointVariable], 
                      samples=len(points), notes=notes)
 
 
-def is_planar(tables: Tables, frames: Frames, variables: list[JointVariable], seed: int = 1) -> bool:
-    """True when every joint is R or P and all R axes stay parallel (P axes normal to them).
+@dataclass(frozen=True)
+class Plane:
+    """The plane of motion of a planar mechanism.
 
-    Checked numerically at a random configuration with the case's parameter values.
+    Attributes
+    ----------
+    normal : ndarray (3,)
+        Its unit normal in the fixed frame.
+    link_normals : dict link number -> ndarray (3,)
+        The same normal in each link's axes (constant: the links turn about it).
     """
-    if any(c.type not in ("R", "P") for c in tables.couplings):
-        return False
+
+    normal: np.ndarray
+    link_normals: dict[int, np.ndarray]
+
+
+def plane_of_motion(tables: Tables, frames: Frames, variables: list[JointVariable], seed: int = 1) -> Plane | None:
+    """The plane of a planar mechanism, or None for a spatial one.
+
+    Planar: every joint type has a :attr:`~csim.linkage.joints.JointType.planar_axis`, the
+    z axes of the ``"normal"`` ones (R) are all parallel, and those of the ``"in_plane"``
+    ones (P) normal to them. Checked numerically at a random configuration with the case's
+    parameter values.
+    """
+    kinds = [JOINT_TYPES[c.type].planar_axis for c in tables.couplings]
+    if None in kinds:
+        return None
     rng = np.random.default_rng(seed)
-    subs = {tables.symbols[k]: v for k, v in tables.parameters.items()}
+    subs = tables.values
     subs.update({v.symbol: float(x) for v, x in zip(variables, rng.uniform(-np.pi, np.pi, len(variables)))})
     numeric = {n: np.array(T.evalf(subs=subs), dtype=float) for n, T in frames.links.items()}
-    axes: dict[str, list] = {}
-    for c in tables.couplings:
+    axes: dict[str, list] = {"normal": [], "in_plane": []}
+    for c, kind in zip(tables.couplings, kinds):
         for link, index in ((c.i, c.k), (c.j, c.m)):
             local = np.array(frames.local[(link, index)].evalf(subs=subs), dtype=float)
-            axes.setdefault(c.type, []).append((numeric[link] @ local)[:3, 2])
-    rotations = axes.get("R", [])
-    if not rotations:
-        return False
-    normal = rotations[0]
-    parallel = all(np.linalg.norm(np.cross(normal, z)) < 1e-9 for z in rotations)
-    normal_slides = all(abs(np.dot(normal, z)) < 1e-9 for z in axes.get("P", []))
-    return parallel and normal_slides
+            axes[kind].append((numeric[link] @ local)[:3, 2])
+    if not axes["normal"]:
+        return None
+    normal = axes["normal"][0]
+    parallel = all(np.linalg.norm(np.cross(normal, z)) < 1e-9 for z in axes["normal"])
+    normal_slides = all(abs(np.dot(normal, z)) < 1e-9 for z in axes["in_plane"])
+    if not (parallel and normal_slides):
+        return None
+    return Plane(normal, {n: T[:3, :3].T @ normal for n, T in numeric.items()})

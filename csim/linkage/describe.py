@@ -12,7 +12,8 @@ from pathlib import Path
 import sympy as sp
 
 from csim.errors import CaseError
-from csim.linkage.constraints import DEPENDENT, REACTIONS, ZERO
+from csim.linkage.constraints import DEPENDENT, ZERO
+from csim.linkage.joints import JOINT_TYPES
 from csim.linkage.model import Linkage, build_linkage
 from csim.schema import describe as describe_value
 from csim.schema import validate_section
@@ -74,7 +75,7 @@ def report(linkage: Linkage, links: list[int] | None = None) -> dict:
     variables = [{"name": v.name, "unit": v.unit, "joint": v.coupling.number, "joint_name": v.coupling.name,
                   "type": v.coupling.type, "meaning": v.meaning, "start": linkage.start[v.name],
                   "driven": v.name in linkage.drive,
-                  "drive": str(linkage.drive[v.name]) if v.name in linkage.drive else None}
+                  "drive": linkage.drive_source.get(v.name) if v.name in linkage.drive else None}
                  for v in topo.variables]
     kept = red.kept
     constraints = [{"expression": str(e.expression), "latex": sp.latex(e.expression), "joint": e.coupling.number,
@@ -88,7 +89,7 @@ def report(linkage: Linkage, links: list[int] | None = None) -> dict:
                     "equations": len(eqs), "kept": sum(e.status == "kept" for e in eqs),
                     "identically_zero": sum(e.status == ZERO for e in eqs),
                     "dependent": sum(e.status == DEPENDENT for e in eqs),
-                    "reactions": REACTIONS[c.type],
+                    "reactions": JOINT_TYPES[c.type].reactions,
                     "reaction_unknowns": [e.reaction for e in eqs if e.status == "kept"]})
     transforms = {str(n): {"name": tables.links[n].name, "matrix": [[str(x) for x in row] for row in
                                                                     linkage.frames.links[n].tolist()],

@@ -22,9 +22,12 @@ import numpy as np
 import sympy as sp
 
 from csim.errors import CaseError
-from csim.linkage.constraints import Reduction, cut_joint_equations, is_planar, reduce_equations
+from csim.linkage.constraints import Plane, Reduction, cut_joint_equations, plane_of_motion, reduce_equations
+from csim.linkage.expressions import evaluate, parse_expression, value_problem
 from csim.linkage.frames import Frames, build_frames
-from csim.linkage.tables import Coupling, Tables, parse_expression, parse_tables
+from csim.linkage.inertia import check_inertia
+from csim.linkage.joints import JOINT_TYPES
+from csim.linkage.tables import Coupling, Tables, parse_tables
 from csim.linkage.topology import Topology, analyse, grubler_kutzbach
 from csim.linkage.transforms import simplify_entry
 from csim.model.definition import Drawing, MechanismDefinition, Observable, Parameter
@@ -47,6 +50,8 @@ class Linkage:
     dof : int
         Actual degrees of freedom: number of joint variables minus the generic rank.
     drive : dict variable name -> sympy expression of t and parameters
+    drive_source : dict variable name -> str
+        Each drive as the user wrote it (``"0.5773 + 0.05*sin(2*pi*t)"``), for reports.
     start : dict variable name -> float
         The assembled given configuration.
     definition : MechanismDefinition
@@ -63,6 +68,7 @@ class Linkage:
     start: dict[str, float]
     definition: MechanismDefinition | None = None
     notes: list[str] = field(default_factory=list)
+    drive_source: dict[str, str] = field(default_factory=dict)
 
     @property
     def variable_names(self) -> list[str]:
@@ -132,9 +138,12 @@ def _resolve_variable_keys(tables: Tables, per_coupling: dict[int, list], pendin
         values[var.slot] = value
 
 
-def _drive_expressions(tables, topology, per_coupling, problems) -> dict[str, sp.Expr]:
+def _drive_expressions(tables, topology, per_coupling, problems) -> tuple[dict[str, sp.Expr], dict[str, str]]:
+    """The drives by joint variable: sympy expressions of t and the parameters, and the
+    text the user wrote for each."""
     symbols = {**tables.symbols, "t": T}
     drive: dict[str, sp.Expr] = {}
+    source: dict[str, str] = {}
     for number, values in per_coupling.items():
         c = next(c for c in tables.couplings if c.number == number)
         if c in topology.cut_joints:
@@ -147,26 +156,8 @@ def _drive_expressions(tables, topology, per_coupling, problems) -> dict[str, sp
             expr = parse_expression(f"mechanism.drive.{c.name or c.number}", value, symbols, problems)
             if expr is not None:
                 drive[var.name] = expr
-    return drive
-
-
-def _angular_velocity(kind: str, q: list, qd: list) -> sp.Matrix:
-    """Angular velocity of frame jm relative to frame ik, in frame ik axes, (3, 1)."""
-    ez, ex = sp.Matrix([0, 0, 1]), sp.Matrix([1, 0, 0])
-
-    def Rz(a):
-        return sp.Matrix([[sp.cos(a), -sp.sin(a), 0], [sp.sin(a), sp.cos(a), 0], [0, 0, 1]])
-
-    def Rx(a):
-        return sp.Matrix([[1, 0, 0], [0, sp.cos(a), -sp.sin(a)], [0, sp.sin(a), sp.cos(a)]])
-
-    if kind in ("R", "C"):
-        return qd[0] * ez
-    if kind == "P":
-        return sp.zeros(3, 1)
-    if kind == "U":
-        return qd[0] * ez + qd[1] * (Rz(q[0]) * Rx(-sp.pi / 2) * ez)
-    return qd[0] * ez + qd[1] * (Rz(q[0]) * ex) + qd[2] * (Rz(q[0]) * Rx(q[1]) * ez)
+                source[var.name] = value.strip() if isinstance(value, str) else str(value)
+    return drive, source
 
 
 def link_angular_velocities(topology: Topology, frames: Frames) -> dict[int, sp.Matrix]:
@@ -176,7 +167,7 @@ def link_angular_velocities(topology: Topology, frames: Frames) -> dict[int, sp.
         edge = topology.edges[child]
         c = edge.coupling
         vs = topology.variables_of(c)
-        w_joint = _angular_velocity(c.type, [v.symbol for v in vs], [v.velocity for v in vs])
+        w_joint = JOINT_TYPES[c.type].angular_velocity([v.symbol for v in vs], [v.velocity for v in vs])
         A_ik = frames.local[(c.i, c.k)][:3, :3]
         R_rel = frames.relative[child][:3, :3]  # child axes in parent axes
         w_rel = A_ik * w_joint if edge.forward else -R_rel * A_ik * w_joint
@@ -255,8 +246,12 @@ def build_linkage(mechanism: dict, initial: dict | None = None, tol: float = 1e-
     Raises
     ------
     CaseError
-        Naming the table row: bad tables, links not connected to link 0, drives that do
-        not match the degrees of freedom, a mechanism that cannot be assembled.
+        Naming the table row: bad tables (:func:`csim.linkage.tables.parse_tables`), links not
+        connected to link 0, an inertia that is not a rigid body's in this (planar or spatial)
+        mechanism (:func:`csim.linkage.inertia.check_inertia`), more or fewer drives than
+        degrees of freedom ("2 drives for 1 degree of freedom", found with every variable
+        free, before the assembly that holds the drives), a mechanism that cannot be
+        assembled.
     """
     problems: list[str] = []
     tables = parse_tables(mechanism, problems)
@@ -265,16 +260,38 @@ def build_linkage(mechanism: dict, initial: dict | None = None, tol: float = 1e-
     per_coupling, pending = _resolve_drive(tables, problems)
     _resolve_variable_keys(tables, per_coupling, pending, problems)
     topology = analyse(tables, set(per_coupling))
-    drive = _drive_expressions(tables, topology, per_coupling, problems)
+    drive, drive_source = _drive_expressions(tables, topology, per_coupling, problems)
     if problems:
         raise CaseError(problems)
     frames = build_frames(tables, topology)
     equations = [e for c in topology.cut_joints for e in cut_joint_equations(c, frames)]
-
-    initial = initial or {}
     names = [v.name for v in topology.variables]
+    start, fixed = _start(tables, names, drive, drive_source, initial or {}, problems)
+    plane = plane_of_motion(tables, frames, topology.variables)
+    problems += _inertia_problems(tables, plane)
+    if problems:
+        raise CaseError(problems)
+    # the count of drives (or of initial.q) against the DOF, before the assembly that holds them
+    count = (lambda dof: _drive_count(drive, dof)) if drive else (lambda dof: _held_count(fixed, dof))
+    reduction = reduce_equations(equations, topology.variables, tables, start, fixed, tol=tol, max_iter=max_iter,
+                                 mobility_check=count)
+    planar = plane is not None
+    dof = len(names) - reduction.generic_rank
+    linkage = Linkage(tables=tables, topology=topology, frames=frames, reduction=reduction, planar=planar,
+                      grubler=grubler_kutzbach(tables, planar), dof=dof, drive=drive,
+                      start=dict(zip(names, reduction.q_start.tolist())), notes=list(reduction.notes),
+                      drive_source=drive_source)
+    if drive and len(drive) != dof:
+        raise CaseError(_drive_count(drive, dof))
+    linkage.definition = _definition(linkage)
+    return linkage
+
+
+def _start(tables: Tables, names: list[str], drive: dict[str, sp.Expr], drive_source: dict[str, str],
+           initial: dict, problems: list[str]) -> tuple[dict[str, float], list[str]]:
+    """Start values of the assembly (``initial.guess``, ``initial.q``, the drives at t = 0)
+    and the variables it holds fixed (the drives, else ``initial.q``)."""
     start: dict[str, float] = {}
-    problems = []
     for source in ("guess", "q"):
         for key, value in (initial.get(source) or {}).items():
             if key not in names:  # before the assembly, whose failure would hide the typo
@@ -282,32 +299,48 @@ def build_linkage(mechanism: dict, initial: dict | None = None, tol: float = 1e-
                                 f"{', '.join(names)}")
             elif isinstance(value, (int, float)) and not isinstance(value, bool):
                 start[key] = float(value)
-    if drive:
-        subs = {**{tables.symbols[k]: v for k, v in tables.parameters.items()}, T: 0.0}
-        for key, expr in drive.items():
-            value = complex(sp.N(expr.subs(subs)))
-            if value.imag != 0 or not np.isfinite(value.real):
-                what = "complex" if np.isfinite(value.real) and np.isfinite(value.imag) else "not finite"
-                problems.append(f"mechanism.drive.{key}: got {expr}; at t = 0 it is {what}; expected a finite real "
-                                f"value")
-            else:
-                start[key] = value.real
-        fixed = list(drive)
-    else:
-        fixed = [k for k in (initial.get("q") or {}) if k in names]
-    if problems:
-        raise CaseError(problems)
-    reduction = reduce_equations(equations, topology.variables, tables, start, fixed, tol=tol, max_iter=max_iter)
-    planar = is_planar(tables, frames, topology.variables)
-    dof = len(names) - reduction.generic_rank
-    linkage = Linkage(tables=tables, topology=topology, frames=frames, reduction=reduction, planar=planar,
-                      grubler=grubler_kutzbach(tables, planar), dof=dof, drive=drive,
-                      start=dict(zip(names, reduction.q_start.tolist())), notes=list(reduction.notes))
-    if drive and len(drive) != dof:
-        raise CaseError([f"mechanism.drive: got {len(drive)} driving joint variable(s) ({', '.join(drive)}); the "
-                         f"mechanism has {dof} degree(s) of freedom; expected exactly {dof}"])
-    linkage.definition = _definition(linkage)
-    return linkage
+    if not drive:
+        return start, [k for k in (initial.get("q") or {}) if k in names]
+    at_zero = {**tables.values, T: 0.0}
+    for key, expr in drive.items():
+        what = value_problem(expr, at_zero)
+        if what is not None:
+            problems.append(f"mechanism.drive.{key}: got {drive_source[key]!r}; at t = 0 it is {what}; expected a "
+                            f"finite real value")
+        else:
+            start[key] = evaluate(expr, at_zero).real
+    return start, list(drive)
+
+
+def _inertia_problems(tables: Tables, plane: Plane | None) -> list[str]:
+    """The inertia rules that depend on the plane of motion (:func:`csim.linkage.inertia.check_inertia`)."""
+    return [problem for number, link in sorted(tables.links.items()) if number != 0
+            for problem in check_inertia(link.path, link.label, link.inertia, tables.values,
+                                         None if plane is None else plane.link_normals[number])]
+
+
+def _plural(count: int, word: str) -> str:
+    return f"{count} {word}{'' if count == 1 else 's'}"
+
+
+def _drive_count(drive: dict[str, sp.Expr], dof: int) -> list[str]:
+    """The problem of driving ``len(drive)`` joint variables of a mechanism with ``dof`` DOF."""
+    n = len(drive)
+    if n == dof:
+        return []
+    why = ("over-driven: the drives would contradict the constraints" if n > dof else
+           "under-driven: the drives leave the motion undetermined")
+    return [f"mechanism.drive: {_plural(n, 'drive')} for {_plural(dof, 'degree')} of freedom "
+            f"({', '.join(drive)} driven); expected exactly {dof} driven joint variable(s) ({why})"]
+
+
+def _held_count(held: list[str], dof: int) -> list[str]:
+    """The problem of holding more coordinates (``initial.q``) than the mechanism has DOF;
+    fewer are reported by the case's own check of ``initial.q``."""
+    if len(held) <= dof:
+        return []
+    return [f"initial.q: {_plural(len(held), 'coordinate')} for {_plural(dof, 'degree')} of freedom "
+            f"({', '.join(held)}); expected exactly {dof} independent coordinate(s)"]
 
 
 def _definition(linkage: Linkage) -> MechanismDefinition:
@@ -349,7 +382,7 @@ def _partition(linkage: Linkage) -> tuple[list[str], list[str]]:
     import scipy.linalg
 
     tables = linkage.tables
-    subs = {tables.symbols[k]: v for k, v in tables.parameters.items()}
+    subs = tables.values
     subs.update({v.symbol: linkage.start[v.name] for v in linkage.topology.variables})
     J = np.array(sp.Matrix([e.expression for e in kept]).jacobian([v.symbol for v in linkage.topology.variables])
                  .subs(subs).evalf(), dtype=float)

@@ -3,114 +3,36 @@
 A mechanism is given under ``mechanism`` in a case file by
 
 - ``links``: one row per link, the fixed link 0 included. Each row lists the link's joint
-  frames, joint k (1-based) given by its type letter (R, P, C, U, S) and
+  frames, joint k (1-based) given by its type letter (R, P, C, U, S: the registered
+  :data:`csim.linkage.joints.JOINT_TYPES`) and
   p = [x, y, z, phi, theta, psi]: the origin in the link frame [m] and the z-x'-z'' Euler
   angles [rad] that turn the link frame into the joint frame. Optional: a link ``name``,
   a ``point`` name per joint frame, and the mass properties ``mass`` [kg], ``com`` [m]
   (centre of mass in the link frame) and ``inertia`` [kg m^2] (about the centre of mass,
-  link axes).
+  link axes), checked as :mod:`csim.linkage.inertia` says. Links are numbered 0, 1, 2, ...
+  without gaps.
 - ``couplings``: one row per joint of the mechanism, ``[i, k, j, m]``: joint k of link i
   coupled with joint m of link j (links by number or name, joints by number or point
   name), optionally as ``{name: NAME, couple: [i, k, j, m]}``.
 
 Numbers may be written as expressions of the named ``parameters`` (``l1``, ``xB/2``,
-``90*deg``, ``pi/2``). Every problem is reported at once, naming the table row
-(``mechanism.couplings[7] (coupling 8)``), the value found and what was expected.
+``90*deg``, ``pi/2``; :mod:`csim.linkage.expressions`), finite and real at the parameter
+values. Every problem is reported at once, naming the table row
+(``mechanism.couplings[7] (coupling 8)``), the value found and what was expected; a row that
+is wrong is reported once, not again by every coupling that names its link.
 """
 from __future__ import annotations
 
-import keyword
 import math
-import re
 from dataclasses import dataclass, field
 from typing import Any
 
 import sympy as sp
-from sympy.parsing.sympy_parser import parse_expr
 
+from csim.linkage.expressions import RESERVED, Scope, valid_name
+from csim.linkage.inertia import parse_mass_properties
+from csim.linkage.joints import JOINT_TYPES
 from csim.schema import describe
-
-#: Joint type letter -> number of joint variables (degrees of freedom of the joint).
-JOINT_FREEDOMS: dict[str, int] = {"R": 1, "P": 1, "C": 2, "U": 2, "S": 3}
-
-#: Functions and constants an expression may use besides the parameters.
-FUNCTIONS: dict[str, Any] = {
-    "sin": sp.sin, "cos": sp.cos, "tan": sp.tan, "asin": sp.asin, "acos": sp.acos, "atan": sp.atan,
-    "atan2": sp.atan2, "sqrt": sp.sqrt, "exp": sp.exp, "pi": sp.pi, "deg": sp.pi / 180,
-}
-
-#: Names a parameter may not take: the generated code's arguments and locals, the time.
-RESERVED = {"q", "qd", "par", "out", "math", "np", "t", "float"} | set(FUNCTIONS)
-
-_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
-_IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
-_EXPRESSION_CHARS = re.compile(r"^[A-Za-z0-9_+\-*/().,^ \t]*$")
-_GLOBALS = {"Integer": sp.Integer, "Float": sp.Float, "Rational": sp.Rational, "Symbol": sp.Symbol,
-            "__builtins__": {}}
-
-
-def valid_name(name: Any) -> bool:
-    """A name usable as a symbol in generated code: an identifier, not reserved."""
-    return isinstance(name, str) and bool(_NAME.match(name)) and not keyword.iskeyword(name) \
-        and name not in RESERVED
-
-
-def parse_expression(path: str, value: Any, symbols: dict[str, sp.Symbol], problems: list[str]) -> sp.Expr | None:
-    """A number, or an expression string in ``symbols``, as an exact sympy expression.
-
-    Floats become rationals (0.1 -> 1/10), so that sums cancel exactly.
-
-    Parameters
-    ----------
-    path : str
-        Key path for messages.
-    value : int, float or str
-    symbols : dict name -> Symbol
-        The names the expression may use (besides :data:`FUNCTIONS`).
-    problems : list of str
-        Appended to, one line per problem.
-
-    Returns
-    -------
-    sympy expression, or None when the value is not valid.
-    """
-    allowed = ", ".join(sorted(symbols)) or "none"
-    if isinstance(value, bool) or not isinstance(value, (int, float, str)):
-        problems.append(f"{path}: got {describe(value)}; expected a number or an expression of the parameters "
-                        f"({allowed})")
-        return None
-    if isinstance(value, int):
-        return sp.Integer(value)
-    if isinstance(value, float):
-        if not math.isfinite(value):
-            problems.append(f"{path}: got {describe(value)}; expected a finite number")
-            return None
-        return sp.Rational(repr(value))
-    text = value.strip()
-    if "//" in text or "**" in text or re.search(r"\^[^()+\-*/]*\^", text):
-        problems.append(f"{path}: got {describe(value)}; expected + - * / and single powers ^ (no //, ** or "
-                        f"a^b^c)")
-        return None
-    if not text or not _EXPRESSION_CHARS.match(text):
-        problems.append(f"{path}: got {describe(value)}; expected an expression of numbers, the parameters "
-                        f"({allowed}), + - * / ^ ( ) and {', '.join(FUNCTIONS)}")
-        return None
-    unknown = [name for name in _IDENT.findall(re.sub(r"\d+\.?\d*[eE][-+]?\d+", "0", text))
-               if name not in symbols and name not in FUNCTIONS]
-    if unknown:
-        problems.append(f"{path}: got {describe(value)}; unknown name {unknown[0]!r}: expected a parameter "
-                        f"({allowed}) or one of {', '.join(FUNCTIONS)}")
-        return None
-    try:
-        expr = parse_expr(text.replace("^", "**"), local_dict={**FUNCTIONS, **symbols}, global_dict=dict(_GLOBALS))
-        expr = sp.nsimplify(sp.sympify(expr), rational=True)
-    except Exception as exc:
-        problems.append(f"{path}: got {describe(value)}; not a valid expression ({type(exc).__name__})")
-        return None
-    if not isinstance(expr, sp.Expr) or expr.has(sp.zoo, sp.oo, sp.nan, sp.I):
-        problems.append(f"{path}: got {describe(value)}; expected a finite real expression")
-        return None
-    return expr
 
 
 @dataclass(frozen=True)
@@ -207,7 +129,8 @@ class Coupling:
 
     @property
     def freedoms(self) -> int:
-        return JOINT_FREEDOMS[self.type]
+        """Number of joint variables of its type."""
+        return JOINT_TYPES[self.type].freedoms
 
 
 @dataclass
@@ -241,6 +164,11 @@ class Tables:
     def link_label(self, number: int) -> str:
         return self.links[number].label
 
+    @property
+    def values(self) -> dict[sp.Symbol, float]:
+        """Parameter values by symbol, for substitution."""
+        return {self.symbols[k]: v for k, v in self.parameters.items()}
+
 
 def _parameters(given: Any, problems: list[str]) -> tuple[dict[str, float], dict[str, sp.Symbol]]:
     values, symbols = {}, {}
@@ -263,22 +191,23 @@ def _parameters(given: Any, problems: list[str]) -> tuple[dict[str, float], dict
     return values, symbols
 
 
-def _p_vector(path: str, value: Any, symbols, problems) -> tuple | None:
+def _p_vector(path: str, value: Any, scope: Scope, problems: list[str]) -> tuple | None:
     if value is None or (isinstance(value, (int, float)) and not isinstance(value, bool) and value == 0):
         return (sp.Integer(0),) * 6
     if not isinstance(value, list) or len(value) not in (3, 6):
         problems.append(f"{path}: got {describe(value)}; expected 0 or a list [x, y, z] or "
                         f"[x, y, z, phi, theta, psi] (m, rad; z-x'-z'' Euler angles)")
         return None
-    entries = [parse_expression(f"{path}[{n}]", v, symbols, problems) for n, v in enumerate(value)]
+    entries = [scope.parse(f"{path}[{n}]", v, problems) for n, v in enumerate(value)]
     if any(e is None for e in entries):
         return None
     return tuple(entries) + (sp.Integer(0),) * (6 - len(entries))
 
 
-def _joint(path: str, link: int, index: int, entry: Any, symbols, problems) -> JointFrame | None:
+def _joint(path: str, link: int, index: int, entry: Any, scope: Scope, problems: list[str]) -> JointFrame | None:
     point = None
     p_raw: Any = 0
+    types = JOINT_TYPES.names()
     if isinstance(entry, str):
         kind = entry
     elif isinstance(entry, list) and 1 <= len(entry) <= 3:
@@ -291,63 +220,95 @@ def _joint(path: str, link: int, index: int, entry: Any, symbols, problems) -> J
             problems.append(f"{path}.{unknown[0]}: unknown key; valid keys here: type, p, point")
             return None
         if "type" not in entry:
-            problems.append(f"{path}.type: missing; expected one of {', '.join(JOINT_FREEDOMS)}")
+            problems.append(f"{path}.type: missing; expected one of {types}")
             return None
         kind, p_raw, point = entry["type"], entry.get("p", 0), entry.get("point")
     else:
-        problems.append(f"{path}: got {describe(entry)}; expected a joint type letter ({', '.join(JOINT_FREEDOMS)}), "
+        problems.append(f"{path}: got {describe(entry)}; expected a joint type letter ({types}), "
                         f"[TYPE, p] or [TYPE, p, POINT], or {{type, p, point}}")
         return None
-    if kind not in JOINT_FREEDOMS:
-        problems.append(f"{path}: joint type got {describe(kind)}; expected one of {', '.join(JOINT_FREEDOMS)}")
+    if not isinstance(kind, str) or kind not in JOINT_TYPES:
+        problems.append(f"{path}: joint type got {describe(kind)}; expected one of {types}")
         return None
     if point is not None and not valid_name(point):
         problems.append(f"{path}: point name got {describe(point)}; expected a name (letter, then letters, digits, _)")
         return None
-    p = _p_vector(f"{path}.p" if isinstance(entry, dict) else f"{path}[1]", p_raw, symbols, problems)
+    p = _p_vector(f"{path}.p" if isinstance(entry, dict) else f"{path}[1]", p_raw, scope, problems)
     if p is None:
         return None
     return JointFrame(link, index, kind, p, point, path)
 
 
-def _inertia(path: str, value: Any, symbols, problems) -> sp.Matrix | None:
-    if value is None:
-        return sp.zeros(3, 3)
-    if not isinstance(value, list):
-        j = parse_expression(path, value, symbols, problems)
-        return None if j is None else j * sp.eye(3)
-    if len(value) == 3 and all(not isinstance(v, list) for v in value):
-        diag = [parse_expression(f"{path}[{n}]", v, symbols, problems) for n, v in enumerate(value)]
-        return None if any(d is None for d in diag) else sp.diag(*diag)
-    if len(value) == 3 and all(isinstance(row, list) and len(row) == 3 for row in value):
-        rows = [[parse_expression(f"{path}[{a}][{b}]", v, symbols, problems) for b, v in enumerate(row)]
-                for a, row in enumerate(value)]
-        if any(e is None for row in rows for e in row):
-            return None
-        matrix = sp.Matrix(rows)
-        if matrix != matrix.T:
-            problems.append(f"{path}: got {describe(value)}; expected a symmetric 3x3 inertia tensor")
-            return None
-        return matrix
-    problems.append(f"{path}: got {describe(value)}; expected a number J (J on every axis), [Ixx, Iyy, Izz] or a "
-                    f"symmetric 3x3 list [kg m^2]")
-    return None
+def _joint_frames(path: str, number: int, joints_raw: Any, scope: Scope, problems: list[str]) -> list[JointFrame]:
+    """The joint frames of a link row; empty when any is wrong (reported)."""
+    if not isinstance(joints_raw, list) or not joints_raw:
+        problems.append(f"{path}.joints: got {describe(joints_raw)}; expected a list of joint frames, "
+                        f"e.g. [R, [R, [l1, 0, 0]]]")
+        return []
+    joints: list[JointFrame] = []
+    points = set()
+    for k, entry in enumerate(joints_raw):
+        frame = _joint(f"{path}.joints[{k}]", number, k + 1, entry, scope, problems)
+        if frame is None:
+            continue
+        if frame.point is not None:
+            if frame.point in points:
+                problems.append(f"{path}.joints[{k}]: point name {frame.point!r} used twice on this link")
+            points.add(frame.point)
+        joints.append(frame)
+    return joints if len(joints) == len(joints_raw) else []
 
 
 LINK_KEYS = ("link", "name", "joints", "mass", "com", "inertia")
 
 
-def _links(rows: Any, symbols, problems) -> dict[int, Link]:
-    links: dict[int, Link] = {}
+@dataclass
+class LinkRows:
+    """What the links table gave.
+
+    Attributes
+    ----------
+    links : dict number -> Link
+        The valid rows.
+    failed : set of int and str
+        Numbers and names of the rows that exist but are wrong (reported once; the
+        couplings that name them are not checked further).
+    numbered : bool
+        Whether every row had a usable link number (so that gaps can be told).
+    """
+
+    links: dict[int, Link] = field(default_factory=dict)
+    failed: set = field(default_factory=set)
+    numbered: bool = True
+
+
+def _link_name(path: str, row: dict, names: dict[str, str], problems: list[str]) -> str | None:
+    name = row.get("name")
+    if name is None:
+        return None
+    if not valid_name(name):
+        problems.append(f"{path}.name: got {describe(name)}; expected a name (letter, then letters, digits, _)")
+        return None
+    if name in names:
+        problems.append(f"{path}.name: got {name!r}; already the name of {names[name]}; expected unique names")
+        return None
+    names[name] = path
+    return name
+
+
+def _links(rows: Any, scope: Scope, problems: list[str]) -> LinkRows:
+    out = LinkRows()
     if not isinstance(rows, list) or not rows:
         problems.append(f"mechanism.links: got {describe(rows)}; expected a list of link rows, "
                         f"e.g. - {{link: 0, joints: [R, [R, [l1, 0, 0]]]}}")
-        return links
+        out.numbered = False
+        return out
     names: dict[str, str] = {}
     for n, row in enumerate(rows):
         path = f"mechanism.links[{n}]"
         if not isinstance(row, dict):
             problems.append(f"{path}: got {describe(row)}; expected a mapping with keys {', '.join(LINK_KEYS)}")
+            out.numbered = False
             continue
         for key in row:
             if key not in LINK_KEYS:
@@ -355,51 +316,39 @@ def _links(rows: Any, symbols, problems) -> dict[int, Link]:
         number = row.get("link", n)
         if isinstance(number, bool) or not isinstance(number, int) or number < 0:
             problems.append(f"{path}.link: got {describe(number)}; expected a link number (integer >= 0)")
+            out.numbered = False
             continue
-        if number in links:
-            problems.append(f"{path}.link: got {number}; link {number} is already defined by {links[number].path}; "
+        if number in out.links or number in out.failed:
+            first = out.links[number].path if number in out.links else "an earlier row"
+            problems.append(f"{path}.link: got {number}; link {number} is already defined by {first}; "
                             f"expected each link number once")
             continue
-        name = row.get("name")
-        if name is not None:
-            if not valid_name(name):
-                problems.append(f"{path}.name: got {describe(name)}; expected a name (letter, then letters, digits, _)")
-                name = None
-            elif name in names:
-                problems.append(f"{path}.name: got {name!r}; already the name of {names[name]}; expected unique names")
-                name = None
-            else:
-                names[name] = path
-        joints_raw = row.get("joints")
-        joints: list[JointFrame] = []
-        if not isinstance(joints_raw, list) or not joints_raw:
-            problems.append(f"{path}.joints: got {describe(joints_raw)}; expected a list of joint frames, "
-                            f"e.g. [R, [R, [l1, 0, 0]]]")
-        else:
-            points = set()
-            for k, entry in enumerate(joints_raw):
-                frame = _joint(f"{path}.joints[{k}]", number, k + 1, entry, symbols, problems)
-                if frame is None:
-                    continue
-                if frame.point is not None:
-                    if frame.point in points:
-                        problems.append(f"{path}.joints[{k}]: point name {frame.point!r} used twice on this link")
-                    points.add(frame.point)
-                joints.append(frame)
-            if len(joints) != len(joints_raw):
-                joints = []  # reported; the mass properties are still checked
-        mass = parse_expression(f"{path}.mass", row.get("mass", 0), symbols, problems)
-        com_raw = row.get("com", [0, 0, 0])
-        com = None
-        if not isinstance(com_raw, list) or len(com_raw) != 3:
-            problems.append(f"{path}.com: got {describe(com_raw)}; expected [x, y, z] in the link frame [m]")
-        else:
-            com = tuple(parse_expression(f"{path}.com[{a}]", v, symbols, problems) for a, v in enumerate(com_raw))
-        inertia = _inertia(f"{path}.inertia", row.get("inertia"), symbols, problems)
-        if mass is None or com is None or any(c is None for c in com) or inertia is None or not joints:
+        name = _link_name(path, row, names, problems)
+        if name is None and isinstance(row.get("name"), str):
+            out.failed.add(row["name"])  # reported; the couplings that use the name are not
+        start = len(problems)
+        joints = _joint_frames(path, number, row.get("joints"), scope, problems)
+        props = parse_mass_properties(path, row, scope, problems)  # checked even when the joints are wrong
+        if len(problems) > start or props is None or not joints:
+            out.failed |= {number, name} - {None}
             continue
-        links[number] = Link(number, name, joints, mass, com, inertia, path)
-    return links
+        out.links[number] = Link(number, name, joints, props.mass, props.com, props.inertia, path)
+    return out
+
+
+def _numbering(rows: LinkRows, problems: list[str]) -> None:
+    """Link 0 and no gaps in the numbers (judged when every row had a usable number)."""
+    numbers = set(rows.links) | {x for x in rows.failed if isinstance(x, int)}
+    if not rows.numbered or not numbers:
+        return
+    if 0 not in numbers:
+        problems.append("mechanism.links: no link 0; expected the fixed link (the frame of reference) numbered 0")
+    missing = sorted(set(range(1, max(numbers))) - numbers)
+    if missing:
+        given = ", ".join(map(str, sorted(numbers)))
+        which = f"link {missing[0]} is" if len(missing) == 1 else f"links {', '.join(map(str, missing))} are"
+        problems.append(f"mechanism.links: {which} missing (links given: {given}); expected the links numbered "
+                        f"0 to {max(numbers)} without gaps")
 
 
 def _resolve_link(value, links, by_name):
@@ -418,55 +367,73 @@ def _resolve_joint(value, link: Link):
     return None
 
 
-def _couplings(rows: Any, links: dict[int, Link], problems: list[str]) -> list[Coupling]:
+def _coupling_name(path: str, row: Any, names: dict[str, str], problems: list[str]) -> tuple[bool, Any, Any]:
+    """(ok, name, spec) of a coupling row, the index form or ``{name, couple}``."""
+    if not isinstance(row, dict):
+        return True, None, row
+    unknown = [k for k in row if k not in ("name", "couple")]
+    if unknown:
+        problems.append(f"{path}.{unknown[0]}: unknown key; valid keys here: name, couple")
+        return False, None, None
+    name, spec = row.get("name"), row.get("couple")
+    if name is not None and (not valid_name(name) or name in names):
+        why = f"already the name of {names[name]}" if name in names else "not a usable name"
+        problems.append(f"{path}.name: got {describe(name)}; {why}; expected a unique name (letter, then "
+                        f"letters, digits, _)")
+        return False, None, None
+    if name is not None:
+        names[name] = path
+    return True, name, spec
+
+
+def _coupling_ends(path: str, spec: list, rows: LinkRows, by_name: dict, problems: list[str]) -> list | None:
+    """The two (link, joint) ends of a coupling; None when one is wrong (reported, unless
+    it names a link whose row was wrong and is reported already)."""
+    links = rows.links
+    ends = []
+    for link_raw, joint_raw in ((spec[0], spec[1]), (spec[2], spec[3])):
+        number = _resolve_link(link_raw, links, by_name)
+        if number is None:
+            if isinstance(link_raw, (int, str)) and not isinstance(link_raw, bool) and link_raw in rows.failed:
+                return None
+            known = ", ".join(str(x) for x in sorted(links)) + (
+                f" or a name ({', '.join(sorted(by_name))})" if by_name else "")
+            problems.append(f"{path}: link {describe(link_raw)} is not defined in mechanism.links; expected "
+                            f"one of {known}")
+            return None
+        link = links[number]
+        index = _resolve_joint(joint_raw, link)
+        if index is None:
+            pts = [f.point for f in link.joints if f.point]
+            extra = f" or a point name ({', '.join(pts)})" if pts else ""
+            problems.append(f"{path}: {link.label} has no joint {describe(joint_raw)}; expected a joint number "
+                            f"1..{len(link.joints)}{extra} (see {link.path}.joints)")
+            return None
+        ends.append((number, index))
+    return ends
+
+
+def _couplings(table: Any, rows: LinkRows, problems: list[str]) -> list[Coupling]:
     out: list[Coupling] = []
-    if not isinstance(rows, list) or not rows:
-        problems.append(f"mechanism.couplings: got {describe(rows)}; expected a list of rows [i, k, j, m] "
+    if not isinstance(table, list) or not table:
+        problems.append(f"mechanism.couplings: got {describe(table)}; expected a list of rows [i, k, j, m] "
                         f"(joint k of link i coupled with joint m of link j)")
         return out
+    links = rows.links
     by_name = {link.name: number for number, link in links.items() if link.name}
     used: dict[tuple[int, int], str] = {}
     names: dict[str, str] = {}
-    for n, row in enumerate(rows):
+    for n, row in enumerate(table):
         path = f"mechanism.couplings[{n}] (coupling {n + 1})"
-        name = None
-        spec = row
-        if isinstance(row, dict):
-            unknown = [k for k in row if k not in ("name", "couple")]
-            if unknown:
-                problems.append(f"{path}.{unknown[0]}: unknown key; valid keys here: name, couple")
-                continue
-            name, spec = row.get("name"), row.get("couple")
-            if name is not None and (not valid_name(name) or name in names):
-                why = f"already the name of {names[name]}" if name in names else "not a usable name"
-                problems.append(f"{path}.name: got {describe(name)}; {why}; expected a unique name (letter, then "
-                                f"letters, digits, _)")
-                continue
-            if name is not None:
-                names[name] = path
+        ok, name, spec = _coupling_name(path, row, names, problems)
+        if not ok:
+            continue
         if not isinstance(spec, list) or len(spec) != 4:
             problems.append(f"{path}: got {describe(spec)}; expected [i, k, j, m] (link i, its joint k; link j, its "
                             f"joint m) or {{name: NAME, couple: [i, k, j, m]}}")
             continue
-        ends = []
-        for link_raw, joint_raw in ((spec[0], spec[1]), (spec[2], spec[3])):
-            number = _resolve_link(link_raw, links, by_name)
-            if number is None:
-                known = ", ".join(str(x) for x in sorted(links)) + (
-                    f" or a name ({', '.join(sorted(by_name))})" if by_name else "")
-                problems.append(f"{path}: link {describe(link_raw)} is not defined in mechanism.links; expected "
-                                f"one of {known}")
-                break
-            link = links[number]
-            index = _resolve_joint(joint_raw, link)
-            if index is None:
-                pts = [f.point for f in link.joints if f.point]
-                extra = f" or a point name ({', '.join(pts)})" if pts else ""
-                problems.append(f"{path}: {link.label} has no joint {describe(joint_raw)}; expected a joint number "
-                                f"1..{len(link.joints)}{extra} (see {link.path}.joints)")
-                break
-            ends.append((number, index))
-        if len(ends) != 2:
+        ends = _coupling_ends(path, spec, rows, by_name, problems)
+        if ends is None:
             continue
         (i, k), (j, m) = ends
         if i == j:
@@ -507,10 +474,10 @@ def parse_tables(mechanism: dict, problems: list[str]) -> Tables | None:
     """
     start = len(problems)
     values, symbols = _parameters(mechanism.get("parameters"), problems)
-    links = _links(mechanism.get("links"), symbols, problems)
-    if links and 0 not in links and len(problems) == start:
-        problems.append("mechanism.links: no link 0; expected the fixed link (the frame of reference) numbered 0")
-    couplings = _couplings(mechanism.get("couplings"), links, problems) if links else []
+    scope = Scope(symbols, {symbols[k]: v for k, v in values.items()})
+    rows = _links(mechanism.get("links"), scope, problems)
+    _numbering(rows, problems)
+    couplings = _couplings(mechanism.get("couplings"), rows, problems) if rows.links else []
     gravity_raw = mechanism.get("gravity")
     gravity = (sp.Integer(0),) * 3
     if gravity_raw is not None:
@@ -518,8 +485,7 @@ def parse_tables(mechanism: dict, problems: list[str]) -> Tables | None:
             problems.append(f"mechanism.gravity: got {describe(gravity_raw)}; expected [gx, gy, gz] in the fixed "
                             f"frame [m/s^2], e.g. [0, -9.81, 0]")
         else:
-            gravity = tuple(parse_expression(f"mechanism.gravity[{a}]", v, symbols, problems)
-                            for a, v in enumerate(gravity_raw))
+            gravity = tuple(scope.parse(f"mechanism.gravity[{a}]", v, problems) for a, v in enumerate(gravity_raw))
     drive = mechanism.get("drive") or {}
     if not isinstance(drive, dict):
         problems.append(f"mechanism.drive: got {describe(drive)}; expected a mapping joint: value or expression of t")
@@ -529,5 +495,5 @@ def parse_tables(mechanism: dict, problems: list[str]) -> Tables | None:
         problems.append(f"mechanism.label: got {describe(label)}; expected a name (letter, then letters, digits, _)")
     if len(problems) > start:
         return None
-    return Tables(links=links, couplings=couplings, parameters=values, symbols=symbols, gravity=gravity,
+    return Tables(links=rows.links, couplings=couplings, parameters=values, symbols=symbols, gravity=gravity,
                   drive=drive, label=label)

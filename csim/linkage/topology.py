@@ -2,8 +2,9 @@
 
 The links are the nodes and the couplings the edges of a graph. A spanning tree rooted at
 the fixed link 0 is grown edge by edge (Kruskal), taking the couplings in this order:
-driven joints first (they need joint variables), then R and P, then C, U and S joints
-(the ones the paper prefers to cut), each group in table order. A coupling that would
+driven joints first (they need joint variables), then by the cut preference of their type
+(:data:`csim.linkage.joints.JOINT_TYPES`: R and P, then C, U and S, the ones the paper
+prefers to cut), each group in table order. A coupling that would
 close a loop is cut: it gets no joint variable, it contributes constraint equations.
 
 The tree is split into chains (the paper's substructures): each chain starts at the root or
@@ -19,22 +20,8 @@ from dataclasses import dataclass
 import sympy as sp
 
 from csim.errors import CaseError
-from csim.linkage.tables import JOINT_FREEDOMS, Coupling, Tables
-
-#: Preference for cutting: higher is cut first (the paper cuts U, S and C joints).
-CUT_PREFERENCE = {"R": 0, "P": 0, "C": 1, "U": 2, "S": 3}
-
-#: Units of each joint type's variables.
-VARIABLE_UNITS = {"R": ["rad"], "P": ["m"], "C": ["rad", "m"], "U": ["rad", "rad"], "S": ["rad", "rad", "rad"]}
-
-#: What each variable of a joint type measures.
-VARIABLE_MEANINGS = {
-    "R": ["rotation about z_ik"],
-    "P": ["translation along z_ik"],
-    "C": ["rotation about z_ik", "translation along z_ik"],
-    "U": ["rotation about z_ik", "rotation about z_jm"],
-    "S": ["Euler angle about z_ik", "Euler angle about x'", "Euler angle about z_jm"],
-}
+from csim.linkage.joints import JOINT_TYPES
+from csim.linkage.tables import Coupling, Tables
 
 
 @dataclass(frozen=True)
@@ -105,18 +92,44 @@ class Topology:
 
 
 def _variable_names(coupling: Coupling, counter: int) -> list[str]:
-    """Readable names: q<n> (paper numbering) for unnamed joints; from the name otherwise."""
-    n = coupling.freedoms
+    """Readable names: q<n> (paper numbering) for unnamed joints; from the name and the
+    type's templates otherwise (q_J, s_J, q_J_1, ...)."""
     if coupling.name is None:
-        return [f"q{counter + s}" for s in range(n)]
-    base = coupling.name
-    if coupling.type == "R":
-        return [f"q_{base}"]
-    if coupling.type == "P":
-        return [f"s_{base}"]
-    if coupling.type == "C":
-        return [f"q_{base}", f"s_{base}"]
-    return [f"q_{base}_{s + 1}" for s in range(n)]
+        return [f"q{counter + s}" for s in range(coupling.freedoms)]
+    return JOINT_TYPES[coupling.type].variable_names(coupling.name)
+
+
+def _joint_variables(tables: Tables, chains: list[list[int]], edges: dict[int, TreeEdge]) -> list[JointVariable]:
+    """The joint variables of the tree joints, numbered along the chains; their units and
+    meanings from the joint types' records.
+
+    Raises
+    ------
+    CaseError
+        A variable (or its velocity NAME_dot) has the name of a parameter or of another variable.
+    """
+    variables: list[JointVariable] = []
+    taken = set(tables.symbols)
+    problems = []
+    for chain in chains:
+        for child in chain[1:]:
+            c = edges[child].coupling
+            names = _variable_names(c, len(variables) + 1)
+            for slot, name in enumerate(names):
+                # the variable and its velocity NAME_dot become symbols: neither may be a parameter's
+                clash = {name, f"{name}_dot"} & taken
+                if clash:
+                    problems.append(f"{c.path}: its joint variable {name!r} (velocity {name + '_dot'!r}) has the "
+                                    f"name of a parameter or of another joint variable ({', '.join(sorted(clash))}); "
+                                    f"expected the coupling name or the parameter renamed")
+                    continue
+                taken |= {name, f"{name}_dot"}
+                spec = JOINT_TYPES[c.type].variables[slot]
+                variables.append(JointVariable(sp.Symbol(name, real=True), sp.Symbol(f"{name}_dot", real=True), c,
+                                               slot, spec.unit, spec.meaning))
+    if problems:
+        raise CaseError(problems)
+    return variables
 
 
 def analyse(tables: Tables, driven: set[int]) -> Topology:
@@ -144,7 +157,7 @@ def analyse(tables: Tables, driven: set[int]) -> Topology:
         return n
 
     ranked = sorted(tables.couplings,
-                    key=lambda c: (0 if c.number in driven else 1, CUT_PREFERENCE[c.type], c.number))
+                    key=lambda c: (0 if c.number in driven else 1, JOINT_TYPES[c.type].cut_preference, c.number))
     tree, cut = [], []
     for c in ranked:
         a, b = find(c.i), find(c.j)
@@ -197,26 +210,7 @@ def analyse(tables: Tables, driven: set[int]) -> Topology:
     for child, _ in children[0]:
         emit(0, child)
 
-    variables: list[JointVariable] = []
-    taken = set(tables.symbols)
-    problems = []
-    for chain in chains:
-        for child in chain[1:]:
-            c = edges[child].coupling
-            names = _variable_names(c, len(variables) + 1)
-            for slot, name in enumerate(names):
-                # the variable and its velocity NAME_dot become symbols: neither may be a parameter's
-                clash = {name, f"{name}_dot"} & taken
-                if clash:
-                    problems.append(f"{c.path}: its joint variable {name!r} (velocity {name + '_dot'!r}) has the "
-                                    f"name of a parameter or of another joint variable ({', '.join(sorted(clash))}); "
-                                    f"expected the coupling name or the parameter renamed")
-                    continue
-                taken |= {name, f"{name}_dot"}
-                variables.append(JointVariable(sp.Symbol(name, real=True), sp.Symbol(f"{name}_dot", real=True), c,
-                                               slot, VARIABLE_UNITS[c.type][slot], VARIABLE_MEANINGS[c.type][slot]))
-    if problems:
-        raise CaseError(problems)
+    variables = _joint_variables(tables, chains, edges)
     return Topology(edges=edges, order=order, chains=chains, tree_joints=tree, cut_joints=cut, variables=variables)
 
 
@@ -227,4 +221,4 @@ def grubler_kutzbach(tables: Tables, planar: bool) -> int:
     """
     lam = 3 if planar else 6
     n = len(tables.links)
-    return lam * (n - 1) - sum(lam - JOINT_FREEDOMS[c.type] for c in tables.couplings)
+    return lam * (n - 1) - sum(lam - c.freedoms for c in tables.couplings)

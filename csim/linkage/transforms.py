@@ -5,8 +5,8 @@ cosines) of the moved frame in the reference frame, r (3,) its origin [m].
 
 - A joint frame on its link: T_ik^(i) = Trans(x, y, z) Rz(phi) Rx(theta) Rz(psi), from
   p = [x, y, z, phi, theta, psi] (z-x'-z'' Euler angles).
-- A joint, frame jm relative to frame ik (the brief's table):
-  R: Rz(q); P: Tz(q); C: Rz(q1) Tz(q2); U: Rz(q1) Rx(-pi/2) Rz(q2); S: Rz(q1) Rx(q2) Rz(q3).
+- A joint, frame jm relative to frame ik: the transform of its type's record in
+  :data:`csim.linkage.joints.JOINT_TYPES` (R: Rz(q); P: Tz(q); ...).
 - Link j relative to link i across a coupling: T_j^(i) = T_ik^(i) T_jm^(ik) (T_jm^(j))^-1.
 """
 from __future__ import annotations
@@ -57,28 +57,28 @@ def frame_transform(p) -> sp.Matrix:
 def joint_transform(kind: str, q: list[sp.Expr]) -> sp.Matrix:
     """T_jm^(ik): frame jm relative to frame ik for joint type ``kind`` and variables ``q``.
 
+    The transform of each type is in its record of :data:`csim.linkage.joints.JOINT_TYPES`.
+
     Parameters
     ----------
-    kind : {"R", "P", "C", "U", "S"}
+    kind : str
+        A registered joint type (``"R"``, ``"P"``, ``"C"``, ``"U"``, ``"S"``).
     q : list of sympy expressions
-        1 (R: angle [rad]; P: translation [m]), 2 (C: angle, translation; U: two angles)
-        or 3 (S: z-x'-z'' angles) joint variables.
+        Its joint variables, as many as the type has (R: angle [rad]; P: translation [m];
+        C: angle, translation; U: two angles; S: z-x'-z'' angles).
 
     Returns
     -------
     sympy Matrix (4, 4)
+
+    Raises
+    ------
+    UnknownJointType
+        ``kind`` is not registered (the message lists the registered types).
     """
-    if kind == "R":
-        return rot_z(q[0])
-    if kind == "P":
-        return translation(0, 0, q[0])
-    if kind == "C":
-        return rot_z(q[0]) * translation(0, 0, q[1])
-    if kind == "U":
-        return simplify_matrix(rot_z(q[0]) * rot_x(-sp.pi / 2) * rot_z(q[1]))
-    if kind == "S":
-        return euler_zxz(q[0], q[1], q[2])
-    raise ValueError(f"unknown joint type {kind!r}")
+    from csim.linkage.joints import JOINT_TYPES  # the registry builds its transforms from this module
+
+    return JOINT_TYPES[kind].transform(q)
 
 
 def inverse(T: sp.Matrix) -> sp.Matrix:
