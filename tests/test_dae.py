@@ -343,3 +343,53 @@ def test_moving_start_at_tight_tolerances_with_the_difference_jacobian(tol):
         s.step()
     assert s.status == "finished"
     assert abs((s.y[:2] @ s.y[:2] - 1) / 2) < 1e-10
+
+
+# --- a coordinate that starts at 0 ---------------------------------------------------------
+
+PIVOT = np.array([0.3, 0.2])  # pivot of an offset pendulum: x = 0 is not a special point of it
+
+
+def offset_pendulum(t, s):
+    """The GGL pendulum of :func:`pendulum` hanging from PIVOT instead of the origin."""
+    x, y, vx, vy, mu, lam = s
+    X, Y = x - PIVOT[0], y - PIVOT[1]
+    return np.array([vx - X * mu, vy - Y * mu, -X * lam, -Y * lam - G, 0.5 * (X * X + Y * Y - 1.0),
+                     X * vx + Y * vy])
+
+
+def offset_pendulum_jac(t, s):
+    x, y, vx, vy, mu, lam = s
+    X, Y = x - PIVOT[0], y - PIVOT[1]
+    return np.array([[-mu, 0, 1, 0, -X, 0], [0, -mu, 0, 1, -Y, 0], [-lam, 0, 0, 0, 0, -X],
+                     [0, -lam, 0, 0, 0, -Y], [X, Y, 0, 0, 0, 0], [vx, vy, X, Y, 0, 0]], dtype=float)
+
+
+@pytest.mark.parametrize("tol", [1e-10, 1e-12])
+def test_a_coordinate_at_zero_gets_an_accurate_jacobian_column(tol):
+    # x starts at exactly 0 and is added to the pivot's -0.3: a difference step of
+    # sqrt(eps) atol (1.5e-22 at atol = 1e-12) vanished in x - 0.3, the column came out as
+    # round-off, and the first step failed ("iteration diverged") at every step size
+    X, Y, w = -PIVOT[0], -np.sqrt(1 - PIVOT[0] ** 2), 2.0
+    vx, vy = -Y * w, X * w  # tangential, |v| = w
+    lam = vx * vx + vy * vy - G * Y  # d/dt (Phi_q v) = v.v - lam |q - pivot|^2 - g Y = 0
+    s = RadauDAE(offset_pendulum, 0.0, np.array([0.0, Y + PIVOT[1], vx, vy, 0.0, lam]), 1.0, DIFF, rtol=tol,
+                 atol=tol)
+    J, J_exact = s.jac(0.0, s.y, s.f), offset_pendulum_jac(0.0, s.y)
+    np.testing.assert_allclose(J, J_exact, rtol=0, atol=1e-3 * np.abs(J_exact).max())  # measured 4e-4 / 15
+    ts, ys, msg = run(s)
+    assert s.status == "finished", msg
+    X_end, Y_end = ys[-1, 0] - PIVOT[0], ys[-1, 1] - PIVOT[1]
+    assert abs((X_end**2 + Y_end**2 - 1) / 2) < 1e-12
+    # the energy of the swing is kept: 1/2 |v|^2 + g y
+    energy = 0.5 * (ys[:, 2] ** 2 + ys[:, 3] ** 2) + G * ys[:, 1]
+    assert np.max(np.abs(energy - energy[0])) < 1e3 * tol
+
+
+def test_a_variable_f_does_not_depend_on_keeps_a_finite_difference_step():
+    # z enters no row: num_jac multiplied its step by 10 at every Jacobian (inf after ~300)
+    s = RadauDAE(lambda t, y: np.array([-y[0], 0.0 * y[1]]), 0.0, [1.0, 0.0], 1.0, np.array([True, True]),
+                 rtol=1e-6, atol=1e-6)
+    for _ in range(400):
+        s.jac(s.t, s.y, s.f)
+    assert np.all(np.isfinite(s.jac_factor)) and s.jac_factor.max() <= 0.1

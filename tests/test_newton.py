@@ -60,3 +60,39 @@ def test_stops_at_the_round_off_of_large_coordinates():
     # below |q| = 1 the floor is 8 eps = 1.8e-15
     assert at_round_off(np.array([1e-15]), np.array([0.5, 0.1]))
     assert not at_round_off(np.array([1e-14]), np.array([0.5, 0.1]))
+
+
+def test_the_branch_prediction_is_the_circles_taylor_polynomial(pendulum):
+    # y(x) = -sqrt(L^2 - x^2) on the lower branch, L = 2: y' = -x / y, y'' = -L^2 / y^3
+    from csim.solver.newton import BranchPoint
+
+    model, par = pendulum
+    x0 = 1.2
+    y0 = -np.sqrt(4.0 - x0**2)
+    q0 = np.array([x0, y0])
+    point = BranchPoint.at(q0, model.phi_q(q0, par), np.array([0]), np.array([1]))
+    assert point.tangent[0, 0] == pytest.approx(-x0 / y0, rel=1e-14)
+    for dx in (1e-2, 1e-1):
+        predicted, du, dv = point.predict(model, par, np.array([x0 + dx]), np.array([0]), np.array([1]))
+        taylor = y0 - x0 / y0 * dx - 0.5 * 4.0 / y0**3 * dx**2
+        assert predicted[1] == pytest.approx(taylor, abs=1e-14)
+        assert du[0] == pytest.approx(dx, abs=1e-15) and dv[0] == pytest.approx(-x0 / y0 * dx, rel=1e-12)
+    # third-order remainder: 100 times smaller for a step 10 times shorter (at most 1000)
+    errors = [abs(point.predict(model, par, np.array([x0 + dx]), np.array([0]), np.array([1]))[0][1]
+                  + np.sqrt(4.0 - (x0 + dx) ** 2)) for dx in (1e-1, 1e-2)]
+    assert 500 < errors[0] / errors[1] < 2000
+
+
+def test_following_the_circle_past_the_prediction_keeps_its_lower_half(pendulum):
+    from csim.solver.newton import BranchPoint, follow_branch
+
+    model, par = pendulum
+    q0 = np.array([-1.9, -np.sqrt(4.0 - 1.9**2)])
+    point = BranchPoint.at(q0, model.phi_q(q0, par), np.array([0]), np.array([1]))
+    # 3.8 m along x, from one side of the circle to the other, in pieces
+    solution, end = follow_branch(model, par, point, np.array([1.9]), np.array([0]), np.array([1]), 1e-14, 20)
+    assert solution.q[1] == pytest.approx(-np.sqrt(4.0 - 1.9**2), abs=1e-13)
+    assert end.tangent[0, 0] == pytest.approx(-1.9 / solution.q[1], rel=1e-12)
+    # beyond |x| = L there is no assembly: the continuation says so, it does not jump
+    with pytest.raises(DependentSolveError):
+        follow_branch(model, par, point, np.array([2.5]), np.array([0]), np.array([1]), 1e-14, 20)

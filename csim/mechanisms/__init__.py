@@ -16,6 +16,7 @@ from csim.model.light import LightDefinition, light_definition
 MODULES: dict[str, str] = {
     "quick_return": "csim.mechanisms.quick_return",
     "pendulum": "csim.mechanisms.pendulum",
+    "andrews": "csim.mechanisms.andrews",
 }
 
 

@@ -32,8 +32,9 @@ below it. For the GGL form this keeps |Phi(q)| and |Phi_q v| at round-off level 
 step without any projection.
 
 With every row differential (``D = I``) the algorithm is exactly scipy's Radau, step for
-step (up to rounding; the only visible difference is that ``nfev`` here also counts the
-evaluations of the finite-difference Jacobian).
+step (up to rounding; the visible differences are that ``nfev`` here also counts the
+evaluations of the finite-difference Jacobian, and that its difference step is not scaled
+down with atol below sqrt(eps) 1e-5, see ``JAC_DIFFERENTIAL_THRESHOLD``).
 
 The Butcher constants, the transformation matrices and the dense-output coefficients are
 copied from scipy (``scipy/integrate/_ivp/radau.py``, BSD-3-Clause, Copyright (c) 2001-2002
@@ -90,6 +91,19 @@ MAX_SINGULAR = 5  # singular iteration matrices in a row (within one step) befor
 # a difference step of sqrt(eps) atol would fall below the resolution of F: a zero Jacobian
 # column makes MU/h D - J singular for every h (RADAU5 floors |y| at 1e-5 for the same reason).
 JAC_ALGEBRAIC_THRESHOLD = 1e-3
+# Smallest finite-difference threshold of a differential variable. scipy's Radau uses atol, so
+# that a coordinate at 0 (an angle that starts at 0, a velocity at rest) is perturbed by
+# sqrt(eps) atol: with atol = 1e-9 that is 1.5e-17, below the round-off of F (eps |F|) and
+# lost entirely where the coordinate is added to others (sin(beta + Theta) with Theta = 0).
+# The column then holds round-off divided by the step (an error of 2e5 in entries of 3e6 on
+# Andrews' mechanism), the simplified Newton iteration contracts at a rate of about 0.15 to
+# 0.3 whatever the step size, and the step collapses. RADAU5 perturbs y_j by
+# sqrt(eps max(1e-5, |y_j|)), independently of atol; the same floor here makes the step at
+# least sqrt(eps) 1e-5 = 1.5e-13.
+JAC_DIFFERENTIAL_THRESHOLD = 1e-5
+# num_jac multiplies the difference step of a variable that F does not depend on (a work
+# state) by 10 at every Jacobian; it is capped here so that it stays finite over long runs.
+JAC_MAX_FACTOR = 1e-1
 # Absolute residual an algebraic row can be driven to in floating point: this many eps
 # times the size of its terms, |J_alg| |y| (used where that is above `algebraic_tol`).
 ROUNDOFF_FACTOR = 100
@@ -178,7 +192,9 @@ class RadauDAE(OdeSolver):
     jac : callable, optional
         ``jac(t, y) -> ndarray, shape (n, n)``, the Jacobian dF/dy (a sparse matrix is
         densified). Default: forward differences (scipy's ``num_jac``), whose evaluations
-        of ``fun`` are counted in ``nfev``.
+        of ``fun`` are counted in ``nfev``, with the difference step of y_j about
+        ``sqrt(eps) max(|y_j|, atol_j, 1e-5)`` (``1e-3`` for algebraic variables): never
+        scaled down with atol below the resolution of F, as RADAU5's is not.
     first_step : float, optional
         First step size; default: scipy's initial-step heuristic applied to the
         differential rows only (see Notes).
@@ -291,8 +307,10 @@ class RadauDAE(OdeSolver):
         if jac is not None and not callable(jac):
             raise ValueError("`jac` must be None or a callable jac(t, y).")
         self.rtol, self.atol = float(rtol), atol
-        # num_jac's difference step is about sqrt(eps) max(|y|, threshold) per variable
-        self._jac_threshold = np.where(self.algebraic, np.maximum(atol, JAC_ALGEBRAIC_THRESHOLD), atol)
+        # num_jac's difference step is about sqrt(eps) max(|y|, threshold) per variable, with the
+        # threshold floored independently of atol (see JAC_DIFFERENTIAL_THRESHOLD)
+        self._jac_threshold = np.maximum(atol, np.where(self.algebraic, JAC_ALGEBRAIC_THRESHOLD,
+                                                        JAC_DIFFERENTIAL_THRESHOLD))
         self.max_step = max_step
         self.algebraic_tol = float(algebraic_tol)
 
@@ -329,7 +347,8 @@ class RadauDAE(OdeSolver):
             self.nfev += Y.shape[1]
             return self.fun_vectorized(t_, Y)
 
-        J, self.jac_factor = num_jac(fun_columns, t, y, f, self._jac_threshold, self.jac_factor)
+        J, factor = num_jac(fun_columns, t, y, f, self._jac_threshold, self.jac_factor)
+        self.jac_factor = np.minimum(factor, JAC_MAX_FACTOR)
         return J
 
     def _lu(self, A):
