@@ -34,6 +34,7 @@ import os
 import numpy as np
 from numba import njit
 
+from csim.physics.jit import NJIT_OPTIONS
 from csim.physics.kkt import constraint_rates, generalized_forces, kkt_solve
 from csim.physics.loads import load_rates, load_values, mode_of, switching_functions
 from csim.physics.projection import at_round_off, correction, invert, max_abs
@@ -55,7 +56,7 @@ from csim.physics.steps import all_finite, check_step
 #: the decorator of every loop function that allocates nothing: compiled without numba's
 #: reference counting of arrays (NRT), which would cost two atomic operations per array
 #: argument and per slice at every call; the arrays live as long as ``integrate`` holds them
-hot = njit(cache=True, error_model="numpy", _nrt=False)
+hot = njit(**NJIT_OPTIONS)
 
 
 def _dop853_coefficients():
@@ -212,8 +213,10 @@ def feval(t, y, mode, located, par, pf, pi, w, piv, f, info):
 # projection onto Phi = 0, Phi_q qd = 0 (csim.solver.methods.projection)
 # ---------------------------------------------------------------------------------------
 @hot
-def project(y, out, par, pf, pi, w, piv):
-    """out = y with (q, qd) projected; returns (status code, max |Phi| of the last iterate).
+def project(y, out, t, par, pf, pi, w, piv, info):
+    """out = y at time t with (q, qd) projected; returns the status code.
+
+    On a failure info = [max |Phi| of the last iterate, t], as the status messages read them.
 
     The method's settings: fpar[0] the tolerance on max |Phi|, ipar = [mass metric (0/1),
     iteration limit].
@@ -228,7 +231,7 @@ def project(y, out, par, pf, pi, w, piv):
     if mass_metric:  # W^-1 = M^-1
         mass(out, par, w)
         if not invert(w[W_M:W_M + NQ * NQ], w[W_M2:W_M2 + NQ * NQ], piv, w[W_COL:W_COL + NQ], Winv, NQ):
-            return SINGULAR_MASS, 0.0
+            return _project_failed(SINGULAR_MASS, 0.0, t, info)
     q = out[:NQ]
     phi = w[W_PHI:W_PHI + NC]
     converged = False
@@ -241,22 +244,30 @@ def project(y, out, par, pf, pi, w, piv):
             break
         jac(out, par, w)
         if not correction(J, Winv, mass_metric, phi, WJt, S, z, piv, dq, NC, NQ):
-            return PROJ_SINGULAR, mx
+            return _project_failed(PROJ_SINGULAR, mx, t, info)
         for i in range(NQ):
             q[i] -= dq[i]
         if at_round_off(dq, q):  # |Phi| cannot go lower: its round-off grows with |q|
             converged = True
             break
     if not converged:
-        return PROJ_NO_CONVERGENCE, mx
+        return _project_failed(PROJ_NO_CONVERGENCE, mx, t, info)
     jac(out, par, w)
     phi_dot = w[W_PD:W_PD + NC]
     constraint_rates(J, out[NQ:2 * NQ], phi_dot, NC, NQ)
     if not correction(J, Winv, mass_metric, phi_dot, WJt, S, z, piv, dq, NC, NQ):
-        return PROJ_SINGULAR, mx
+        return _project_failed(PROJ_SINGULAR, mx, t, info)
     for i in range(NQ):
         out[NQ + i] -= dq[i]
-    return OK, mx
+    return OK
+
+
+@hot
+def _project_failed(code, max_phi, t, info):
+    """info = [max |Phi|, t] of a failed projection; returns its code."""
+    info[0] = max_phi
+    info[1] = t
+    return code
 
 
 # ---------------------------------------------------------------------------------------
@@ -662,10 +673,8 @@ def _sample(ts_, t_out, dense_kind, y_old, y, f_new, mode, rmode, locate, projec
             dense[0] = True
             dense_eval(dense_kind, t_i, t_old, t - t_old, y_old, FF, ytmp)
         if projects:
-            code, mx = project(ytmp, yp, par, pf, pi, w, piv)
+            code = project(ytmp, yp, t_i, par, pf, pi, w, piv, info)
             if code != OK:
-                info[0] = mx
-                info[1] = t_i
                 return code
             copy_row(yp, ys, cs[N_REC])
         else:
@@ -688,10 +697,8 @@ def _event_state(ts_, dense_kind, y_old, y, F, Fh, projects, par, pf, pi, w, piv
         for i in range(y.size):
             ytmp[i] = y[i]
     if projects:
-        code, mx = project(ytmp, yp, par, pf, pi, w, piv)
+        code = project(ytmp, yp, t_stop, par, pf, pi, w, piv, info)
         if code != OK:
-            info[0] = mx
-            info[1] = t_stop
             return code
         for i in range(y.size):
             ytmp[i] = yp[i]
@@ -733,17 +740,15 @@ def _record_event(t, mode, roots, has_root, ev_t, ev_sw, n_ev):
 def _start(y, yp, mode, projects, par, pf, pi, w, piv, tr, ys, modes, info):
     """Project the initial state (projection), find its mode and record it. Returns the status."""
     if projects:
-        code, mx = project(y, yp, par, pf, pi, w, piv)
+        code = project(y, yp, 0.0, par, pf, pi, w, piv, info)
         if code != OK:
-            info[0] = mx
             return code
         for i in range(y.size):
             y[i] = yp[i]
     mode_at(y, par, pf, pi, w, mode)
     if projects:  # the recorded sample, projected as every recorded sample is
-        code, mx = project(y, yp, par, pf, pi, w, piv)
+        code = project(y, yp, 0.0, par, pf, pi, w, piv, info)
         if code != OK:
-            info[0] = mx
             return code
         copy_row(yp, ys, 0)
     else:
@@ -808,10 +813,8 @@ def _after_step(ts_, y, f, f_new, yp, projects, par, pf, pi, rmode, locate, w, p
         for i in range(y.size):
             f[i] = f_new[i]
         return OK
-    code, mx = project(y, yp, par, pf, pi, w, piv)
+    code = project(y, yp, ts_[T], par, pf, pi, w, piv, info)
     if code != OK:
-        info[0] = mx
-        info[1] = ts_[T]
         return code
     for i in range(y.size):
         y[i] = yp[i]
@@ -950,5 +953,6 @@ def project_entry(y, par, pf, pi):
     w = np.zeros(W_G + pi[PI_NSW])
     piv = np.zeros(NK, np.int64)
     out = np.empty(y.size)
-    code, mx = project(y, out, par, pf, pi, w, piv)
-    return code, mx, out
+    info = np.zeros(2)
+    code = project(y, out, 0.0, par, pf, pi, w, piv, info)
+    return code, info[0], out

@@ -60,8 +60,8 @@ def compiled_methods() -> list:
 
 def method_code(method) -> int:
     """The dispatch code of a method instance (0: gamma* = gamma)."""
-    cls = type(method)
-    return compiled_methods().index(cls) + 1 if cls in compiled_methods() else 0
+    dispatched = compiled_methods()
+    return dispatched.index(type(method)) + 1 if type(method) in dispatched else 0
 
 
 def _kernel_function(cls):

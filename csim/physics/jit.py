@@ -12,7 +12,7 @@ import os
 
 #: no function here allocates, so none needs numba's reference counting of arrays (NRT): without
 #: it a call costs no atomic operations per array argument or slice (half of an evaluation's time)
-_OPTIONS = dict(cache=True, error_model="numpy", _nrt=False)
+NJIT_OPTIONS = dict(cache=True, error_model="numpy", _nrt=False)
 
 
 def _numba_njit():
@@ -33,4 +33,4 @@ COMPILED = _NJIT is not None
 
 def kernel(fn):
     """Decorator: ``fn`` compiled by numba (njit, cached on disk, numpy's error model), or ``fn`` itself."""
-    return fn if _NJIT is None else _NJIT(**_OPTIONS)(fn)
+    return fn if _NJIT is None else _NJIT(**NJIT_OPTIONS)(fn)

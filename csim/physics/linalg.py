@@ -9,7 +9,17 @@ compiled, a 1-D slice of a workspace is free where a reshaped 2-D view costs ten
 """
 from __future__ import annotations
 
+import numpy as np
+
 from csim.physics.jit import kernel
+
+
+def as_core(a) -> np.ndarray:
+    """``a`` (a vector or a matrix) as the core functions take it: C-contiguous float64, flat row-major.
+
+    No copy where ``a`` already is one (a matrix's ``ravel`` is then a view).
+    """
+    return np.ascontiguousarray(a, dtype=float).ravel()
 
 
 @kernel

@@ -16,6 +16,7 @@ import numpy as np
 
 from csim.errors import SimulationFailure
 from csim.physics.kkt import kkt_solve
+from csim.physics.linalg import as_core
 from csim.physics.status import SINGULAR_KKT, failure_message
 
 
@@ -59,10 +60,8 @@ class KKT(Formulation):
     def solve(self, M, phi_q, p, gamma_star):
         m, r = M.shape[0], phi_q.shape[0]
         x = np.empty(m + r)
-        f = np.ascontiguousarray
-        # matrices flat and row-major, as the core function takes them
-        if not kkt_solve(f(M, dtype=float).ravel(), f(phi_q, dtype=float).ravel(), f(p, dtype=float),
-                         f(gamma_star, dtype=float), np.empty((m + r) ** 2), x, np.empty(m + r, np.int64), m, r):
+        if not kkt_solve(as_core(M), as_core(phi_q), as_core(p), as_core(gamma_star), np.empty((m + r) ** 2), x,
+                         np.empty(m + r, np.int64), m, r):
             raise SimulationFailure(failure_message(SINGULAR_KKT, 0.0, 0.0, None))
         return x[:m], x[m:]
 

@@ -30,19 +30,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from csim.model.numeric import NumericModel
+from csim.physics.projection import at_round_off
 
 EPS = np.finfo(float).eps
 SQRT_EPS = float(np.sqrt(EPS))
-
-
-def at_round_off(dq: np.ndarray, q: np.ndarray) -> bool:
-    """Whether a Newton correction dq is down to the round-off of q (nothing left to gain).
-
-    Phi evaluated at large angles (a crank after many turns) carries a round-off of about
-    eps |q|, so a fixed tolerance on |Phi| can become unreachable; the size of the step
-    tells when the iteration has converged anyway.
-    """
-    return bool(np.max(np.abs(dq), initial=0.0) <= 8 * EPS * max(1.0, np.max(np.abs(q))))
 
 
 @dataclass

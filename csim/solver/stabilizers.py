@@ -19,9 +19,6 @@ from csim.solver.methods.none import NoStabilization
 from csim.solver.methods.projection import Projection
 from csim.solver.methods.sliding_mode import SlidingMode
 
-#: the abstract base of every method (its older name)
-Stabilizer = Method
-
 
 def _vectorized(kind: int):
     """sw(s, width) of the switching function ``kind``, elementwise over an array s."""
@@ -37,4 +34,4 @@ def _vectorized(kind: int):
 SWITCHING_FUNCTIONS = {name: (_vectorized(code), width) for code, (name, width) in enumerate(SWITCHING_NAMES.items())}
 
 __all__ = ["GGL", "STABILIZERS", "SWITCHING_FUNCTIONS", "Baumgarte", "Method", "Minimal", "NoStabilization",
-           "Projection", "SlidingMode", "Stabilizer", "make_stabilizer", "register"]
+           "Projection", "SlidingMode", "make_stabilizer", "register"]

@@ -18,6 +18,7 @@ import numpy as np
 from csim.loads import LoadSet
 from csim.model.numeric import NumericModel
 from csim.physics.kkt import constraint_rates, generalized_forces
+from csim.physics.linalg import as_core
 from csim.physics.loads import load_rates
 from csim.solver.formulations import Formulation
 
@@ -140,22 +141,22 @@ class ConstrainedSystem:
     def _load_rates(self, B, qd):
         """ds/dt = B^T qd (k,)."""
         sdot = np.empty(self.k)
-        load_rates(_f(B).ravel(), _f(qd), sdot, self.m, self.k)
+        load_rates(as_core(B), as_core(qd), sdot, self.m, self.k)
         return sdot
 
     def _solve(self, q, qd, u):
         """qdd, lambda and the pieces of the balance at (q, qd) with loads u."""
         model, par = self.model, self.par
         M = model.mass(q, par)
-        phi_q = _f(model.phi_q(q, par))
-        B = _f(model.load_matrix(q, par))
+        phi_q = model.phi_q(q, par)
+        B = model.load_matrix(q, par)
         Q = B @ u
         p = np.empty(self.m)  # p = B u - C qd - h
-        generalized_forces(B.ravel(), u, _f(model.velocity_terms(q, qd, par)), _f(model.gravity(q, par)), p, self.m,
-                           self.k)
+        generalized_forces(as_core(B), u, as_core(model.velocity_terms(q, qd, par)), as_core(model.gravity(q, par)), p,
+                           self.m, self.k)
         phi = model.phi(q, par)
         phi_dot = np.empty(self.r)  # dPhi/dt = Phi_q qd
-        constraint_rates(phi_q.ravel(), _f(qd), phi_dot, self.r, self.m)
+        constraint_rates(as_core(phi_q), as_core(qd), phi_dot, self.r, self.m)
         gamma_star = self.stabilizer.gamma_star(model.gamma(q, qd, par), phi, phi_dot)
         qdd, lam = self.formulation.solve(M, phi_q, p, gamma_star)
         return qdd, lam, phi, phi_dot, Q, B
@@ -193,8 +194,3 @@ class ConstrainedSystem:
             kinetic=self.model.kinetic_energy(q, qd, self.par),
             potential=self.model.potential_energy(q, self.par),
         )
-
-
-def _f(a) -> np.ndarray:
-    """``a`` as a C-contiguous float array, the layout the core functions are compiled for."""
-    return np.ascontiguousarray(a, dtype=float)

@@ -30,6 +30,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from csim.physics.linalg import as_core
+
 
 def option(default: Any, doc: str, unit: str = "", *, gain: bool = False, gt: float | None = None,
            ge: float | None = None, le: float | None = None, choices: tuple | None = None):
@@ -127,7 +129,7 @@ class Method:
         """gamma* (r,) from gamma (r,), Phi (r,) and dPhi/dt = Phi_q qd (r,)."""
         if self.gamma_star_kernel is None:
             return gamma
-        gamma, phi, phi_dot = (np.ascontiguousarray(a, dtype=float) for a in (gamma, phi, phi_dot))
+        gamma, phi, phi_dot = (as_core(a) for a in (gamma, phi, phi_dot))
         out = np.empty(gamma.size)
         type(self).gamma_star_kernel(gamma.size, gamma, phi, phi_dot, *self.pack(gamma.size), out)
         return out

@@ -18,6 +18,7 @@ import numpy as np
 from csim.errors import SimulationFailure
 from csim.physics import projection as core
 from csim.physics.kkt import constraint_rates
+from csim.physics.linalg import as_core
 from csim.physics.status import PROJ_NO_CONVERGENCE, PROJ_SINGULAR, failure_message
 from csim.solver.methods.base import Method, option
 
@@ -68,32 +69,26 @@ class Projection(Method):
         # the core functions' scratch; matrices flat and row-major
         Winv, WJt, S, z, dq = np.zeros(m * m), np.empty(m * r), np.empty(r * r), np.empty(r), np.empty(m)
         piv = np.zeros(max(m, r), np.int64)
-        if mass_metric and not core.invert(_flat(model.mass(q, par)), np.empty(m * m), piv, np.empty(m), Winv, m):
+        if mass_metric and not core.invert(as_core(model.mass(q, par)), np.empty(m * m), piv, np.empty(m), Winv, m):
             raise np.linalg.LinAlgError("Singular matrix")  # the driver says when
         q = np.array(q, dtype=float)
-        phi = model.phi(q, par)
         for _ in range(self.max_iter + 1):
             phi = model.phi(q, par)
             if core.max_abs(phi) <= self.tol:
                 break
-            if not core.correction(_flat(model.phi_q(q, par)), Winv, mass_metric, phi, WJt, S, z, piv, dq, r, m):
+            if not core.correction(as_core(model.phi_q(q, par)), Winv, mass_metric, phi, WJt, S, z, piv, dq, r, m):
                 raise SimulationFailure(_failure(PROJ_SINGULAR, self))
             q -= dq
             if core.at_round_off(dq, q):  # |Phi| cannot go lower: its round-off grows with |q|
                 break
         else:
             raise SimulationFailure(_failure(PROJ_NO_CONVERGENCE, self, core.max_abs(phi)))
-        phi_q = _flat(model.phi_q(q, par))
+        phi_q = as_core(model.phi_q(q, par))
         phi_dot = np.empty(r)
         constraint_rates(phi_q, qd, phi_dot, r, m)
         if not core.correction(phi_q, Winv, mass_metric, phi_dot, WJt, S, z, piv, dq, r, m):
             raise SimulationFailure(_failure(PROJ_SINGULAR, self))
         return q, qd - dq
-
-
-def _flat(a) -> np.ndarray:
-    """A matrix as the flat row-major float array the core functions take."""
-    return np.ascontiguousarray(a, dtype=float).ravel()
 
 
 def _failure(code: int, method: Projection, a: float = 0.0) -> str:
