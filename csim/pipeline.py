@@ -96,14 +96,14 @@ def run_case(case: Case, progress: Callable[[float], None] | None = None) -> Res
         failed = assemble_result(case, system, empty, time.perf_counter() - start)
         failed.failure = "assembly"  # the initial state cannot be assembled: bad input (csim run exits 2)
         return failed
-    backend, note, load_time = resolve_backend(case.data), "", 0.0
+    backend, why, load_time = resolve_backend(case.data), "", 0.0
     if backend == "compiled":
         loading = time.perf_counter()
-        backend, note = _load_compiled(case, system, y0, settings)
+        backend, why = _load_compiled(case, system, y0, settings)
         load_time = time.perf_counter() - loading
         if backend == "failed":
             empty = Trajectory(t=np.zeros(0), y=np.zeros((0, system.n_state)),
-                               mode=np.zeros((0, system.loads.n_switches), bool), status="failed", message=note)
+                               mode=np.zeros((0, system.loads.n_switches), bool), status="failed", message=why)
             return assemble_result(case, system, empty, 0.0, backend="compiled")
         start = time.perf_counter()  # loading (on a cold cache: compiling) the kernels is not the run's time
     if backend == "compiled":  # numba kernels, entered once per run (csim.fast)
@@ -114,13 +114,13 @@ def run_case(case: Case, progress: Callable[[float], None] | None = None) -> Res
         from csim.solver.simulate import integrate  # scipy's integrators: imported only for this path
 
         trajectory = integrate(system, y0, settings, progress=progress)
-    trajectory.message += note
+    if why:
+        trajectory.message += f" (on the Python path: {why})"
     result = assemble_result(case, system, trajectory, time.perf_counter() - start, backend=backend)
     result.kernel_load_time = load_time
     if backend == "python" and case.data["simulation"]["backend"] == "auto":  # why auto fell back (run summary)
         from csim.fast.support import numba_available, unsupported
 
-        why = note.strip().removeprefix("(on the Python path: ").removesuffix(")")  # kernels failed to load
         result.backend_reason = why or "; ".join(unsupported(case.data)) or (
             "" if numba_available() else "numba is not installed")
     return result
@@ -128,7 +128,7 @@ def run_case(case: Case, progress: Callable[[float], None] | None = None) -> Res
 
 def _load_compiled(case: Case, system: ConstrainedSystem, y0: np.ndarray, settings) -> tuple[str, str]:
     """Load the compiled kernels: ``("compiled", "")``, or where they cannot be loaded (numba
-    missing or broken, no writable cache) ``("python", note)`` under ``backend: auto`` and
+    missing or broken, no writable cache) ``("python", why)`` under ``backend: auto`` and
     ``("failed", message)`` under ``backend: compiled``."""
     try:
         prepare_compiled(system, y0, settings)
@@ -137,7 +137,7 @@ def _load_compiled(case: Case, system: ConstrainedSystem, y0: np.ndarray, settin
         why = f"{type(exc).__name__}: {' '.join(str(exc).split())[:300]}"
         if case.data["simulation"]["backend"] == "compiled":
             return "failed", f"simulation.backend 'compiled': the compiled kernels could not be loaded ({why})"
-        return "python", f" (on the Python path: the compiled kernels could not be loaded, {why})"
+        return "python", f"the compiled kernels could not be loaded, {why}"
 
 
 def assemble_result(case: Case, system: ConstrainedSystem, traj: Trajectory, wall_time: float,

@@ -8,11 +8,11 @@ row-major: M (m * m), Phi_q (r * m), B (m * k); the sizes come from the vectors.
 """
 from __future__ import annotations
 
-from csim.physics.jit import kernel
+from csim.physics.jit import inline_kernel
 from csim.physics.linalg import lu_factor, lu_solve
 
 
-@kernel
+@inline_kernel
 def generalized_forces(B, u, cqd, h, p, m, k):
     """p = B u - C qd - h (m,): applied minus velocity-dependent and gravity terms; B flat (m * k)."""
     for i in range(m):
@@ -22,7 +22,7 @@ def generalized_forces(B, u, cqd, h, p, m, k):
         p[i] = Q - cqd[i] - h[i]
 
 
-@kernel
+@inline_kernel
 def kkt_solve(M, J, p, gamma_star, A, x, piv, m, r):
     """Solve the KKT system; x (m + r,) = [qdd, lambda]. Returns False if it is singular.
 
@@ -65,7 +65,7 @@ def kkt_solve(M, J, p, gamma_star, A, x, piv, m, r):
     return True
 
 
-@kernel
+@inline_kernel
 def constraint_rates(J, qd, phi_dot, r, m):
     """dPhi/dt = Phi_q qd into phi_dot (r,), with Phi_q flat (r * m)."""
     for i in range(r):

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from csim.physics.jit import kernel
+from csim.physics.jit import inline_kernel
 
 
 def as_core(a) -> np.ndarray:
@@ -22,7 +22,7 @@ def as_core(a) -> np.ndarray:
     return np.ascontiguousarray(a, dtype=float).ravel()
 
 
-@kernel
+@inline_kernel
 def lu_factor(A, n, piv):
     """Factor A (n * n, row-major) in place into L (unit lower, below the diagonal) and U; pivots into piv.
 
@@ -54,7 +54,7 @@ def lu_factor(A, n, piv):
     return True
 
 
-@kernel
+@inline_kernel
 def lu_solve(A, n, piv, b):
     """Solve A x = b with the factors of :func:`lu_factor`; b (n,) is overwritten by x."""
     for c in range(n):

@@ -14,12 +14,12 @@ every condition of load k holds (the *mode*), and 0 otherwise.
 """
 from __future__ import annotations
 
-from csim.physics.jit import kernel
+from csim.physics.jit import inline_kernel, kernel
 
 LOWER, UPPER, RISING, FALLING = range(4)
 
 
-@kernel
+@inline_kernel
 def load_rates(B, qd, sdot, m, k):
     """ds/dt = B^T qd into sdot (k,), from the load matrix B = ds/dq^T (m * k, row-major) and qd (m,)."""
     for kk in range(k):
@@ -52,7 +52,7 @@ def mode_of(g, mode):
         mode[j] = g[j] > 0.0
 
 
-@kernel
+@inline_kernel
 def load_values(magnitudes, mode, sw_load, u):
     """u (k,): each load's magnitude while all its conditions hold in ``mode`` (n_sw,) bool, else 0."""
     for kk in range(u.size):
