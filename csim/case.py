@@ -226,7 +226,9 @@ class Case:
         )
 
     def to_yaml(self) -> str:
-        return yaml.safe_dump(self.data, sort_keys=False, default_flow_style=None)
+        """The validated case, every default filled in, as YAML (libyaml's emitter where installed)."""
+        dumper = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
+        return yaml.dump(self.data, Dumper=dumper, sort_keys=False, default_flow_style=None)
 
 
 def parse_yaml(text: str, source: str) -> Any:

@@ -143,31 +143,11 @@ def _load_compiled(case: Case, system: ConstrainedSystem, y0: np.ndarray, settin
 def assemble_result(case: Case, system: ConstrainedSystem, traj: Trajectory, wall_time: float,
                     backend: str = "python") -> Result:
     """Evaluate every recorded quantity at the output times of a trajectory (``backend``: what integrated it)."""
-    model, par = system.model, system.par
-    N, m, r, k = traj.t.size, system.m, system.r, system.k
-    o = len(case.mechanism.observables)
-    arrays = {name: np.zeros(shape) for name, shape in dict(
-        qdd=(N, m), lam=(N, r), phi=(N, r), phi_dot=(N, r), loads=(N, k), generalized_forces=(N, m),
-        observables=(N, o), observable_rates=(N, o), kinetic=(N,), potential=(N,),
-    ).items()}
+    m = system.m
+    arrays, failure = _sample_values(system, traj, backend, len(case.mechanism.observables))
     status, message = traj.status, traj.message
-    for i in range(N):
-        q, qd, _ = system.split(traj.y[i])
-        try:
-            with np.errstate(over="ignore", invalid="ignore"):  # the last state of a blow-up
-                ev = system.evaluate(traj.t[i], traj.y[i], traj.mode[i])
-        except SimulationFailure as exc:  # e.g. the last state of a failed run is singular
-            for a in arrays.values():
-                a[i] = np.nan
-            if status == "success":
-                status, message = "failed", str(exc)
-            continue
-        arrays["qdd"][i], arrays["lam"][i], arrays["phi"][i], arrays["phi_dot"][i] = ev.qdd, ev.lam, ev.phi, ev.phi_dot
-        arrays["loads"][i], arrays["generalized_forces"][i] = ev.u, ev.Q
-        arrays["kinetic"][i], arrays["potential"][i] = ev.kinetic, ev.potential
-        if o:
-            arrays["observables"][i] = model.observables(q, par)
-            arrays["observable_rates"][i] = model.observable_jacobian(q, par) @ qd
+    if failure and status == "success":  # e.g. the last state of a failed run is singular
+        status, message = "failed", failure
     y = traj.y
     return Result(
         mechanism=case.mechanism.name,
@@ -182,3 +162,45 @@ def assemble_result(case: Case, system: ConstrainedSystem, traj: Trajectory, wal
         backend=backend,
         **arrays,
     )
+
+
+def _sample_values(system: ConstrainedSystem, traj: Trajectory, backend: str,
+                   o: int) -> tuple[dict[str, np.ndarray], str]:
+    """Every recorded quantity at every sample, and the first failure's message.
+
+    A compiled run's samples are evaluated in one compiled call, by the right-hand side that
+    integrated them; a sample where that fails (and every sample of a Python run) by
+    :meth:`ConstrainedSystem.evaluate`. A sample that cannot be evaluated (the last state of
+    a blow-up) is NaN, but for its observables (geometry only).
+    """
+    N, m, r, k = traj.t.size, system.m, system.r, system.k
+    arrays = {name: np.full(shape, np.nan) for name, shape in dict(
+        qdd=(N, m), lam=(N, r), phi=(N, r), phi_dot=(N, r), loads=(N, k), generalized_forces=(N, m),
+        kinetic=(N,), potential=(N,), observables=(N, o), observable_rates=(N, o)).items()}
+    if backend == "compiled" and N:
+        from csim.fast.runner import evaluate_compiled
+
+        values = evaluate_compiled(system, traj.y, traj.mode)
+        for name, a in arrays.items():
+            a[:] = values[name]
+        todo = np.flatnonzero(~values["ok"])
+    else:
+        todo = range(N)
+        model, par = system.model, system.par
+        for i in range(N) if o else ():
+            q, qd, _ = system.split(traj.y[i])
+            arrays["observables"][i] = model.observables(q, par)
+            arrays["observable_rates"][i] = model.observable_jacobian(q, par) @ qd
+    failure = ""
+    for i in todo:
+        try:
+            with np.errstate(over="ignore", invalid="ignore"):  # the last state of a blow-up
+                ev = system.evaluate(traj.t[i], traj.y[i], traj.mode[i])
+        except SimulationFailure as exc:
+            failure = failure or str(exc)
+            continue
+        for name, value in (("qdd", ev.qdd), ("lam", ev.lam), ("phi", ev.phi), ("phi_dot", ev.phi_dot),
+                            ("loads", ev.u), ("generalized_forces", ev.Q), ("kinetic", ev.kinetic),
+                            ("potential", ev.potential)):
+            arrays[name][i] = value
+    return arrays, failure

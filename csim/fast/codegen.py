@@ -14,6 +14,8 @@ common-subexpression elimination (each sin and cos of the coordinates is compute
     load coordinates and their Jacobian, for the switching functions
 ``kinetic(y, par)``, ``potential(y, par)``
     energies [J] (floats)
+``observe(y, par, out)``
+    the observables (o,) and their rates (o,) into ``out`` (2 o,), for the result's samples
 
 ``y`` is a state [q, qd, ...] (functions of q alone read its first m entries). The symbols
 of the mechanism are unpacked into locals of the same name, as in
@@ -90,6 +92,21 @@ def scalar_source(fname, expr, unpack) -> str:
     return "\n".join(lines)
 
 
+def observe_source(derived, unpack) -> str:
+    """``observe(_y, _par, _o)``: the observables, then their rates d/dt obs = (d obs / dq) qd, into _o."""
+    printer = _Printer()
+    obs = list(derived.observables) if derived.observables is not None else []
+    qd = sp.Matrix(derived.definition.velocities)
+    rates = list(derived.observable_jacobian * qd) if obs else []
+    temps, reduced, used = _cse(obs + rates) if obs else ([], [], set())
+    lines = [DECORATOR, "def observe(_y, _par, _o):"]
+    lines += _unpack_lines(used, unpack)
+    lines += [f"    {sym} = {printer.doprint(value)}" for sym, value in temps]
+    lines += [f"    _o[{i}] = {printer.doprint(value)}" for i, value in enumerate(reduced)]
+    lines.append("    return None")
+    return "\n".join(lines)
+
+
 def model_source(derived) -> str:
     """Source of the model part of a compiled module: sizes, workspace layout, njit functions."""
     d = derived.definition
@@ -106,11 +123,13 @@ def model_source(derived) -> str:
     layout.append(f"W_MODEL = {offset}  # end of the model terms in w")
     chunks = [
         f"# ---- model {d.name!r}, generated from its symbolic derivation ----",
-        f"NQ = {m}  # coordinates\nNC = {r}  # constraints\nNL = {k}  # loads",
+        f"NQ = {m}  # coordinates\nNC = {r}  # constraints\nNL = {k}  # loads\n"
+        f"NO = {len(d.observables)}  # observables",
         "# offsets of the model terms in the workspace w (matrices row-major)\n" + "\n".join(layout),
     ]
     for fname, attrs in FUNCTIONS.items():
         chunks.append(function_source(fname, attrs, derived, unpack))
     for fname, attr in SCALARS.items():
         chunks.append(scalar_source(fname, getattr(derived, attr), unpack))
+    chunks.append(observe_source(derived, unpack))
     return "\n\n\n".join(chunks) + "\n"

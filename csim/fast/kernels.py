@@ -3,7 +3,8 @@
 
 This file is not imported as it is. :mod:`csim.fast.module` pastes its text after the
 generated model functions of one mechanism (:mod:`csim.fast.codegen`: ``terms``, ``phi_``,
-``jac``, ``mass``, ``loads_``, ``kinetic`` and the sizes ``NQ``, ``NC``, ``NL``) and the
+``jac``, ``mass``, ``loads_``, ``kinetic``, ``potential``, ``observe`` and the sizes ``NQ``,
+``NC``, ``NL``, ``NO``) and the
 generated dispatch ``method_gamma_star`` over the registered stabilization methods, into
 one module that numba compiles and caches on disk. The names used here without a
 definition are those.
@@ -920,6 +921,68 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset):
         if not restarted:
             break
     return cs[N_REC], tr, ys, modes, cs[N_EV], ev_t, ev_sw, cs[NFEV], cs[NSTEPS], status, info
+
+
+# ---------------------------------------------------------------------------------------
+# the recorded quantities at the output samples (csim.pipeline.assemble_result)
+# ---------------------------------------------------------------------------------------
+@njit(cache=True, error_model="numpy")
+def evaluate_samples(ys, modes, par, pf, pi):
+    """Everything a result records at each sample, from the same right-hand side the loop ran.
+
+    Parameters
+    ----------
+    ys : ndarray (N, 2 m + k)
+        Recorded states [q, qd, W].
+    modes : ndarray (N, n_sw) bool
+        The load laws held at each sample.
+
+    Returns
+    -------
+    ok : ndarray (N,) bool
+        False where the KKT matrix is singular (the row's other outputs are then NaN).
+    x : ndarray (N, m + r)
+        [qdd, lambda].
+    phi, phi_dot : ndarray (N, r)
+        Phi and Phi_q qd.
+    u : ndarray (N, k)
+        Load values.
+    Q : ndarray (N, m)
+        Generalized applied forces B u.
+    energy : ndarray (N, 2)
+        Kinetic and potential energy [J].
+    obs : ndarray (N, 2 o)
+        The observables and their rates (evaluated at every sample, singular or not).
+    """
+    N = ys.shape[0]
+    w = np.zeros(W_G + pi[PI_NSW])
+    piv = np.zeros(NK, np.int64)
+    f = np.empty(ys.shape[1])
+    mode = np.empty(pi[PI_NSW], np.bool_)
+    ok = np.ones(N, np.bool_)
+    x, Q = np.full((N, NK), np.nan), np.full((N, NQ), np.nan)
+    phi, phi_dot = np.full((N, NC), np.nan), np.full((N, NC), np.nan)
+    u, energy = np.full((N, NL), np.nan), np.full((N, 2), np.nan)
+    obs = np.empty((N, 2 * NO))
+    for i in range(N):
+        y = ys[i]
+        observe(y, par, obs[i])
+        mode[:] = modes[i]
+        if rhs(y, mode, True, par, pf, pi, w, piv, f) != OK:
+            ok[i] = False
+            continue
+        x[i] = w[W_X:W_X + NK]
+        phi[i] = w[W_PHI:W_PHI + NC]
+        phi_dot[i] = w[W_PD:W_PD + NC]
+        u[i] = w[W_U:W_U + NL]
+        for a in range(NQ):  # Q = B u, B (m, k) row-major
+            acc = 0.0
+            for kk in range(NL):
+                acc += w[W_B + a * NL + kk] * w[W_U + kk]
+            Q[i, a] = acc
+        energy[i, 0] = kinetic(y, par)
+        energy[i, 1] = potential(y, par)
+    return ok, x, phi, phi_dot, u, Q, energy, obs
 
 
 # ---------------------------------------------------------------------------------------

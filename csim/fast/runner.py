@@ -83,3 +83,32 @@ def integrate_compiled(system: ConstrainedSystem, y0: np.ndarray, settings: Inte
         event_times=[float(x) for x in ev_t[:n_ev]],
         event_labels=["; ".join(labels[j] for j in np.flatnonzero(row)) for row in ev_sw[:n_ev]],
     )
+
+
+def evaluate_compiled(system: ConstrainedSystem, y: np.ndarray, mode: np.ndarray) -> dict[str, np.ndarray]:
+    """The recorded quantities at the samples of a compiled run, in one compiled call.
+
+    Parameters
+    ----------
+    y : ndarray (N, 2 m + k)
+        The trajectory's states.
+    mode : ndarray (N, n_sw) bool
+        The load laws held at each sample.
+
+    Returns
+    -------
+    dict
+        ``ok`` (N,) bool (False: singular KKT matrix, the row is NaN), ``qdd`` (N, m),
+        ``lam`` (N, r), ``phi`` (N, r), ``phi_dot`` (N, r), ``loads`` (N, k),
+        ``generalized_forces`` (N, m), ``kinetic`` (N,) and ``potential`` (N,) [J], as
+        :meth:`csim.solver.system.ConstrainedSystem.evaluate` gives them one at a time, and
+        ``observables`` (N, o) and ``observable_rates`` (N, o).
+    """
+    mod = load_module(system.model.definition)
+    par, pf, pi = pack_problem(system)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        ok, x, phi, phi_dot, u, Q, energy, obs = mod.evaluate_samples(
+            np.ascontiguousarray(y, dtype=float), np.ascontiguousarray(mode, dtype=np.bool_), par, pf, pi)
+    m, o = system.m, obs.shape[1] // 2
+    return dict(ok=ok, qdd=x[:, :m], lam=x[:, m:], phi=phi, phi_dot=phi_dot, loads=u, generalized_forces=Q,
+                kinetic=energy[:, 0], potential=energy[:, 1], observables=obs[:, :o], observable_rates=obs[:, o:])
