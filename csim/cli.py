@@ -429,6 +429,105 @@ def _finish_comparison(comparison, out: Path, default: bool, quiet: bool) -> Non
 
 @app.command(cls=_Command)
 @_interruptible
+def sweep(
+    case: Annotated[Path, typer.Argument(help="Case file (YAML): the base case every run varies.",
+                                         show_default=False, metavar="CASE.yaml")],
+    vary: Annotated[list[str] | None, typer.Option(
+        "--vary", "-v", metavar="KEY=VALUES",
+        help="A case key and its values: a list (stabilization.method=none,baumgarte), a range "
+             "(simulation.step=lin:1e-3:1e-2:10, stabilization.w=log:1:1000:13) or @FILE (one value per "
+             "line). Several --vary make a grid of every combination.")] = None,
+    sample: Annotated[str, typer.Option(
+        "--sample", metavar="grid|random|lhs",
+        help="grid: every combination; random or lhs (Latin hypercube): --samples runs drawn from the "
+             "ranges (lin: uniform, log: log-uniform, a list: each item alike).")] = "grid",
+    samples: Annotated[int | None, typer.Option("--samples", "-n", metavar="N",
+                                                help="Runs of a random or lhs design.")] = None,
+    seed: Annotated[int | None, typer.Option(
+        "--seed", metavar="N", help="Seed of a random or lhs design (default: drawn, and stored in the file).")] = None,
+    reference: Annotated[list[str] | None, typer.Option(
+        "--reference", "-r", metavar="KEY=VALUE",
+        help="A reference run: the base case with these --set overrides (repeat the option), e.g. "
+             "-r simulation.rtol=1e-12 -r simulation.atol=1e-12; each run's motion error is measured "
+             "against it.")] = None,
+    output: Annotated[Path | None, typer.Option(
+        "--output", "-o", metavar="OUT.h5",
+        help="Sweep file (HDF5, .h5 or .hdf5), written atomically at checkpoints and at the end. "
+             "Default: results/CASE_sweep.h5")] = None,
+    set_: Annotated[list[str] | None, typer.Option("--set", "-s", metavar="KEY=VALUE", help=SET_HELP)] = None,
+    jobs: Annotated[int | None, typer.Option(
+        "--jobs", "-j", metavar="N", help="Worker processes. Default: one per CPU; 1 runs in this process.")] = None,
+    scheduler: Annotated[str | None, typer.Option(
+        "--scheduler", metavar="ADDRESS",
+        help="Run on a Dask distributed cluster, e.g. tcp://10.0.0.5:8786 (pip install 'csim[dask]').")] = None,
+    keep: Annotated[bool, typer.Option(
+        "--keep", help="Also store each run's signals (t, q, qd, Phi, Phi_q qd, energy-balance error).")] = False,
+    resume: Annotated[bool, typer.Option(
+        "--resume", help="Go on with the runs an interrupted sweep file (OUT) left pending.")] = False,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing but errors.")] = False,
+):
+    """Run one case over a grid or a random design of case values (a parameter study).
+
+    Any case key can vary: gains, step sizes, tolerances, mechanism
+    parameters, loads, initial conditions. The runs reuse the loaded model
+    and compiled kernels in each worker. One row per run: status and why it
+    failed, max |Phi|, max |Phi_q qd|, energy-balance error, motion error
+    against the reference run, wall time, RHS evaluations, events. csim plot
+    draws a stability map of two varied keys, or curves of one.
+
+    Exit codes: 0 every run ran (failed runs are data: the file says why);
+    2 bad input; 130 interrupted (Ctrl-C: OUT holds the finished runs;
+    --resume goes on).
+
+    Example: csim sweep configs/quick_return.yaml -v stabilization.w=lin:10:400:40
+    -v simulation.step=log:1e-3:2e-2:30 --set stabilization.method=baumgarte
+    --set simulation.integrator=RK4 -o results/map.h5
+    """
+    from csim.case import load_case
+    from csim.progress import CountProgress, reporting
+    from csim.study import make_plan, parse_variation, run_sweep
+
+    out = output or default_output(case, "_sweep")
+    try:
+        c = load_case(case, set_ or [])
+        problems = []
+        variations = []
+        for text in vary or []:
+            try:
+                variations.append(parse_variation(text))
+            except CaseError as exc:
+                problems += exc.problems
+        if jobs is not None and jobs < 1:
+            problems.append(f"--jobs: got {jobs}; expected a whole number >= 1")
+        if problems:
+            raise CaseError(problems)
+        plan = make_plan(c, variations, sampling=sample, samples=samples, seed=seed)
+        if resume and not out.is_file():
+            raise CaseError([f"--resume: no sweep file {out} to resume"])
+        check_writable(out, protect=[case], suffixes=RESULT_SUFFIXES)
+        with reporting(not quiet), CountProgress(len(plan), label=f"sweep of {case.name}") as bar:
+            result = run_sweep(plan, out, jobs=jobs, scheduler=scheduler, keep=keep, reference=reference,
+                               resume=resume, progress=bar)
+    except CsimError as exc:
+        _fail_input(exc)
+    if not quiet:
+        typer.echo(sweep_summary(result, out))
+    if result.interrupted:
+        typer.echo(f"csim: sweep interrupted (Ctrl-C): {result.done} of {len(result.rows)} runs in {out}; "
+                   f"add --resume to the same command to run the rest", err=True)
+        raise typer.Exit(EXIT_INTERRUPTED)
+
+
+def sweep_summary(result, out: Path) -> str:
+    """Runs by outcome, and where the file went."""
+    counts = ", ".join(f"{n} {label}" for label, n in sorted(result.counts().items(), key=lambda kv: -kv[1]))
+    keys = " x ".join(f"{v.key} ({len(set(map(str, result.plan.column(v.key))))})" for v in result.plan.variations)
+    return "\n".join([f"sweep:      {len(result.rows)} runs of {keys} ({result.plan.sampling})",
+                      f"outcomes:   {counts}", f"result:     {out}"])
+
+
+@app.command(cls=_Command)
+@_interruptible
 def plot(
     result: Annotated[Path, typer.Argument(help="Result file (csim run) or comparison file (csim compare).",
                                            show_default=False, metavar="RESULT.h5")],

@@ -27,7 +27,7 @@ if TYPE_CHECKING:  # rich is imported where something is drawn: a warm run with 
     from rich.live import Live
     from rich.progress import Progress
 
-__all__ = ["RunProgress", "reporting", "status"]
+__all__ = ["CountProgress", "RunProgress", "reporting", "status"]
 
 
 class _Display:
@@ -217,3 +217,61 @@ class RunProgress:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+class CountProgress:
+    """Progress bar of a study against the number of runs; call it as ``bar(done, total)``.
+
+    Drawn with rich on stderr (runs done / total, elapsed time, ETA), only inside
+    :func:`reporting` on a terminal; on any other stderr one plain line every ``every``
+    seconds of wall time (a log of a long sweep in CI shows it moving). Use it as a context
+    manager.
+
+    Parameters
+    ----------
+    total : int
+        Runs to make.
+    label : str
+        Text before the bar.
+    every : float
+        Seconds between the plain lines [s].
+    """
+
+    def __init__(self, total: int, label: str = "runs", every: float = 30.0):
+        self.total, self.label, self.every = int(total), label, every
+        self.enabled = _DISPLAY.enabled
+        self._last = time.monotonic()
+        self._progress: Progress | None = None
+        if self.enabled and _DISPLAY.is_terminal():
+            from rich.progress import (
+                BarColumn,
+                MofNCompleteColumn,
+                Progress,
+                TextColumn,
+                TimeElapsedColumn,
+                TimeRemainingColumn,
+            )
+
+            self._progress = Progress(
+                TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                TimeRemainingColumn(), console=_DISPLAY.terminal(), transient=True,
+                redirect_stdout=False, redirect_stderr=False)
+            self._task = self._progress.add_task(label, total=self.total)
+            _start(self._progress.live)
+
+    def __call__(self, done: int, total: int) -> None:
+        if self._progress is not None:
+            self._progress.update(self._task, completed=done, total=total)
+        elif self.enabled and time.monotonic() - self._last >= self.every:
+            self._last = time.monotonic()
+            stream = _DISPLAY.stream()
+            stream.write(f"csim: {self.label}: {done}/{total} done\n")
+            stream.flush()
+
+    def __enter__(self) -> CountProgress:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self._progress is not None:
+            self._progress.stop()
+

@@ -7,9 +7,10 @@ from pathlib import Path
 
 from matplotlib.figure import Figure
 
+from csim.io.sweep_file import read_sweep
 from csim.plot.errors import PlotError
-from csim.plot.registry import COMPARISON_FIGURES, run_figure_kinds, select
-from csim.plot.source import COMPARISON, file_kind, load_comparison, load_run
+from csim.plot.registry import COMPARISON_FIGURES, SWEEP_FIGURES, run_figure_kinds, select
+from csim.plot.source import COMPARISON, SWEEP, file_kind, load_comparison, load_run
 from csim.plot.style import FORMATS, save
 
 
@@ -54,7 +55,7 @@ def figures(path: str | Path, only: Sequence[str] | None = None, group: str | No
     Parameters
     ----------
     path : str or Path
-        A ``csim run`` result file or a ``csim compare`` comparison file.
+        A ``csim run`` result file, a ``csim compare`` comparison file or a ``csim sweep`` file.
     only : sequence of str, optional
         Figure names (default: every figure the file has the data for).
     group : str, optional
@@ -76,7 +77,13 @@ def figures(path: str | Path, only: Sequence[str] | None = None, group: str | No
         An unknown figure name, a figure the file cannot give, a run without samples.
     """
     path = Path(path)
-    if file_kind(path) == COMPARISON and not group:
+    kind = file_kind(path)
+    if kind == SWEEP:
+        if group:
+            raise PlotError(f"--group: {path} is a sweep file, which has no groups")
+        data = read_sweep(path)
+        kinds, what = SWEEP_FIGURES, f"sweep file {path}"
+    elif kind == COMPARISON and not group:
         data = load_comparison(path)
         kinds, what = COMPARISON_FIGURES, f"comparison file {path}"
     else:

@@ -11,11 +11,13 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
 from matplotlib.figure import Figure
 
 from csim.model.definition import DeclaredFigure
 from csim.plot import comparison_figures as cf
 from csim.plot import run_figures as rf
+from csim.plot import sweep_figures as sf
 from csim.plot.errors import PlotError
 from csim.plot.source import ComparisonData, RunData
 
@@ -183,3 +185,35 @@ def select(kinds: dict[str, FigureKind], data, only: Sequence[str] | None, what:
         else:
             chosen.append(kind)
     return chosen, skipped
+
+
+def _not_two_keys(table) -> str | None:
+    keys = sf.numeric_keys(table)
+    return None if len(keys) >= 2 else f"a map needs two numeric varied keys (this sweep: {', '.join(table.keys)})"
+
+
+def _not_one_key(table) -> str | None:
+    return None if len(sf.numeric_keys(table)) == 1 else "curves need exactly one numeric varied key"
+
+
+def _no_values(column: str):
+    def missing(table) -> str | None:
+        if _not_two_keys(table):
+            return _not_two_keys(table)
+        ok = [i for i in range(table.n) if table.status[i] == "success"]
+        if not any(np.isfinite(table.columns[column][i]) for i in ok):
+            return f"no successful run has a value of {column}" + (" (no --reference run)" if column == "error" else "")
+        return None
+    return missing
+
+
+#: the figures of a sweep file (csim sweep)
+SWEEP_FIGURES: dict[str, FigureKind] = {k.name: k for k in (
+    FigureKind("outcome", "stability map: each run stable, or failed and why, over two varied keys",
+               sf.outcome_figure, _not_two_keys),
+    *(FigureKind(f"{column}_map", f"stability map: {text} (log colour scale), failed runs marked",
+                 functools.partial(sf.metric_figure, column=column), _no_values(column))
+      for column, text in sf.METRICS.items()),
+    FigureKind("curves", "max |Phi|, motion error, energy error and RHS evaluations against one varied key",
+               sf.curves_figure, _not_one_key),
+)}

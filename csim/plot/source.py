@@ -18,17 +18,19 @@ import sympy as sp
 from csim.case import parse_yaml, validate_case
 from csim.errors import CsimError, ResultFileError
 from csim.io.hdf5 import COMPARISON_KIND, ComparisonFile, read_comparison, read_result
+from csim.io.sweep_file import SWEEP_KIND
 from csim.mechanisms import MECHANISMS, get_mechanism
 from csim.model.definition import MechanismDefinition
 from csim.model.light import full_definition
 from csim.result import Result
 
 #: kinds of result file
-RUN, COMPARISON = "run", "comparison"
+RUN, COMPARISON, SWEEP = "run", "comparison", "sweep"
 
 
 def file_kind(path: str | Path) -> str:
-    """``"run"`` for a ``csim run`` file, ``"comparison"`` for a ``csim compare`` file.
+    """``"run"`` for a ``csim run`` file, ``"comparison"`` for a ``csim compare`` file,
+    ``"sweep"`` for a ``csim sweep`` file.
 
     Raises
     ------
@@ -44,6 +46,8 @@ def file_kind(path: str | Path) -> str:
     except OSError as exc:
         raise ResultFileError(f"{path}: not a readable HDF5 file ({exc})") from None
     kind = kind.decode() if isinstance(kind, bytes) else str(kind)
+    if kind == SWEEP_KIND:
+        return SWEEP
     return COMPARISON if kind == COMPARISON_KIND else RUN
 
 

@@ -1,0 +1,188 @@
+"""Figures of a sweep file (``csim sweep``): stability maps of two varied keys, curves of one.
+
+Two numeric keys on a grid give maps, one cell per run, the keys on the axes (log axes for
+log-spaced values): ``outcome`` (stable, or failed and why, one colour per reason) and a
+heatmap per figure of merit (``max_phi``, ``error``, ``energy_error``; log colour scale with
+a colour bar; failed runs grey, marked with their reason's marker). Scattered designs
+(random, Latin hypercube) give the same as scatter plots. One varied key gives
+``curves``: each figure of merit against the value, failed runs marked on the axis.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from matplotlib.colors import BoundaryNorm, ListedColormap, LogNorm
+from matplotlib.figure import Figure
+
+from csim.io.sweep_file import PENDING, SweepTable
+from csim.plot.errors import PlotError
+from csim.plot.style import label_with_unit, new_figure, styled, title
+
+#: outcome -> (colour, marker); reasons as csim.study.metrics names them
+OUTCOMES = {
+    "success": ("tab:green", "o"), "drift": ("tab:red", "X"), "blow-up": ("black", "p"),
+    "step collapse": ("tab:purple", "v"), "max steps": ("tab:brown", "s"), "chatter": ("tab:orange", "*"),
+    "singular": ("tab:pink", "D"), "projection": ("tab:cyan", "P"), "step": ("tab:olive", "^"),
+    "assembly": ("tab:gray", "h"), "invalid": ("lightgray", "8"), "interrupted": ("white", "8"),
+    "other": ("tab:blue", "d"), PENDING: ("white", "8"),
+}
+
+#: the heatmaps: column -> title
+METRICS = {"max_phi": "max |Phi| over the run", "error": "motion error against the reference run",
+           "energy_error": "relative energy-balance error"}
+
+
+def outcome(table: SweepTable, i: int) -> str:
+    """``success``, a failure reason, or ``pending``."""
+    s = table.status[i]
+    return s if s in ("success", PENDING) else (table.reason[i] or "other")
+
+
+@dataclass
+class Grid:
+    """Two keys' values as the axes of a map, and each run's cell (grid designs only)."""
+
+    x: np.ndarray  # (nx,) distinct values of the first key
+    y: np.ndarray  # (ny,) of the second
+    cell: list[tuple[int, int]]  # per run: (iy, ix)
+
+    def fill(self, values) -> np.ndarray:
+        """(ny, nx) array of the runs' values (NaN where no run)."""
+        out = np.full((self.y.size, self.x.size), np.nan)
+        for (iy, ix), v in zip(self.cell, values):
+            out[iy, ix] = v
+        return out
+
+
+def numeric_keys(table: SweepTable) -> list[str]:
+    return [k for k in table.keys if table.numeric[k]]
+
+
+def grid_of(table: SweepTable, kx: str, ky: str) -> Grid | None:
+    """The map's grid, or None when the runs do not fill one (a random design)."""
+    xs, ys = np.asarray(table.values[kx]), np.asarray(table.values[ky])
+    x, y = np.unique(xs), np.unique(ys)
+    if x.size * y.size != table.n or x.size < 2 or y.size < 2:
+        return None
+    cells = [(int(np.searchsorted(y, b)), int(np.searchsorted(x, a))) for a, b in zip(xs, ys)]
+    if len(set(cells)) != table.n:
+        return None
+    return Grid(x=x, y=y, cell=cells)
+
+
+def _edges(v: np.ndarray) -> tuple[np.ndarray, str]:
+    """Cell edges around the values ``v`` (geometric midpoints for log-spaced values) and the axis scale."""
+    log = v.size > 2 and np.all(v > 0) and np.allclose(np.diff(np.log(v)), np.log(v[1] / v[0]), rtol=1e-6)
+    w = np.log(v) if log else v
+    mid = (w[1:] + w[:-1]) / 2
+    edges = np.concatenate(([w[0] - (mid[0] - w[0])], mid, [w[-1] + (w[-1] - mid[-1])]))
+    return (np.exp(edges), "log") if log else (edges, "linear")
+
+
+def _axes_keys(table: SweepTable) -> tuple[str, str]:
+    keys = numeric_keys(table)
+    if len(keys) < 2:
+        raise PlotError(f"a map needs two numeric varied keys; this sweep varies {', '.join(table.keys)}")
+    return keys[0], keys[1]
+
+
+def _subtitle(table: SweepTable) -> str:
+    counts: dict[str, int] = {}
+    for i in range(table.n):
+        counts[outcome(table, i)] = counts.get(outcome(table, i), 0) + 1
+    return f"{table.n} runs: " + ", ".join(f"{n} {k}" for k, n in sorted(counts.items(), key=lambda kv: -kv[1]))
+
+
+@styled
+def outcome_figure(table: SweepTable) -> Figure:
+    """Map of each run's outcome over the first two numeric keys (stable, or the failure's reason)."""
+    kx, ky = _axes_keys(table)
+    fig, ax = new_figure(squeeze=True, height=4.4)
+    present = [k for k in OUTCOMES if any(outcome(table, i) == k for i in range(table.n))]
+    codes = np.array([present.index(outcome(table, i)) for i in range(table.n)], dtype=float)
+    grid = grid_of(table, kx, ky)
+    if grid is not None:
+        ex, sx = _edges(grid.x)
+        ey, sy = _edges(grid.y)
+        cmap = ListedColormap([OUTCOMES[k][0] for k in present])
+        ax.pcolormesh(ex, ey, grid.fill(codes), cmap=cmap, norm=BoundaryNorm(np.arange(len(present) + 1) - 0.5,
+                                                                                  len(present)), gid="outcome")
+        ax.set_xscale(sx)
+        ax.set_yscale(sy)
+    for j, k in enumerate(present):
+        pick = codes == j
+        ax.scatter(np.asarray(table.values[kx])[pick], np.asarray(table.values[ky])[pick], s=14 if grid else 22,
+                   color="none" if grid else OUTCOMES[k][0], marker=OUTCOMES[k][1],
+                   edgecolors="black" if grid else None, linewidths=0.5, label=f"{k} ({int(pick.sum())})",
+                   **({} if grid is None or k != "success" else {"alpha": 0.0}))
+    ax.set_xlabel(kx)
+    ax.set_ylabel(ky)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small", title="outcome")
+    title(fig, "Stability map: outcome of each run", _subtitle(table))
+    return fig
+
+
+@styled
+def metric_figure(table: SweepTable, column: str) -> Figure:
+    """Heatmap of ``column`` (log colour scale) over the first two numeric keys; failed runs grey and marked."""
+    kx, ky = _axes_keys(table)
+    fig, ax = new_figure(squeeze=True, height=4.4)
+    values = np.asarray(table.columns[column], dtype=float)
+    ok = np.array([table.status[i] == "success" for i in range(table.n)])
+    shown = np.where(ok & np.isfinite(values) & (values > 0), values, np.nan)
+    positive = shown[np.isfinite(shown)]
+    norm = LogNorm(positive.min(), positive.max()) if positive.size and positive.min() < positive.max() else None
+    grid = grid_of(table, kx, ky)
+    if grid is not None:
+        ex, sx = _edges(grid.x)
+        ey, sy = _edges(grid.y)
+        ax.set_facecolor("lightgray")  # the cells of failed runs
+        mesh = ax.pcolormesh(ex, ey, grid.fill(shown), norm=norm, cmap="viridis", gid=column)
+        ax.set_xscale(sx)
+        ax.set_yscale(sy)
+    else:
+        mesh = ax.scatter(np.asarray(table.values[kx])[ok], np.asarray(table.values[ky])[ok], c=shown[ok], norm=norm,
+                          cmap="viridis", s=22, gid=column)
+    fig.colorbar(mesh, ax=ax, label=label_with_unit(column, table.units.get(column, "")))
+    for k in OUTCOMES:
+        pick = np.array([outcome(table, i) == k for i in range(table.n)]) & ~ok
+        if pick.any():
+            ax.scatter(np.asarray(table.values[kx])[pick], np.asarray(table.values[ky])[pick], marker=OUTCOMES[k][1],
+                       color=OUTCOMES[k][0], edgecolors="black", linewidths=0.4, s=20,
+                       label=f"failed: {k} ({int(pick.sum())})")
+    if (~ok).any():
+        fig.legend(loc="outside lower center", ncols=4, fontsize="small")
+    ax.set_xlabel(kx)
+    ax.set_ylabel(ky)
+    title(fig, f"Stability map: {METRICS.get(column, column)}", _subtitle(table))
+    return fig
+
+
+@styled
+def curves_figure(table: SweepTable) -> Figure:
+    """Each figure of merit against the one varied numeric key; failed runs marked at the bottom."""
+    key = numeric_keys(table)[0]
+    x = np.asarray(table.values[key], dtype=float)
+    order = np.argsort(x, kind="stable")
+    columns = [c for c in ("max_phi", "error", "energy_error", "nfev") if np.isfinite(table.columns[c]).any()]
+    fig, axes = new_figure(len(columns), 1, sharex=True)
+    ok = np.array([s == "success" for s in table.status])
+    log_x = np.all(x > 0) and x.max() / x.min() > 100
+    for ax, column in zip(axes[:, 0], columns):
+        y = np.asarray(table.columns[column], dtype=float)
+        ax.plot(x[order][ok[order]], y[order][ok[order]], "o-", ms=3, color="tab:blue", gid=column)
+        ax.set_yscale("log" if np.all(y[ok & np.isfinite(y)] > 0) else "linear")
+        ax.set_ylabel(label_with_unit(column, table.units.get(column, "")))
+        for k in OUTCOMES:
+            pick = np.array([outcome(table, i) == k for i in range(table.n)]) & ~ok
+            if pick.any():
+                ax.plot(x[pick], np.full(pick.sum(), 0.02), OUTCOMES[k][1], color=OUTCOMES[k][0],
+                        transform=ax.get_xaxis_transform(), label=f"failed: {k}")
+        if (~ok).any() and ax is axes[0, 0]:
+            ax.legend(fontsize="small")
+    axes[-1, 0].set_xlabel(key)
+    if log_x:
+        axes[-1, 0].set_xscale("log")
+    title(fig, f"Sweep of {key}", _subtitle(table))
+    return fig

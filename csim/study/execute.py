@@ -1,0 +1,162 @@
+"""Running a sweep's runs: in this process, in worker processes, or on a Dask cluster.
+
+The unit of work is a chunk of runs, :func:`run_chunk`: it rebuilds each run's case from the
+base case's data and the run's values, runs it in the calling process and returns one row
+per run. A worker process (or Dask worker) keeps the mechanism's numeric model and compiled
+kernels loaded from one chunk to the next (:func:`csim.pipeline.numeric_model` and
+:func:`csim.fast.module.load_module` cache them per process), so a run costs its
+integration and its post-processing, not a process start or a model derivation.
+
+Every executor calls ``deliver(done)`` with the finished runs of each chunk, as they
+finish, and returns whether Ctrl-C stopped it (the runs not delivered then did not finish).
+"""
+from __future__ import annotations
+
+import concurrent.futures as cf
+import contextlib
+import copy
+import math
+import multiprocessing
+import os
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from csim.case import apply_overrides, validate_case
+from csim.compare.pool import _InterruptFlag, _worker_environment, _worker_init
+from csim.errors import CaseError
+from csim.study.metrics import failed_row, run_row
+from csim.study.plan import override
+
+#: (run index, row, signals or None)
+Done = tuple[int, dict, dict | None]
+
+#: the signals ``--keep`` records of each run: Result attribute -> dataset name
+SIGNALS = ("t", "q", "qd", "phi", "phi_dot", "energy_error")
+
+
+@dataclass(frozen=True)
+class Work:
+    """What every chunk needs besides its runs (sent once per chunk; small)."""
+
+    data: dict  # the base case's validated data
+    source: str
+    keys: tuple[str, ...]
+    reference: tuple[np.ndarray, np.ndarray] | None = None  # (t, q) of the reference run
+    keep: bool = False
+
+
+def run_chunk(work: Work, chunk: Sequence[tuple[int, tuple]]) -> list[Done]:
+    """Run ``chunk`` ((index, values) pairs) in this process; an exception fails its run, not the chunk."""
+    from csim.pipeline import run_case
+
+    reference = None
+    if work.reference is not None:
+        reference = _Reference(*work.reference)
+    out = []
+    for i, values in chunk:
+        try:
+            data = apply_overrides(copy.deepcopy(work.data), [override(k, v) for k, v in zip(work.keys, values)])
+            case = validate_case(data, source=f"{work.source} (sweep run {i})")
+        except CaseError as exc:
+            out.append((i, failed_row("case: " + "; ".join(exc.problems), "invalid"), None))
+            continue
+        try:
+            result = run_case(case)
+        except Exception as exc:  # a bug or an unexpected numerical error: a failed row, not a crash
+            out.append((i, failed_row(f"{type(exc).__name__}: {exc}", "other"), None))
+            continue
+        signals = {name: np.asarray(getattr(result, name)) for name in SIGNALS} if work.keep else None
+        out.append((i, run_row(result, reference), signals))
+    return out
+
+
+@dataclass
+class _Reference:
+    """The reference run's samples, as :func:`csim.study.metrics.run_row` reads them."""
+
+    t: np.ndarray
+    q: np.ndarray
+
+
+def chunks(todo: Sequence[int], rows: Sequence[tuple], workers: int) -> list[list[tuple[int, tuple]]]:
+    """The runs ``todo`` in chunks: about four per worker, at most 64 runs each (for progress and Ctrl-C)."""
+    size = max(1, min(64, math.ceil(len(todo) / (4 * max(workers, 1)))))
+    return [[(i, rows[i]) for i in todo[s:s + size]] for s in range(0, len(todo), size)]
+
+
+def run_serial(work: Work, parts: list, deliver: Callable[[list[Done]], None]) -> bool:
+    """Every chunk in this process, in order; True when Ctrl-C stopped it."""
+    with _InterruptFlag() as flag:
+        for part in parts:
+            try:
+                done = run_chunk(work, part)
+            except KeyboardInterrupt:
+                return True
+            if flag.set:  # the driver turned Ctrl-C into a failed run: that run did not finish
+                return True
+            deliver(done)
+    return False
+
+
+def run_local(work: Work, parts: list, jobs: int, deliver: Callable[[list[Done]], None]) -> bool:
+    """The chunks in ``jobs`` worker processes ("spawn", one BLAS thread each); True when Ctrl-C stopped it."""
+    if jobs == 1:
+        return run_serial(work, parts, deliver)
+    context = multiprocessing.get_context("spawn")
+    executor = cf.ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=_worker_init)
+    pending: dict[cf.Future, list] = {}
+    try:
+        with _worker_environment():
+            pending = {executor.submit(run_chunk, work, part): part for part in parts}
+        for future in cf.as_completed(list(pending)):
+            deliver(_chunk_result(future, pending.pop(future)))
+    except KeyboardInterrupt:
+        _stop_processes(executor)
+        for future in pending:  # chunks that finished before Ctrl-C
+            if future.done() and not future.cancelled() and future.exception() is None:
+                deliver(future.result())
+        return True
+    finally:
+        executor.shutdown(wait=True, cancel_futures=True)
+    return False
+
+
+def _chunk_result(future, part) -> list[Done]:
+    try:
+        return future.result()
+    except Exception as exc:  # the worker died, or its result could not come back
+        message = f"worker failed: {type(exc).__name__}: {exc}"
+        return [(i, failed_row(message, "other"), None) for i, _ in part]
+
+
+def _stop_processes(executor: cf.ProcessPoolExecutor) -> None:
+    processes = list((getattr(executor, "_processes", None) or {}).values())
+    executor.shutdown(wait=False, cancel_futures=True)
+    for process in processes:
+        process.terminate()
+    for process in processes:
+        process.join(5)
+
+
+def run_dask(work: Work, parts: list, address: str, deliver: Callable[[list[Done]], None]) -> bool:
+    """The chunks on the Dask cluster at ``address`` (``csim[dask]``); True when Ctrl-C stopped it."""
+    from distributed import Client, as_completed
+
+    with Client(address, set_as_default=False) as client:
+        scattered = client.scatter(work, broadcast=True)  # sent once, not with every chunk
+        pending = {client.submit(run_chunk, scattered, part, pure=False): part for part in parts}
+        try:
+            for future in as_completed(list(pending), loop=client.loop):
+                deliver(_chunk_result(future, pending.pop(future)))
+        except KeyboardInterrupt:
+            with contextlib.suppress(Exception):
+                client.cancel(list(pending))
+            return True
+    return False
+
+
+def default_jobs(n_runs: int) -> int:
+    """One worker process per CPU, at most one per chunk of runs."""
+    return max(1, min(os.cpu_count() or 1, n_runs))

@@ -1,0 +1,95 @@
+"""What a sweep records of each run: its outcome, why it failed, and its figures of merit.
+
+A row is a plain dict (it travels back from worker processes and Dask workers): the
+columns of :data:`COLUMNS`, in their units, NaN where a run has no value (a failed run
+that wrote no sample, or no reference run).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from csim.compare.metrics import constraint_errors, motion_error
+from csim.result import Result
+
+NAN = float("nan")
+
+
+@dataclass(frozen=True)
+class Column:
+    """One per-run number of a sweep: name (HDF5 dataset and table header), unit, description."""
+
+    name: str
+    unit: str
+    doc: str
+    dtype: str = "f8"
+
+
+#: the numbers of each run, in their order in the file and the table
+COLUMNS = (
+    Column("max_phi", "unit of Phi", "max |Phi_i| over the run"),
+    Column("final_phi", "unit of Phi", "max |Phi_i| at the last sample"),
+    Column("max_phi_dot", "unit of Phi/s", "max |(Phi_q qd)_i| over the run"),
+    Column("energy_error", "1", "max |T + V - T0 - V0 - W| / energy scale (NaN for a kinematic analysis)"),
+    Column("energy_error_abs", "J", "max |T + V - T0 - V0 - W|"),
+    Column("error", "rad or m", "max |q - q_ref| against the reference run, over the samples both reached"),
+    Column("final_error", "rad or m", "max |q(t_end) - q_ref(t_end)| (NaN when either run stopped early)"),
+    Column("t_reached", "s", "the last sample's time"),
+    Column("wall_time", "s", "integration and post-processing"),
+    Column("nfev", "1", "right-hand-side evaluations", "i8"),
+    Column("nsteps", "1", "integration steps", "i8"),
+    Column("events", "1", "located switching events", "i8"),
+)
+
+#: why a run failed, from the first words of its message (csim.physics.status and the drivers)
+REASONS = (
+    ("invalid", ("case: ",)),
+    ("assembly", ("initial conditions",)),
+    ("interrupted", ("interrupted",)),
+    ("blow-up", ("blow-up",)),
+    ("drift", ("constraint violation",)),
+    ("step collapse", ("step-size collapse", "Required step size")),
+    ("max steps", ("more than simulation.max_steps",)),
+    ("chatter", ("more than simulation.max_events", "chatter")),
+    ("singular", ("singular", "projection: singular", "numerical error")),
+    ("projection", ("projection:",)),
+    ("step", ("integrator RK4 failed",)),
+)
+
+
+def failure_reason(status: str, message: str, failure: str = "") -> str:
+    """A short name of why a run failed ("" for a success; "other" for a message not listed)."""
+    if status == "success":
+        return ""
+    if failure in ("assembly", "interrupted"):
+        return failure
+    text = message.lower()
+    for reason, starts in REASONS:
+        if any(s.lower() in text for s in starts):
+            return reason
+    return "other"
+
+
+def run_row(result: Result, reference: Result | None = None) -> dict:
+    """The row of one run: ``status``, ``reason``, ``message`` and every :data:`COLUMNS` value."""
+    max_phi, final_phi, max_phi_dot = constraint_errors(result.phi, result.phi_dot)
+    row = dict(status=result.status, reason=failure_reason(result.status, result.message, result.failure),
+               message=result.message, max_phi=max_phi, final_phi=final_phi, max_phi_dot=max_phi_dot,
+               energy_error=NAN, energy_error_abs=NAN, error=NAN, final_error=NAN,
+               t_reached=float(result.t[-1]) if result.t.size else NAN, wall_time=float(result.wall_time),
+               nfev=int(result.nfev), nsteps=int(result.nsteps), events=int(len(result.event_times)))
+    if result.t.size and result.run_kind != "kinematic":
+        with np.errstate(invalid="ignore", over="ignore"):
+            row["energy_error"] = result.energy_error_relative
+            row["energy_error_abs"] = result.energy_error_max
+    if reference is not None and reference.t.size and result.t.size:
+        err = motion_error(result.t, result.q, reference.t, reference.q)
+        row["error"], row["final_error"] = err.motion, err.final
+    return row
+
+
+def failed_row(message: str, reason: str) -> dict:
+    """The row of a run that produced no result (its case was rejected, or its worker died)."""
+    row = {c.name: (0 if c.dtype == "i8" else NAN) for c in COLUMNS}
+    return dict(status="failed", reason=reason, message=message, **row)

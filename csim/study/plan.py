@@ -1,0 +1,144 @@
+"""A sweep's plan: the base case, the varied keys and the value of each key in each run.
+
+Three ways to combine the varied keys (``sampling``):
+
+``grid``
+    every combination of the keys' values (the first key varies slowest);
+``random``
+    ``samples`` independent draws, each key from its distribution (:mod:`csim.study.values`);
+``lhs``
+    a Latin hypercube of ``samples`` runs: each key's range cut into ``samples`` strata of
+    equal probability, one draw in each, the strata of the keys paired at random.
+
+Both random designs are reproducible from ``seed``.
+"""
+from __future__ import annotations
+
+import copy
+import itertools
+import json
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from csim.case import Case, apply_overrides, validate_case
+from csim.errors import CaseError
+from csim.study.values import Variation
+
+SAMPLINGS = ("grid", "random", "lhs")
+
+
+def override(key: str, value: Any) -> str:
+    """The ``--set`` text that gives ``key`` the value ``value`` (JSON is YAML flow style)."""
+    return f"{key}={json.dumps(value)}"
+
+
+@dataclass
+class SweepPlan:
+    """The runs of a sweep.
+
+    Attributes
+    ----------
+    case : Case
+        The validated base case (every run is it with its row's values set).
+    variations : list of Variation
+        The varied keys, in the order given.
+    rows : list of tuple
+        One tuple of values per run, in the order of ``variations``.
+    sampling : {"grid", "random", "lhs"}
+    seed : int or None
+    """
+
+    case: Case
+    variations: list[Variation]
+    rows: list[tuple]
+    sampling: str = "grid"
+    seed: int | None = None
+
+    @property
+    def keys(self) -> list[str]:
+        return [v.key for v in self.variations]
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    def overrides(self, i: int) -> list[str]:
+        """The ``--set`` overrides of run ``i`` (on top of the base case)."""
+        return [override(key, value) for key, value in zip(self.keys, self.rows[i])]
+
+    def run_case(self, i: int) -> Case:
+        """The validated case of run ``i`` (raises CaseError for a combination the case check rejects)."""
+        data = apply_overrides(copy.deepcopy(self.case.data), self.overrides(i))
+        return validate_case(data, source=f"{self.case.source} (sweep run {i})")
+
+    def column(self, key: str) -> list:
+        """The values of ``key`` in every run."""
+        j = self.keys.index(key)
+        return [row[j] for row in self.rows]
+
+
+def _rows(variations: list[Variation], sampling: str, samples: int | None, seed: int | None) -> list[tuple]:
+    if sampling == "grid":
+        return list(itertools.product(*(v.values for v in variations)))
+    rng = np.random.default_rng(seed)
+    n, d = samples, len(variations)
+    if sampling == "random":
+        u = rng.random((n, d))
+    else:  # Latin hypercube: one point in each of n equal strata per key, strata paired at random
+        u = (np.argsort(rng.random((n, d)), axis=0) + rng.random((n, d))) / n
+    columns = [v.sample(u[:, j]) for j, v in enumerate(variations)]
+    return list(zip(*columns))
+
+
+def _check_options(variations: list[Variation], sampling: str, samples: int | None) -> list[str]:
+    problems = []
+    if not variations:
+        problems.append("--vary: nothing to vary; give at least one --vary KEY=VALUES")
+    keys = [v.key for v in variations]
+    for key in sorted({k for k in keys if keys.count(k) > 1}):
+        problems.append(f"--vary {key}: the key is varied twice; give each key once")
+    if sampling not in SAMPLINGS:
+        problems.append(f"--sample: got {sampling!r}; valid: {', '.join(SAMPLINGS)}")
+    elif sampling == "grid":
+        if samples is not None:
+            problems.append("--samples: only with --sample random or --sample lhs (a grid runs every combination)")
+        problems += [f"--vary {v.text!r}: a grid needs N values; write {v.kind}:START:STOP:N"
+                     for v in variations if not v.values]
+    elif samples is None or samples < 1:
+        problems.append(f"--samples: --sample {sampling} needs the number of runs, a whole number >= 1")
+    return problems
+
+
+def _check_values(case: Case, variations: list[Variation]) -> list[str]:
+    """Each value of each key, set alone on the base case, must pass the case check."""
+    problems = []
+    for v in variations:
+        probe = v.values or tuple(v.sample(np.array([0.0, 1.0])))
+        for value in dict.fromkeys(json.dumps(x) for x in probe):  # each distinct value once
+            try:
+                validate_case(apply_overrides(copy.deepcopy(case.data), [f"{v.key}={value}"]), source=case.source)
+            except CaseError as exc:
+                problems += [f"--vary {v.key}={value}: {p.removeprefix('--set ')}" for p in exc.problems]
+                break
+    return problems
+
+
+def make_plan(case: Case, variations: list[Variation], sampling: str = "grid", samples: int | None = None,
+              seed: int | None = None) -> SweepPlan:
+    """Check the options and every key's values against the base case; list the runs.
+
+    Raises
+    ------
+    CaseError
+        Listing every problem: a key varied twice, a grid range without N, a value the
+        case check rejects (naming the key, the value and what was expected).
+    """
+    problems = _check_options(variations, sampling, samples)
+    problems += _check_values(case, [v for v in variations if v.values or v.bounds])
+    if problems:
+        raise CaseError(problems)
+    if sampling != "grid" and seed is None:
+        seed = int(np.random.default_rng().integers(2**31))  # recorded, so the design can be made again
+    return SweepPlan(case=case, variations=list(variations), rows=_rows(variations, sampling, samples, seed),
+                     sampling=sampling, seed=seed)

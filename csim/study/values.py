@@ -1,0 +1,162 @@
+"""What ``--vary KEY=VALUES`` means: the values one case key takes in a sweep.
+
+VALUES is one of
+
+``1,2,5``
+    a list (each item parsed as a case-file value: numbers, names, ``[20, 30]`` lists when
+    the whole list is written in YAML flow style, e.g. ``[[20, 30], [40, 60]]``);
+``lin:START:STOP:N``
+    N values evenly spaced from START to STOP (both included);
+``log:START:STOP:N``
+    N values evenly spaced in log10 from START to STOP (both positive, both included);
+``@FILE``
+    the values in a text file: one per line, or a YAML list (``#`` comments allowed).
+
+For random and Latin-hypercube sampling (:mod:`csim.study.plan`) a range is a
+distribution: ``lin:A:B`` uniform on [A, B], ``log:A:B`` log-uniform; N may then be left
+out. A list is sampled uniformly among its items.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from csim.case import CaseLoader
+from csim.errors import CaseError
+
+#: range kinds: name -> (evenly spaced values, sample from unit-interval numbers)
+RANGES = ("lin", "log")
+
+
+@dataclass(frozen=True)
+class Variation:
+    """One varied case key.
+
+    Attributes
+    ----------
+    key : str
+        The case-file key path, as for ``--set`` (``stabilization.w``).
+    values : tuple
+        The grid values (for a range given without N: empty; sampling only).
+    kind : {"list", "lin", "log"}
+        How the values were given.
+    bounds : tuple of float or None
+        (START, STOP) of a range.
+    text : str
+        The option as given (for messages and the result file).
+    """
+
+    key: str
+    values: tuple
+    kind: str = "list"
+    bounds: tuple[float, float] | None = None
+    text: str = ""
+
+    @property
+    def numeric(self) -> bool:
+        """Whether every value is a real number (not a name, a list or a bool)."""
+        return all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in self.values) or (
+            self.kind in RANGES)
+
+    def sample(self, u: np.ndarray) -> list:
+        """Values at the unit-interval numbers ``u`` (n,): the inverse of this key's distribution."""
+        if self.kind == "lin":
+            a, b = self.bounds
+            return [float(a + (b - a) * x) for x in u]
+        if self.kind == "log":
+            a, b = (math.log10(x) for x in self.bounds)
+            return [float(10.0 ** (a + (b - a) * x)) for x in u]
+        n = len(self.values)
+        return [self.values[min(int(x * n), n - 1)] for x in u]
+
+
+def _scalar(text: str) -> Any:
+    """One value as a case file would read it (``1e-3`` a float, ``none`` a name)."""
+    text = text.strip()
+    try:
+        return yaml.load(text, Loader=CaseLoader) if text else None
+    except (yaml.YAMLError, ValueError):
+        return text
+
+
+def _number(option: str, part: str, what: str) -> float:
+    try:
+        x = float(part)
+    except ValueError:
+        raise CaseError([f"{option}: {what} {part!r} is not a number"]) from None
+    if not math.isfinite(x):
+        raise CaseError([f"{option}: {what} {part!r} is not a finite number"])
+    return x
+
+
+def _range(option: str, kind: str, parts: list[str]) -> tuple[tuple, tuple[float, float]]:
+    """The values and bounds of ``lin:A:B[:N]`` or ``log:A:B[:N]``."""
+    example = f"{kind}:1e-4:1e-1:13" if kind == "log" else f"{kind}:0:1:11"
+    if len(parts) not in (2, 3):
+        raise CaseError([f"{option}: expected {kind}:START:STOP:N (N may be left out for --sample), "
+                         f"e.g. {example}"])
+    a, b = _number(option, parts[0], "START"), _number(option, parts[1], "STOP")
+    if kind == "log" and (a <= 0 or b <= 0):
+        raise CaseError([f"{option}: a log range needs positive START and STOP; got {parts[0]} and {parts[1]}"])
+    if len(parts) == 2:
+        return (), (a, b)
+    try:
+        n = int(parts[2])
+    except ValueError:
+        raise CaseError([f"{option}: N {parts[2]!r} is not a whole number"]) from None
+    if n < 1:
+        raise CaseError([f"{option}: N must be at least 1; got {n}"])
+    grid = np.linspace(a, b, n) if kind == "lin" else np.logspace(math.log10(a), math.log10(b), n)
+    if n > 1:  # the ends exactly as written, not as exp(log(x)) gives them back
+        grid[0], grid[-1] = a, b
+    return tuple(float(x) for x in grid), (a, b)
+
+
+def _from_file(option: str, name: str, base: Path) -> tuple:
+    path = Path(name) if Path(name).is_absolute() else base / name
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise CaseError([f"{option}: cannot read the values file {str(path)!r}: {exc.strerror or exc}"]) from None
+    try:
+        data = yaml.load(text, Loader=CaseLoader)
+    except (yaml.YAMLError, ValueError):
+        data = None
+    if not isinstance(data, list):  # one value per line
+        data = [_scalar(line.split("#", 1)[0]) for line in text.splitlines() if line.split("#", 1)[0].strip()]
+    return tuple(data)
+
+
+def parse_variation(text: str, base: Path = Path(".")) -> Variation:
+    """A ``--vary KEY=VALUES`` option (``base``: the folder ``@FILE`` names are relative to).
+
+    Raises
+    ------
+    CaseError
+        Naming the option, when it is malformed or gives no values.
+    """
+    option = f"--vary {text!r}"
+    if "=" not in text:
+        raise CaseError([f"{option}: expected KEY=VALUES, e.g. --vary stabilization.w=lin:1:40:20"])
+    key, spec = (part.strip() for part in text.split("=", 1))
+    if not key:
+        raise CaseError([f"{option}: the key is empty; expected KEY=VALUES"])
+    kind, bounds = "list", None
+    head, _, rest = spec.partition(":")
+    if head in RANGES and rest:
+        kind = head
+        values, bounds = _range(option, head, rest.split(":"))
+    elif spec.startswith("@"):
+        values = _from_file(option, spec[1:], base)
+    elif spec.startswith("[") and spec.endswith("]") and isinstance(_scalar(spec), list):
+        values = tuple(_scalar(spec))
+    else:
+        values = tuple(_scalar(item) for item in spec.split(","))
+    if kind == "list" and (not values or any(v is None for v in values)):
+        raise CaseError([f"{option}: no value, or an empty one; expected e.g. {key}=1,2,5 or {key}=lin:0:1:11"])
+    return Variation(key=key, values=values, kind=kind, bounds=bounds, text=text)

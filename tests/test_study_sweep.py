@@ -1,0 +1,151 @@
+"""Sweeps end to end: rows against single runs, failure reasons, interruption and --resume,
+Dask equality with the local run, the command line, and the stability-map figures' data."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import CONFIGS, qr_case
+from typer.testing import CliRunner
+
+from csim.cli import app
+from csim.io.sweep_file import PENDING, read_sweep
+from csim.physics import status as st
+from csim.pipeline import run_case
+from csim.study import execute, failure_reason, make_plan, parse_variation, run_sweep
+
+#: Baumgarte under RK4 on the quick-return: w h = 400 * 2e-2 = 8 lies far outside RK4's stability interval
+BASE = ("simulation.t_end=0.5", "stabilization.method=baumgarte", "simulation.integrator=RK4")
+VARY = ("stabilization.w=20,400", "simulation.step=2e-3,2e-2")
+
+
+def _plan(*vary, base=BASE):
+    return make_plan(qr_case(*base), [parse_variation(v) for v in vary or VARY])
+
+
+def _same_rows(a, b):
+    assert a.status == b.status and a.reason == b.reason and a.message == b.message
+    for name, column in a.columns.items():
+        if name != "wall_time":
+            np.testing.assert_array_equal(column, b.columns[name], err_msg=name)
+
+
+@pytest.fixture(scope="module")
+def grid_file(tmp_path_factory):
+    path = tmp_path_factory.mktemp("sweep") / "grid.h5"
+    run_sweep(_plan(), path, jobs=1, reference=["simulation.step=1e-4"], keep=True)
+    return path
+
+
+def test_rows_equal_the_runs_made_one_at_a_time(grid_file):
+    table = read_sweep(grid_file)
+    assert table.n == 4 and table.attrs["complete"]
+    for i, (w, h) in enumerate([(20, 2e-3), (20, 2e-2), (400, 2e-3), (400, 2e-2)]):
+        assert (table.values["stabilization.w"][i], table.values["simulation.step"][i]) == (w, h)
+        single = run_case(qr_case(*BASE, f"stabilization.w={w}", f"simulation.step={h}"))
+        assert table.status[i] == single.status and table.message[i] == single.message
+        assert table.columns["nfev"][i] == single.nfev
+        np.testing.assert_allclose(table.columns["max_phi"][i], single.max_phi, rtol=1e-12)
+    assert table.status[3] == "failed" and table.reason[3] in ("drift", "blow-up")  # w h = 8
+    assert table.status[0] == "success" and table.columns["error"][0] < 1e-3  # w h = 0.04 against h = 1e-4
+
+
+def test_kept_signals_are_the_runs_samples(grid_file):
+    from csim.io.sweep_file import read_signals
+
+    sig = read_signals(grid_file, 0)
+    single = run_case(qr_case(*BASE, "stabilization.w=20", "simulation.step=2e-3"))
+    np.testing.assert_array_equal(sig["t"], single.t)
+    np.testing.assert_allclose(sig["q"], single.q, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(sig["energy_error"], single.energy_error, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("code, reason", [
+    (st.NONFINITE_RHS, "blow-up"), (st.MAX_PHI, "drift"), (st.STEP_COLLAPSE, "step collapse"),
+    (st.MAX_STEPS, "max steps"), (st.MAX_EVENTS, "chatter"), (st.SINGULAR_KKT, "singular"),
+    (st.PROJ_SINGULAR, "singular"), (st.RK4_RESOLUTION, "step"), (st.STEP_TOO_SMALL, "step collapse"),
+])
+def test_every_status_message_has_its_reason(code, reason):
+    settings = qr_case().integration_settings()
+    assert failure_reason("failed", st.failure_message(code, 1.0, 2.0, settings)) == reason
+    assert failure_reason("success", "reached t_end = 5 s") == ""
+
+
+def test_an_interrupted_sweep_keeps_its_finished_runs_and_resumes(tmp_path, monkeypatch, grid_file):
+    path = tmp_path / "s.h5"
+    real, calls = execute.run_chunk, []
+
+    def interrupted_after_one(work, chunk):
+        calls.append(len(chunk))
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return real(work, chunk)
+
+    monkeypatch.setattr(execute, "run_chunk", interrupted_after_one)
+    plan = _plan()
+    sweep = run_sweep(plan, path, jobs=1, reference=["simulation.step=1e-4"])
+    assert sweep.interrupted and 0 < sweep.done < 4
+    stored = read_sweep(path)
+    assert not stored.attrs["complete"] and stored.status.count(PENDING) == 4 - sweep.done
+    monkeypatch.setattr(execute, "run_chunk", real)
+    done = run_sweep(plan, path, jobs=1, resume=True)
+    assert done.complete and not done.interrupted
+    _same_rows(read_sweep(path), read_sweep(grid_file))
+
+
+def test_resume_refuses_another_plan(tmp_path, grid_file):
+    from csim.errors import CaseError
+
+    with pytest.raises(CaseError, match="values differ"):
+        run_sweep(_plan("stabilization.w=20,300", "simulation.step=2e-3,2e-2"), grid_file, jobs=1, resume=True)
+
+
+def test_worker_processes_give_the_rows_of_this_process(tmp_path, grid_file):
+    run_sweep(_plan(), tmp_path / "p.h5", jobs=2, reference=["simulation.step=1e-4"])
+    _same_rows(read_sweep(tmp_path / "p.h5"), read_sweep(grid_file))
+
+
+def test_a_dask_cluster_gives_the_rows_of_the_local_run(tmp_path, grid_file):
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cl:
+        run_sweep(_plan(), tmp_path / "d.h5", scheduler=cl.scheduler_address, reference=["simulation.step=1e-4"])
+    _same_rows(read_sweep(tmp_path / "d.h5"), read_sweep(grid_file))
+
+
+def test_the_command_line_runs_a_sweep_and_rejects_bad_options(tmp_path):
+    out = tmp_path / "cli.h5"
+    args = ["sweep", str(CONFIGS / "quick_return.yaml"), *sum((["--set", b] for b in BASE), []),
+            "-v", "stabilization.w=20,400", "-v", "simulation.step=2e-3", "-j", "1", "-o", str(out)]
+    res = CliRunner().invoke(app, args)
+    assert res.exit_code == 0, res.output
+    assert "2 runs" in res.output and read_sweep(out).n == 2
+    bad = CliRunner().invoke(app, [*args[:-2], "-v", "stabilization.dd=1", "-o", str(tmp_path / "x.h5")])
+    assert bad.exit_code == 2 and "stabilization.dd" in bad.output and not (tmp_path / "x.h5").exists()
+
+
+def test_map_figures_draw_the_files_data(grid_file):
+    from csim.plot.sweep_figures import OUTCOMES, metric_figure, outcome, outcome_figure
+
+    table = read_sweep(grid_file)
+    fig = outcome_figure(table)
+    mesh = next(c for c in fig.axes[0].collections if c.get_gid() == "outcome")
+    present = [k for k in OUTCOMES if any(outcome(table, i) == k for i in range(table.n))]
+    codes = np.array([present.index(outcome(table, i)) for i in range(table.n)], float).reshape(2, 2).T  # (step, w)
+    np.testing.assert_array_equal(np.asarray(mesh.get_array()).reshape(2, 2), codes)
+    fig = metric_figure(table, "max_phi")
+    mesh = next(c for c in fig.axes[0].collections if c.get_gid() == "max_phi")
+    ok = np.array([s == "success" for s in table.status])
+    expected = np.where(ok, table.columns["max_phi"], np.nan).reshape(2, 2).T
+    drawn = np.ma.filled(np.ma.asarray(mesh.get_array(), dtype=float), np.nan).reshape(2, 2)
+    np.testing.assert_array_equal(drawn, expected)
+
+
+def test_curves_of_one_key_draw_the_files_data(tmp_path):
+    from csim.plot.sweep_figures import curves_figure
+
+    path = tmp_path / "one.h5"
+    run_sweep(_plan("stabilization.w=5,20,80", base=(*BASE, "simulation.step=2e-3")), path, jobs=1)
+    table = read_sweep(path)
+    fig = curves_figure(table)
+    line = next(ln for ln in fig.axes[0].lines if ln.get_gid() == "max_phi")
+    np.testing.assert_array_equal(line.get_xdata(), [5, 20, 80])
+    np.testing.assert_array_equal(line.get_ydata(), table.columns["max_phi"])

@@ -1,0 +1,60 @@
+"""--vary KEY=VALUES: lists, ranges, files, and the errors that name the option."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from csim.errors import CaseError
+from csim.study.values import parse_variation
+
+
+def test_a_list_reads_values_as_a_case_file_would():
+    v = parse_variation("stabilization.method=none, baumgarte,projection")
+    assert v.key == "stabilization.method" and v.values == ("none", "baumgarte", "projection")
+    assert not v.numeric
+    w = parse_variation("simulation.rtol=1e-6,1e-8")
+    assert w.values == (1e-6, 1e-8) and w.numeric
+
+
+def test_a_yaml_list_of_lists_gives_vector_values():
+    v = parse_variation("stabilization.w=[[20, 30], [40, 60]]")
+    assert v.values == ([20, 30], [40, 60])
+
+
+def test_ranges_include_both_ends_exactly():
+    lin = parse_variation("stabilization.w=lin:0:1:11")
+    assert len(lin.values) == 11 and lin.values[0] == 0.0 and lin.values[-1] == 1.0
+    np.testing.assert_allclose(np.diff(lin.values), 0.1)
+    log = parse_variation("simulation.step=log:1e-4:1e-1:13")
+    assert len(log.values) == 13 and log.values[0] == 1e-4 and log.values[-1] == 1e-1
+    np.testing.assert_allclose(np.diff(np.log10(log.values)), 0.25)
+
+
+def test_a_range_without_n_is_a_distribution():
+    v = parse_variation("simulation.step=log:1e-4:1e-2")
+    assert v.values == () and v.bounds == (1e-4, 1e-2)
+    x = v.sample(np.array([0.0, 0.5, 1.0]))
+    np.testing.assert_allclose(x, [1e-4, 1e-3, 1e-2])
+
+
+def test_values_from_a_file(tmp_path):
+    (tmp_path / "w.txt").write_text("# gains\n10\n20  # the default\n\n40\n")
+    assert parse_variation("stabilization.w=@w.txt", base=tmp_path).values == (10, 20, 40)
+    (tmp_path / "m.yaml").write_text("[none, projection]\n")
+    assert parse_variation("stabilization.method=@m.yaml", base=tmp_path).values == ("none", "projection")
+
+
+@pytest.mark.parametrize("text, words", [
+    ("stabilization.w", "expected KEY=VALUES"),
+    ("=1,2", "key is empty"),
+    ("stabilization.w=lin:1:x:3", "STOP 'x' is not a number"),
+    ("stabilization.w=log:0:1:3", "positive START and STOP"),
+    ("stabilization.w=lin:0:1:0", "N must be at least 1"),
+    ("stabilization.w=lin:0:1:2.5", "not a whole number"),
+    ("stabilization.w=1,,2", "empty one"),
+    ("stabilization.w=@missing.txt", "cannot read the values file"),
+])
+def test_malformed_options_name_the_option(text, words):
+    with pytest.raises(CaseError) as info:
+        parse_variation(text)
+    assert words in str(info.value) and "--vary" in str(info.value)
