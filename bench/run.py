@@ -11,7 +11,9 @@ Run with ``make bench`` (``python bench/run.py --help`` for options). Prints:
 3. the cost of one KKT right-hand-side evaluation: compiled (numba), plain C (generated
    from the same derivation and compiled with ``cc -O2`` here), and the Python path;
 4. ``csim run configs/quick_return.yaml`` end to end, warm (median) and cold (a fresh
-   cache directory: derivation plus compilation).
+   cache directory: derivation plus compilation);
+5. sweep throughput: runs of the 10 s quick-return per minute, ``csim sweep`` on every core
+   against a shell loop of ``csim run --set ...`` (target >= 1,000 per minute on 2 cores).
 """
 from __future__ import annotations
 
@@ -121,6 +123,23 @@ def csim_run_time(cache_dir, out):
     return time.perf_counter() - start
 
 
+def sweep_throughput(cache_dir, tmp, n_runs, n_loop):
+    """Runs per minute of the 10 s quick-return: csim sweep (all cores) and a loop of csim run."""
+    env = dict(os.environ, CSIM_CACHE_DIR=str(cache_dir))
+    sweep = [CSIM, "sweep", str(CASE), "--set", "simulation.t_end=10", "-v",
+             f"loads.torque=lin:165000:185000:{n_runs}", "-o", str(Path(tmp) / "sweep.h5"), "--quiet"]
+    start = time.perf_counter()
+    subprocess.run(sweep, check=True, env=env, stdout=subprocess.DEVNULL)
+    per_minute_sweep = n_runs / (time.perf_counter() - start) * 60
+    start = time.perf_counter()
+    for i in range(n_loop):
+        subprocess.run([CSIM, "run", str(CASE), "--set", "simulation.t_end=10", "--set",
+                        f"loads.torque={165000 + 2000 * i}", "-o", str(Path(tmp) / "loop.h5"), "--quiet"],
+                       check=True, env=env, stdout=subprocess.DEVNULL)
+    per_minute_loop = n_loop / (time.perf_counter() - start) * 60
+    return per_minute_sweep, per_minute_loop
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=5, help="runs per compiled row (the median is reported)")
@@ -128,6 +147,7 @@ def main(argv=None):
     parser.add_argument("--t-end", type=float, default=10.0, help="simulated time [s]")
     parser.add_argument("--n-eval", type=int, default=2_000_000, help="RHS evaluations per timing loop")
     parser.add_argument("--skip-cold", action="store_true", help="skip the cold-start run (fresh cache)")
+    parser.add_argument("--sweep-runs", type=int, default=1000, help="runs of the sweep throughput row")
     args = parser.parse_args(argv)
 
     from quick_return_reference import MinimalQuickReturn
@@ -175,8 +195,13 @@ def main(argv=None):
         else:
             cold = csim_run_time(cache, out)
         warm = statistics.median(csim_run_time(cache, out) for _ in range(3))
+        sweep_rate, loop_rate = sweep_throughput(cache, tmp, args.sweep_runs, 10)
     print(f"\ncsim run configs/quick_return.yaml end to end: warm {warm:.2f} s (median of 3, target <= 2 s)" +
           (f"; cold (fresh cache: derivation + compilation) {cold:.1f} s" if cold is not None else ""))
+
+    print(f"\nsweep of the 10 s quick-return ({args.sweep_runs} runs, {os.cpu_count()} CPUs): csim sweep "
+          f"{sweep_rate:.0f} runs/min, a shell loop of csim run {loop_rate:.0f} runs/min "
+          f"({sweep_rate / loop_rate:.0f}x; target >= 1,000 runs/min)")
 
 
 if __name__ == "__main__":
