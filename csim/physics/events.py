@@ -7,10 +7,11 @@ A load law that switches back and forth at one instant has no consistent mode th
 its condition holding, the motion drives the switching function to the other side, and
 with it not holding, back again. Both vector fields point into the switching surface (a
 sliding, or Filippov, state), so no classical solution leaves the instant, and event
-location restarts the integration at the same time over and over (measured: gaps of
-exactly 0 s, at most 1.2e-11 s with projection, on every integrator and method). Left
-alone such a run goes on until ``simulation.max_events`` (100,000 events: 1.7 million
-right-hand-side evaluations).
+location restarts the integration at the same time over and over. Measured on the
+quick-return with ``loads.torque: 160000`` (the drive stalls in the cut), with each
+integrator and stabilization method: gaps of exactly 0 s, at most 1.2e-11 s with
+projection. Left alone such a run went on to ``simulation.max_events`` (100,000 events,
+1.7 million right-hand-side evaluations: 0.6 s compiled, 139 s on the Python path).
 
 The rule: the run chatters when its last ``n_chatter`` events (``simulation.chatter_events``)
 lie within ``(n_chatter - 1)`` times the time resolution of events, that is, when events
