@@ -7,6 +7,8 @@ One loop serves every integrator of :mod:`csim.solver.integrators`:
    left the sign its mode says; if so, find the earliest zero on the step's dense output
    (Brent's method), cut the step there, flip the conditions that switched, and restart
    the integrator from the event state (the right-hand side is smooth between events);
+   stop when the events pile up at one instant (a chattering law,
+   :func:`csim.physics.events.check_chatter`);
 3. sample the dense output at the requested output times inside the (cut) step.
 
 With event location off, the load laws are evaluated at every right-hand-side call and the
