@@ -8,7 +8,7 @@ A case file has these sections (every key but ``mechanism.name`` has a default):
     formulation:    method (kkt | elimination), independent, max_condition
     stabilization:  method and the settings of every method (each reads only its own)
     simulation:     t_end, integrator, rtol, atol, step, max_step, first_step, events,
-                    max_events, max_steps, event_samples, max_phi, min_step
+                    max_events, chatter_events, max_steps, event_samples, max_phi, min_step
     output:         dt
 
 Units are SI throughout (m, kg, s, rad, N, N m, J); see ``csim.io.units``.
@@ -147,6 +147,8 @@ SCHEMA = Section({
         "first_step": Field("number", None, "first step of the adaptive integrators", "s", gt=0.0, nullable=True),
         "events": Field("boolean", True, "locate switching instants of the load laws and restart there"),
         "max_events": Field("integer", 100_000, "fail after this many switching events", ge=1),
+        "chatter_events": Field("integer", 20, "fail (chattering load law) when this many consecutive switching "
+                                "events come closer together, on average, than min_step", ge=2),
         "max_steps": Field("integer", 1_000_000, "fail after this many integration steps", ge=1),
         "event_samples": Field("integer", 4, "interior points of each step where switching functions are checked "
                                "(catches a zero crossed twice within one step)", ge=0),
@@ -222,6 +224,7 @@ class Case:
             max_step=np.inf if s["max_step"] is None else s["max_step"], first_step=s["first_step"],
             events=s["events"], max_events=s["max_events"], max_steps=s["max_steps"],
             event_samples=s["event_samples"], max_phi=s["max_phi"], min_step=s["min_step"],
+            chatter_events=s["chatter_events"],
             output_dt=self.data["output"]["dt"],
         )
 

@@ -48,7 +48,7 @@ def test_minimal_case_fills_every_default(tmp_path):
     assert case.source == str(tmp_path / "case.yaml")
     assert d["simulation"] == {
         "t_end": 5.0, "integrator": "DOP853", "rtol": 1e-8, "atol": 1e-8, "step": 1e-3,
-        "max_step": None, "first_step": None, "events": True, "max_events": 100_000,
+        "max_step": None, "first_step": None, "events": True, "max_events": 100_000, "chatter_events": 20,
         "max_steps": 1_000_000, "event_samples": 4, "max_phi": 0.1, "min_step": 1e-10, "backend": "auto",
     }
     assert d["formulation"] == {"method": "kkt", "independent": None, "max_condition": 1e8}
@@ -338,6 +338,7 @@ def test_problems_across_sections_and_mechanism_parts_are_collected(tmp_path):
     ("simulation: {integrator: rk4}\n", "simulation.integrator",
      ["'rk4'", f"one of {INTEGRATOR_NAMES}", "did you mean 'RK4'"]),
     ("simulation: {max_events: 1.5}\n", "simulation.max_events", ["1.5", "an integer >= 1"]),
+    ("simulation: {chatter_events: 1}\n", "simulation.chatter_events", ["got 1 (integer)", "an integer >= 2"]),
     ("simulation: {events: 1}\n", "simulation.events", ["1 (integer)", "true or false"]),
     ("simulation: {t_end: null}\n", "simulation.t_end", ["null", "a number > 0"]),
     ("simulation: [1, 2]\n", "simulation", ["[1, 2] (list)", "a mapping"]),

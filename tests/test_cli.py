@@ -447,11 +447,25 @@ def test_kernels_that_cannot_load_give_the_reason_of_the_fallback(tmp_path, monk
             "RuntimeError: no LLVM here") in result.stdout
 
 
-@pytest.mark.slow
-def test_a_run_stopped_at_max_events_still_writes_its_file(tmp_path):
-    """Issue 13: with this torque the load law chatters until simulation.max_events (100,000)."""
+def test_a_chattering_load_law_fails_fast_with_its_file(tmp_path):
+    """Issue 13: with this torque the drive stalls and the cutting force's velocity sign chatters."""
     out = tmp_path / "chatter.h5"
     result = invoke("run", CONFIG, "-o", out, "--set", "loads.torque=160000")
+    assert_clean_exit(result, 1)
+    assert "chattering load law: cutting_force: ds/dt = 0 (velocity sign)" in result.stderr
+    assert f"partial result in {out}" in result.stderr
+    with h5py.File(out, "r") as fh:
+        assert text_attr(fh, "status") == "failed"
+        assert text_attr(fh, "message").startswith("chattering load law: cutting_force")
+        assert fh["events/times"].shape == (23 + 20,)
+
+
+@pytest.mark.slow
+def test_a_run_stopped_at_max_events_still_writes_its_file(tmp_path):
+    """Issue 13: with chatter detection off (chatter_events above max_events) this law chatters on to 100,000."""
+    out = tmp_path / "chatter.h5"
+    result = invoke("run", CONFIG, "-o", out, "--set", "loads.torque=160000", "--set",
+                    "simulation.chatter_events=200000")
     assert_clean_exit(result, 1)
     assert "max_events" in result.stderr and f"partial result in {out}" in result.stderr
     with h5py.File(out, "r") as fh:

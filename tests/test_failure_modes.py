@@ -2,8 +2,9 @@
 
 Each test states the mechanism of the failure and checks the figure that shows it:
 drift growth without stabilization, Baumgarte turning the ODE stiff, chattering of the
-exact sgn against its smooth replacements, and the singular dependent block of the
-elimination. Measured values (this machine) are quoted in the comments.
+exact sgn against its smooth replacements, the singular dependent block of the
+elimination, and a load law that chatters. Measured values (this machine) are quoted in
+the comments.
 """
 from __future__ import annotations
 
@@ -125,3 +126,40 @@ def test_fixed_partition_meets_the_rocker_dead_point():
             for v in ([1, 2], [0, 2])}
     assert cond[(1, 2)] < 15  # crank independent: well conditioned throughout
     assert cond[(0, 2)] > 100  # rocker independent: near-singular within the first second
+
+
+def test_a_stalling_drive_chatters_where_the_reference_has_no_classical_solution():
+    # With the crank torque lowered to 160,000 N m the drive cannot carry the ram through the
+    # cut: the independent 1-DOF reference stops the crank (v_D = 0) at t* = 2.1969254305 s inside
+    # the force's window, where the velocity-sign condition g = -v_D has no consistent mode:
+    # with the force on, dg/dt = -30.6 m/s^2 (v_D turns positive, the force goes off); with it
+    # off, dg/dt = +49.3 m/s^2 (the torque drives the ram back, the force comes on). That is a
+    # sliding (Filippov) state. csim's run stops there with chatter, naming that condition,
+    # after 20 events at one instant (before: 100,000, and 1.7 million evaluations).
+    from quick_return_reference import MinimalQuickReturn
+    from scipy.integrate import solve_ivp
+
+    ref = MinimalQuickReturn(torque=160000.0)
+    _, y, _ = ref.solve(t_end=2.19)
+
+    def stop(t, y, active):
+        return ref.switching(y)[2]  # -v_D
+
+    stop.terminal, stop.direction = True, -1.0
+    sol = solve_ivp(ref.rhs, (2.19, 2.3), y[-1], method="DOP853", rtol=1e-12, atol=1e-12, events=stop, args=(True,))
+    t_stall, y_stall = sol.t_events[0][0], sol.y_events[0][0]
+    assert np.all(ref.switching(y_stall)[:2] > 0.3)  # well inside the window: only the velocity sign switches
+
+    def g_rate(active):  # d(-v_D)/dt = -(x_D'' w^2 + x_D' w'), x_D'' by central differences
+        q, w = y_stall
+        h = 1e-6
+        xdd = (ref._xD_prime(q + h) - ref._xD_prime(q - h)) / (2 * h)
+        return -(xdd * w**2 + ref._xD_prime(q) * ref.rhs(t_stall, y_stall, active)[1])
+
+    assert g_rate(True) < -10 and g_rate(False) > 10  # both modes drive g back to zero
+
+    res = run_case(qr_case("loads.torque=160000"))
+    assert res.status == "failed"
+    assert res.message.startswith("chattering load law: cutting_force: ds/dt = 0 (velocity sign)")
+    assert abs(res.event_times[-1] - t_stall) < 1e-8  # measured 4e-10 s
+    assert len(res.event_times) == 23 + 20

@@ -144,6 +144,26 @@ def test_divergence_checks_fire():
     assert res.message == slow.message and res.t.size == slow.t.size
 
 
+@pytest.mark.parametrize("overrides", [
+    (),
+    ("simulation.integrator=RK4", "simulation.step=0.005"),
+    ("stabilization.method=projection", "simulation.integrator=RK4", "simulation.step=0.005"),
+    ("simulation.chatter_events=5",),
+])
+def test_chatter_fails_fast_and_alike_on_both_backends(overrides):
+    """A stalling drive (issue 13): both stop at the same event with the same message and evaluations."""
+    fast = run_case(qr_case("loads.torque=160000", "simulation.backend=compiled", *overrides))
+    slow = run_case(qr_case("loads.torque=160000", "simulation.backend=python", *overrides))
+    assert fast.backend == "compiled" and fast.status == "failed"
+    assert fast.message.startswith("chattering load law: cutting_force: ds/dt = 0 (velocity sign) switched")
+    assert fast.message == slow.message and fast.nfev == slow.nfev
+    assert fast.event_labels == slow.event_labels
+    assert fast.event_times == pytest.approx(slow.event_times, abs=1e-12)
+    n = 5 if overrides == ("simulation.chatter_events=5",) else 20
+    assert len(fast.event_times) == 23 + n  # before: 100,001 events, 1.7 million evaluations (DOP853)
+    assert fast.nfev < 5_000
+
+
 @pytest.mark.parametrize("override, key", [
     ("formulation.method=elimination", "formulation.method 'elimination'"),
     ("stabilization.method=minimal", "stabilization.method 'minimal'"),

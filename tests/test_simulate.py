@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from conftest import qr_case
 
 from csim.pipeline import build_system, initial_state, run_case
@@ -122,3 +123,58 @@ def test_explicit_integrators_stop_at_a_non_finite_evaluation():
     counter = _Counter(_poisoned(1), implicit=False)
     with pytest.raises(SimulationFailure, match="blow-up: non-finite right-hand side at t = 0"):
         counter(0.0, np.array([1.0]))
+
+
+# --------------------------------------------------------------------------- chatter (issue 13)
+
+#: evaluations of one DOP853 restart at a pile-up: f at the restart, one for the first step's
+#: size, 12 for the step, 3 for its dense output (where the event is located)
+DOP853_RESTART = 17
+STALL = ("loads.torque=160000",)  # a drive too weak to carry the ram through the cut: it stalls at 2.19693 s
+VELOCITY_SIGN = "cutting_force: ds/dt = 0 (velocity sign)"
+
+
+def test_a_chattering_law_fails_fast_naming_it():
+    res = run_case(qr_case(*STALL, "simulation.backend=python"))
+    assert res.status == "failed"
+    assert res.message.startswith(f"chattering load law: {VELOCITY_SIGN} switched back and forth 20 times")
+    assert "Filippov" in res.message and "at t = 2.19693 s" in res.message
+    # 23 regular events, then 20 at one instant (before: 100,001 events and 1.7 million evaluations)
+    times = np.array(res.event_times)
+    assert times.size == 23 + 20 and np.all(times[23:] == times[-1])
+    assert res.event_labels[23:] == [VELOCITY_SIGN] * 20
+    # bounded work: the run up to the pile-up, plus one restart per piled event
+    upto = run_case(qr_case(*STALL, "simulation.backend=python", f"simulation.t_end={times[23]}"))
+    assert upto.ok and len(upto.event_times) == 23
+    assert res.nfev <= upto.nfev + 20 * DOP853_RESTART
+
+
+@pytest.mark.parametrize("overrides", [
+    ("simulation.integrator=RK45",),
+    ("simulation.integrator=Radau",),
+    ("formulation.method=elimination",),
+    ("stabilization.method=minimal", "simulation.rtol=1e-6", "simulation.atol=1e-6"),  # was 271 s to fail
+])
+def test_chatter_is_caught_on_every_python_path(overrides):
+    res = run_case(qr_case(*STALL, "simulation.backend=python", *overrides))
+    assert res.status == "failed" and res.message.startswith(f"chattering load law: {VELOCITY_SIGN}")
+    assert len(res.event_times) == 23 + 20
+
+
+def test_the_number_of_piled_events_is_a_setting():
+    res = run_case(qr_case(*STALL, "simulation.backend=python", "simulation.chatter_events=5"))
+    assert "switched back and forth 5 times" in res.message and len(res.event_times) == 23 + 5
+    # above max_events, chatter_events leaves the run to max_events
+    res = run_case(qr_case(*STALL, "simulation.backend=python", "simulation.chatter_events=50",
+                           "simulation.max_events=30"))
+    assert "simulation.max_events = 30" in res.message
+
+
+@pytest.mark.parametrize("backend", ["python", "compiled"])
+def test_the_default_run_is_unchanged_by_chatter_detection(backend, reference):
+    # the 67 events of the independent reference, and the evaluations counted before the detector
+    # existed (10,864, README "Speed"): it reads the event times only, and never trips here
+    res = run_case(qr_case(f"simulation.backend={backend}"))
+    assert res.ok and res.backend == backend
+    np.testing.assert_allclose(res.event_times, reference["events"], atol=1e-6)
+    assert res.nfev == 10_864

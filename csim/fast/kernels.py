@@ -35,6 +35,7 @@ import os
 import numpy as np
 from numba import njit
 
+from csim.physics.events import check_chatter
 from csim.physics.jit import NJIT_OPTIONS
 from csim.physics.kkt import constraint_rates, generalized_forces, kkt_solve
 from csim.physics.loads import load_rates, load_values, mode_of, switching_functions
@@ -829,11 +830,11 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset):
     """Integrate from t = 0, state y0 (n,), sampling at t_out (csim.solver.simulate.integrate).
 
     The problem arrays are the module docstring's; ``projects``: project after every step;
-    ``iset`` = [locate, event_samples, max_events, max_steps]; ``fset`` = [t_end, rtol, atol,
+    ``iset`` = [locate, event_samples, max_events, max_steps, chatter_events]; ``fset`` = [t_end, rtol, atol,
     step, max_step, first_step (NaN: automatic), max_phi, min_step]. Returns (n_rec, ts,
     ys, modes, n_ev, ev_t, ev_switched, nfev, nsteps, status, info (2,)).
     """
-    locate, n_interior, max_events, max_steps = iset[0] != 0, iset[1], iset[2], iset[3]
+    locate, n_interior, max_events, max_steps, n_chatter = iset[0] != 0, iset[1], iset[2], iset[3], iset[4]
     t_end, rtol, atol, fixed_h, max_step, first_step, max_phi, min_step = fset[0], fset[1], fset[2], fset[3], \
         fset[4], fset[5], fset[6], fset[7]
     n, n_sw = y0.size, pi[PI_NSW]
@@ -909,6 +910,9 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset):
                     break
                 ev_t, ev_sw = _record_event(ts_[T], mode, roots, has_root, ev_t, ev_sw, cs[N_EV])
                 cs[N_EV] += 1
+                status = check_chatter(ev_t, cs[N_EV], n_chatter, min_step, info)
+                if status != OK:
+                    break
                 if cs[N_EV] > max_events:
                     status = MAX_EVENTS
                     info[0] = ts_[T]

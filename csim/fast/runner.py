@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from csim.fast.module import load_module, method_code
+from csim.physics.events import chattering_switches
 from csim.physics.status import OK, failure_message
 from csim.solver.settings import IntegrationSettings, Trajectory, output_times
 from csim.solver.system import ConstrainedSystem
@@ -44,12 +45,20 @@ def _arguments(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationS
     """The arguments of the kernel ``integrate`` (see its docstring)."""
     t_out = output_times(settings.t_end, settings.output_dt)
     locate = settings.events and system.loads.n_switches > 0
-    iset = np.array([int(locate), settings.event_samples, settings.max_events, max_steps], dtype=np.int64)
+    iset = np.array([int(locate), settings.event_samples, settings.max_events, max_steps, settings.chatter_events],
+                    dtype=np.int64)
     fset = np.array([settings.t_end, settings.rtol, settings.atol, settings.step, settings.max_step,
                      np.nan if settings.first_step is None else settings.first_step, settings.max_phi,
                      settings.min_step], dtype=float)
     return (INTEGRATOR_CODES[settings.integrator], np.ascontiguousarray(y0, dtype=float), t_out,
             *pack_problem(system), system.stabilizer.projects, iset, fset)
+
+
+def _chattering_labels(ev_sw: np.ndarray, n_ev: int, n_chatter: int, labels: list[str]) -> list[str]:
+    """Labels of the switching functions that switched in the last ``n_chatter`` events (for CHATTER)."""
+    involved = np.zeros(len(labels), bool)
+    chattering_switches(ev_sw, int(n_ev), n_chatter, involved)
+    return [labels[j] for j in np.flatnonzero(involved)]
 
 
 def prepare(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSettings) -> None:
@@ -76,7 +85,8 @@ def integrate_compiled(system: ConstrainedSystem, y0: np.ndarray, settings: Inte
     status, message = "success", f"reached t_end = {settings.t_end:g} s"
     if code != OK:
         status = "failed"
-        message = failure_message(int(code), float(info[0]), float(info[1]), settings, system.stabilizer)
+        message = failure_message(int(code), float(info[0]), float(info[1]), settings, system.stabilizer,
+                                  switches=_chattering_labels(ev_sw, n_ev, settings.chatter_events, labels))
     return Trajectory(
         t=ts[:n_rec].copy(), y=ys[:n_rec].copy(), mode=modes[:n_rec].copy(),
         status=status, message=message, nfev=int(nfev), njev=0, nlu=0, nsteps=int(nsteps),

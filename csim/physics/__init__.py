@@ -13,4 +13,5 @@ loops. Neither backend restates what is here.
 ``kkt``         the augmented (KKT) system M qdd + Phi_q^T lambda = p, Phi_q qdd = gamma*
 ``projection``  Gauss-Newton correction onto Phi = 0 and Phi_q qd = 0, the round-off stop
 ``steps``       the divergence checks after an accepted step
+``events``      the chatter check on the event times (events piling up at one instant)
 """

@@ -21,9 +21,10 @@ MAX_EVENTS = 10  # a: t
 RK4_RESOLUTION = 11  # a: t
 SINGULAR_MASS = 12  # b: t
 NO_SIGN_CHANGE = 13  # a: t
+CHATTER = 14  # a: t, b: span of the last simulation.chatter_events events [s] (csim.physics.events)
 
 
-def failure_message(code: int, a: float, b: float, settings, method=None) -> str:
+def failure_message(code: int, a: float, b: float, settings, method=None, switches=()) -> str:
     """What went wrong, for status ``code`` with details ``a``, ``b``.
 
     Parameters
@@ -36,6 +37,8 @@ def failure_message(code: int, a: float, b: float, settings, method=None) -> str
         The run's settings (limits are quoted by their case-file keys).
     method : object, optional
         The stabilization method (the projection's messages quote its tolerance).
+    switches : sequence of str, optional
+        Labels of the switching functions involved (CHATTER names them).
     """
     s = settings
     if code == NONFINITE_RHS:
@@ -71,4 +74,22 @@ def failure_message(code: int, a: float, b: float, settings, method=None) -> str
         return f"numerical error after t = {b:.6g} s: LinAlgError: Singular matrix"
     if code == NO_SIGN_CHANGE:
         return f"numerical error after t = {a:.6g} s: ValueError: f(a) and f(b) must have different signs"
+    if code == CHATTER:
+        return _chatter_message(a, b, settings, switches)
     return f"integration failed with status {code}"
+
+
+def _chatter_message(t: float, span: float, settings, switches) -> str:
+    """CHATTER's message: what chatters, when, what it means and what to do."""
+    s = settings
+    what = "; ".join(switches) or "a switching function"
+    # sliding (Filippov) state: both modes drive the switching function back to zero
+    return (f"chattering load law: {what} switched back and forth {s.chatter_events} times within "
+            f"{span:.3g} s at t = {t:.6g} s (simulation.chatter_events = {s.chatter_events} events closer "
+            f"together, on average, than simulation.min_step = {s.min_step:g} s). The law has no consistent "
+            f"mode at this instant: with its condition holding the motion makes it fail, and without, hold "
+            f"again. Both sides drive into the switching surface, a sliding (Filippov) state with no "
+            f"classical solution (e.g. a drive too weak to carry the mechanism through a velocity-switched "
+            f"force: it stalls), which event location cannot step through. Change the load law or its "
+            f"magnitude, or run the fixed-step RK4 with simulation.events: false, which averages over the "
+            f"switching (to O(h))")

@@ -33,6 +33,9 @@ class IntegrationSettings:
         Locate the switching instants of the load laws and restart there.
     max_events : int
         Stop with a failure after this many events (chattering of a switching law).
+    chatter_events : int
+        Stop with a failure (chatter) when this many consecutive events lie closer together,
+        on average, than ``min_step`` (:func:`csim.physics.events.check_chatter`).
     max_steps : int
         Stop with a failure after this many accepted steps (a run far too fast or stiff for
         its settings, which would otherwise go on for hours).
@@ -58,6 +61,7 @@ class IntegrationSettings:
     first_step: float | None = None
     events: bool = True
     max_events: int = 100_000
+    chatter_events: int = 20
     max_steps: int = 1_000_000
     event_samples: int = 4
     max_phi: float = 0.1

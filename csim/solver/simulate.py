@@ -7,6 +7,8 @@ One loop serves every integrator of :mod:`csim.solver.integrators`:
    left the sign its mode says; if so, find the earliest zero on the step's dense output
    (Brent's method), cut the step there, flip the conditions that switched, and restart
    the integrator from the event state (the right-hand side is smooth between events);
+   stop when the events pile up at one instant (a chattering law,
+   :func:`csim.physics.events.check_chatter`);
 3. sample the dense output at the requested output times inside the (cut) step.
 
 With event location off, the load laws are evaluated at every right-hand-side call and the
@@ -22,6 +24,7 @@ from scipy.optimize import brentq
 
 from csim.errors import PartitionBreakdown, SimulationFailure
 from csim.physics import status as st
+from csim.physics.events import chattering_switches, check_chatter
 from csim.physics.steps import check_step
 from csim.solver.integrators import INTEGRATORS, make_integrator
 from csim.solver.rk4 import RK4
@@ -71,7 +74,7 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
     n_state = y0.size
     ts, ys, modes = [], [], []
     counters = dict(njev=0, nlu=0, nsteps=0)
-    events_t, events_label = [], []
+    events_t, events_label, events_sw = [], [], []  # events_sw: the switching functions of each event
     labels = system.loads.switch_labels
     locate = settings.events and system.loads.n_switches > 0
 
@@ -149,6 +152,8 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
                             y = system.restart(t, y, mode)
                             events_t.append(t)
                             events_label.append("; ".join(labels[j] for j in switched))
+                            events_sw.append(switched)
+                            _check_chatter(events_t, events_sw, labels, settings)
                             if len(events_t) > settings.max_events:
                                 raise SimulationFailure(st.failure_message(st.MAX_EVENTS, t, 0.0, settings))
                             restarted = True
@@ -205,6 +210,26 @@ def _check_step(system: ConstrainedSystem, solver, settings: IntegrationSettings
                       settings.min_step, info)
     if code != st.OK:
         raise SimulationFailure(st.failure_message(code, info[0], info[1], settings))
+
+
+def _check_chatter(events_t: list, events_sw: list, labels: list, settings: IntegrationSettings) -> None:
+    """Stop a run whose last ``settings.chatter_events`` events pile up at one instant (chatter).
+
+    The rule is :func:`csim.physics.events.check_chatter`'s, on the last events only (it reads
+    no others); the message names the switching functions that switched in them.
+    """
+    n = min(len(events_t), settings.chatter_events)
+    last_t = np.array(events_t[-n:], dtype=float)
+    info = np.zeros(2)
+    if check_chatter(last_t, n, settings.chatter_events, settings.min_step, info) == st.OK:
+        return
+    last_sw = np.zeros((n, len(labels)), bool)
+    for e, switched in enumerate(events_sw[-n:]):
+        last_sw[e, switched] = True
+    involved = np.zeros(len(labels), bool)
+    chattering_switches(last_sw, n, n, involved)
+    switches = [labels[j] for j in np.flatnonzero(involved)]
+    raise SimulationFailure(st.failure_message(st.CHATTER, info[0], info[1], settings, switches=switches))
 
 
 def _swap_state(solver, y) -> bool:
