@@ -63,6 +63,7 @@ def test_kept_signals_are_the_runs_samples(grid_file):
     (st.NONFINITE_RHS, "blow-up"), (st.MAX_PHI, "drift"), (st.STEP_COLLAPSE, "step collapse"),
     (st.MAX_STEPS, "max steps"), (st.MAX_EVENTS, "chatter"), (st.SINGULAR_KKT, "singular"),
     (st.PROJ_SINGULAR, "singular"), (st.RK4_RESOLUTION, "step"), (st.STEP_TOO_SMALL, "step collapse"),
+    (st.CHATTER, "chatter"),
 ])
 def test_every_status_message_has_its_reason(code, reason):
     settings = qr_case().integration_settings()
