@@ -162,7 +162,10 @@ def load_module(definition: MechanismDefinition) -> ModuleType:
         _BY_DEFINITION[memo] = (definition, _LOADED[key])
         return _LOADED[key]
     if not path.is_file():
-        _write_atomic(path, generate_module_source(definition))
+        from csim.progress import status
+
+        with status(f"generating the compiled module of {definition.name!r} (sympy)"):
+            _write_atomic(path, generate_module_source(definition))
     name = f"csim_fast_{path.stem}"
     spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)

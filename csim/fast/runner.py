@@ -67,8 +67,11 @@ def prepare(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSett
     numba loads or compiles a function on its first call; a call that stops after zero
     steps does that without integrating, so that a run's wall time is the run's alone.
     """
+    from csim.progress import status
+
     mod = load_module(system.model.definition)
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+    with status(f"loading the compiled kernels of {system.model.definition.name!r} (on the first run of a "
+                f"mechanism: compiling them, 20-60 s)"), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         mod.integrate(*_arguments(system, y0, settings, max_steps=0))
 
 

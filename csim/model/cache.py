@@ -72,8 +72,10 @@ def cached_source(definition: MechanismDefinition, use_cache: bool = True) -> st
         return path.read_text()
     from csim.model.codegen import generate_source  # sympy: only to generate
     from csim.model.derive import derive
+    from csim.progress import status
 
-    source = generate_source(derive(definition))
+    with status(f"deriving the equations of motion of {definition.name!r} (sympy; first run of this mechanism)"):
+        source = generate_source(derive(definition))
     if use_cache:
         try:  # write atomically; a cache that cannot be written is not an error
             path.parent.mkdir(parents=True, exist_ok=True)
