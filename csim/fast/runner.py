@@ -93,9 +93,17 @@ def integrate_compiled(system: ConstrainedSystem, y0: np.ndarray, settings: Inte
     return Trajectory(
         t=ts[:n_rec].copy(), y=ys[:n_rec].copy(), mode=modes[:n_rec].copy(),
         status=status, message=message, nfev=int(nfev), njev=0, nlu=0, nsteps=int(nsteps),
-        event_times=[float(x) for x in ev_t[:n_ev]],
-        event_labels=["; ".join(labels[j] for j in np.flatnonzero(row)) for row in ev_sw[:n_ev]],
+        event_times=ev_t[:n_ev].tolist(), event_labels=_event_labels(ev_sw[:n_ev], labels),
     )
+
+
+def _event_labels(switched: np.ndarray, labels: list[str]) -> list[str]:
+    """Each event's label: the labels of the switches that changed, joined by "; " (one join per distinct row)."""
+    if not len(switched):
+        return []
+    rows, index = np.unique(switched, axis=0, return_inverse=True)
+    text = ["; ".join(labels[j] for j in np.flatnonzero(row)) for row in rows]
+    return [text[i] for i in index.ravel()]
 
 
 def evaluate_compiled(system: ConstrainedSystem, y: np.ndarray, mode: np.ndarray) -> dict[str, np.ndarray]:
