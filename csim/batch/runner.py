@@ -163,8 +163,32 @@ def run_batch(manifest: Manifest, jobs: int | None = None,
     """
     runs = [CaseRun(entry) for entry in manifest.entries]
     n_jobs = job_count(jobs, len(runs))
-    interrupted = run_tasks([(run, run.entry.case) for run in runs], n_jobs, progress)
+    interrupted = run_tasks([(run, run.entry.case) for run in schedule(runs)], n_jobs, progress)
     return Batch(manifest=manifest, runs=runs, jobs=n_jobs, interrupted=interrupted)
+
+
+def schedule(runs: list[CaseRun]) -> list[CaseRun]:
+    """The order to start the runs in, so that workers do not compile the same kernels twice.
+
+    On a cold cache the first compiled run of a mechanism compiles its kernels (about 30 s);
+    a second worker that starts a run of that mechanism meanwhile compiles them again. So
+    the first compiled run of each mechanism goes first (different mechanisms compile side
+    by side), then the runs on the Python path (which compile nothing), then the rest.
+    Within each group the manifest's order is kept.
+    """
+    from csim.fast import resolve_backend
+    from csim.model.cache import definition_key
+
+    first, python, rest, seen = [], [], [], set()
+    for run in runs:
+        case = run.entry.case
+        if case.kinematic or resolve_backend(case.data) == "python":
+            python.append(run)
+            continue
+        key = definition_key(case.mechanism)
+        (rest if key in seen else first).append(run)
+        seen.add(key)
+    return [*first, *python, *rest]
 
 
 #: (header, width, text of a run) of the table's columns after the name
