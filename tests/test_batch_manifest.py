@@ -136,3 +136,14 @@ def test_cli_bad_options_exit_2_before_running(folder):
     assert_bad_input(invoke("batch", path, "-o", path), "that is a file; expected a folder for the result files")
     assert_bad_input(invoke("batch", path, "--only", "q"), "--only q: no entry of that name; expected one of p")
     assert not (folder / "report.txt").exists()
+
+
+def test_the_shipped_accuracy_manifest_is_valid_and_run_by_ci():
+    """configs/batch/accuracy.yaml loads without a problem (its runs are CI's `make batch`)."""
+    root = CONFIGS.parent
+    m = load_manifest(CONFIGS / "batch" / "accuracy.yaml")
+    names = [e.name for e in m.entries]
+    assert len(names) == len(set(names)) >= 25
+    assert all(e.expectations for e in m.entries)
+    assert "make batch" in (root / ".ci" / "run").read_text()
+    assert "csim batch configs/batch/accuracy.yaml --junit results/batch_junit.xml" in (root / "Makefile").read_text()
