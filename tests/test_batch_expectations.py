@@ -134,6 +134,8 @@ def test_value_after_the_run_stopped_fails_saying_where_it_stopped():
 def test_interpolate_picks_a_sample_within_round_off():
     value, how = interpolate(T, T**2, None, 0.30000000000000004)
     assert how == "" and value == T[3] ** 2
+    assert interpolate(T, T**2, None, 0.0) == (0.0, "") and interpolate(T, T**2, None, 1.0) == (1.0, "")
+    assert interpolate(T[:1], T[:1] + 7, None, 0.0) == (7.0, "")
 
 
 # --------------------------------------------------------------------------- parsing

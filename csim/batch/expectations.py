@@ -510,11 +510,13 @@ def interpolate(t: np.ndarray, values: np.ndarray, slopes: np.ndarray | None, at
     how : str
         ``""`` for an output sample, else how it was interpolated.
     """
-    k = int(np.clip(np.searchsorted(t, at), 0, t.size - 1))
-    near = min((k - 1, k), key=lambda j: abs(t[j] - at)) if k > 0 else k
+    if t.size == 1:
+        return float(values[0]), ""
+    b = int(np.clip(np.searchsorted(t, at), 1, t.size - 1))
+    a = b - 1
+    near = a if abs(t[a] - at) <= abs(t[b] - at) else b
     if abs(t[near] - at) <= SAMPLE_MATCH * max(1.0, abs(at)):
         return float(values[near]), ""
-    a, b = k - 1, k
     h = t[b] - t[a]
     s = (at - t[a]) / h
     if slopes is None:
