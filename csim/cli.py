@@ -485,12 +485,18 @@ def batch(
             _check_folder(output)
     except CsimError as exc:
         _fail_input(exc)
-    progress = None
-    if not quiet and sys.stderr.isatty():
+    from csim.progress import reporting, status
+
+    progress, terminal = None, sys.stderr.isatty()
+    if not quiet and terminal:
         def progress(run, done, total):
             typer.echo(f"[{done}/{total}] {run.entry.name}: {'pass' if run.passed else 'FAIL'} "
                        f"({run.wall_time:.2f} s)", err=True)
-    result = run_batch(loaded, jobs=jobs, progress=progress)
+    # a log (CI) gets one line when the batch takes a while; a terminal gets a line per run
+    with reporting(not quiet and not terminal), \
+            status(f"running the {len(loaded.entries)} cases of {manifest.name} (a cold cache first compiles "
+                   f"each mechanism's kernels, ~30 s)"):
+        result = run_batch(loaded, jobs=jobs, progress=progress)
     _finish_batch(result, junit, output, quiet)
 
 
