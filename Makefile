@@ -4,7 +4,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: install run test test-all bench lint clean
+.PHONY: install run test test-all batch bench lint clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -22,6 +22,9 @@ test: $(STAMP)  ## the default test suite (slow tests excluded)
 
 test-all: $(STAMP)  ## every test, the slow ones included
 	$(BIN)/python -m pytest -m ""
+
+batch: $(STAMP)  ## the README's accuracy claims, run and checked (configs/batch/accuracy.yaml); JUnit report in results/
+	$(BIN)/csim batch configs/batch/accuracy.yaml --junit results/batch_junit.xml
 
 bench: $(STAMP)  ## speed and accuracy benchmark, side by side in one run
 	$(BIN)/python bench/run.py

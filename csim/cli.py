@@ -82,7 +82,8 @@ def _fail_input(exc: CsimError) -> NoReturn:
     raise typer.Exit(EXIT_BAD_INPUT)
 
 
-def check_writable(out: Path, protect: list[Path] = (), suffixes: tuple[str, ...] = ()) -> None:
+def check_writable(out: Path, protect: list[Path] = (), suffixes: tuple[str, ...] = (), option: str = "--output",
+                   kind: str = "an HDF5 file") -> None:
     """Fail before a run, not after it, when the result file cannot be written.
 
     Refuses to overwrite the input files in ``protect`` and a name without one of
@@ -96,25 +97,29 @@ def check_writable(out: Path, protect: list[Path] = (), suffixes: tuple[str, ...
         Input files that ``out`` must not be.
     suffixes : tuple of str
         Accepted endings, lower case (``RESULT_SUFFIXES``); empty: any name.
+    option : str
+        How messages name the option (``--junit`` for ``csim batch``'s report).
+    kind : str
+        What the file is, for the message on a wrong ending.
 
     Raises
     ------
     ResultFileError
-        Naming ``--output``, the path and what was expected.
+        Naming the option, the path and what was expected.
     """
     if out.exists() and any(out.resolve() == p.resolve() for p in protect):
-        raise ResultFileError(f"--output {out}: that is an input file; choose another result path")
+        raise ResultFileError(f"{option} {out}: that is an input file; choose another result path")
     if out.is_dir():
-        raise ResultFileError(f"--output {out}: cannot write, it is a directory")
+        raise ResultFileError(f"{option} {out}: cannot write, it is a directory")
     if suffixes and out.suffix.lower() not in suffixes:
-        raise ResultFileError(f"--output {out}: expected an HDF5 file name ending in {' or '.join(suffixes)}, "
+        raise ResultFileError(f"{option} {out}: expected {kind} name ending in {' or '.join(suffixes)}, "
                               f"e.g. {out.with_suffix(suffixes[0])}")
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryFile(dir=out.parent):
             pass
     except OSError as exc:
-        raise ResultFileError(f"--output {out}: cannot write there ({exc.strerror or exc})") from None
+        raise ResultFileError(f"{option} {out}: cannot write there ({exc.strerror or exc})") from None
 
 
 #: what the summary adds to the result path when -o was left out
@@ -524,6 +529,112 @@ def sweep_summary(result, out: Path) -> str:
     keys = " x ".join(f"{v.key} ({len(set(map(str, result.plan.column(v.key))))})" for v in result.plan.variations)
     return "\n".join([f"sweep:      {len(result.rows)} runs of {keys} ({result.plan.sampling})",
                       f"outcomes:   {counts}", f"result:     {out}"])
+
+
+@app.command(cls=_Command)
+@_interruptible
+def batch(
+    manifest: Annotated[Path, typer.Argument(help="Batch manifest (YAML): cases with overrides and expectations. "
+                                             "Example: configs/batch/accuracy.yaml",
+                                             show_default=False, metavar="MANIFEST.yaml")],
+    junit: Annotated[Path | None, typer.Option(
+        "--junit", metavar="REPORT.xml",
+        help="Write a JUnit XML report: one test case per entry, a failure per failed expectation.")] = None,
+    output: Annotated[Path | None, typer.Option(
+        "--output", "-o", metavar="DIR",
+        help="Keep each run's result file, DIR/NAME.h5 (failed runs included, marked failed). "
+             "Default: none is written.")] = None,
+    jobs: Annotated[int | None, typer.Option(
+        "--jobs", "-j", metavar="N",
+        help="Worker processes. Default: one per entry, at most one per CPU. 1 runs everything in "
+             "this process.")] = None,
+    only: Annotated[str | None, typer.Option(
+        "--only", metavar="NAME,NAME,...", help="Run only these entries of the manifest.")] = None,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing but errors.")] = False,
+):
+    """Run the cases of a manifest and check each run against its expectations (for CI).
+
+    Each entry names a case file (relative to the manifest), --set style
+    overrides and expectations: status, max_phi, max_phi_dot,
+    energy_error, value (a coordinate at a time), wall_time, final_time,
+    events, nfev, backend. The entries run in parallel processes. Prints a
+    pass/fail table, with each failed expectation's measured value against
+    its bound.
+
+    Exit codes: 0 every expectation holds; 1 an expectation failed; 2 bad
+    input (the manifest, a case in it, an option); 130 interrupted (Ctrl-C).
+
+    Example: csim batch configs/batch/accuracy.yaml --junit results/batch_junit.xml
+    """
+    from csim.batch import load_manifest, run_batch
+
+    problems = []
+    if jobs is not None and jobs < 1:
+        problems.append(f"--jobs: got {jobs}; expected a whole number >= 1")
+    names = [n.strip() for n in only.split(",") if n.strip()] if only is not None else None
+    if names == []:
+        problems.append(f"--only: got {only!r}; expected entry names separated by commas")
+    try:
+        if problems:
+            raise CaseError(problems)
+        loaded = load_manifest(manifest, only=names)
+        if junit is not None:
+            check_writable(junit, protect=[manifest], suffixes=(".xml",), option="--junit", kind="an XML file")
+        if output is not None:
+            _check_folder(output)
+    except CsimError as exc:
+        _fail_input(exc)
+    from csim.progress import reporting, status
+
+    progress, terminal = None, sys.stderr.isatty()
+    if not quiet and terminal:
+        def progress(run, done, total):
+            typer.echo(f"[{done}/{total}] {run.entry.name}: {'pass' if run.passed else 'FAIL'} "
+                       f"({run.wall_time:.2f} s)", err=True)
+    # a log (CI) gets one line when the batch takes a while; a terminal gets a line per run
+    with reporting(not quiet and not terminal), \
+            status(f"running the {len(loaded.entries)} cases of {manifest.name} (a cold cache first compiles "
+                   f"each mechanism's kernels, ~30 s)"):
+        result = run_batch(loaded, jobs=jobs, progress=progress)
+    _finish_batch(result, junit, output, quiet)
+
+
+def _check_folder(folder: Path) -> None:
+    """Fail before the runs when the result folder (``-o DIR``) cannot be created or written."""
+    if folder.exists() and not folder.is_dir():
+        raise ResultFileError(f"--output {folder}: that is a file; expected a folder for the result files")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as exc:
+        raise ResultFileError(f"--output {folder}: cannot write there ({exc.strerror or exc})") from None
+
+
+def _finish_batch(result, junit: Path | None, output: Path | None, quiet: bool) -> None:
+    """Write a batch's result files and JUnit report, print its table, and exit 130 when
+    interrupted, 1 when an expectation failed."""
+    try:
+        if output is not None:
+            result.write_results(output)
+        if junit is not None:
+            result.write_junit(junit)
+    except OSError as exc:
+        typer.echo(f"csim: error: cannot write the batch's files: {exc}", err=True)
+        raise typer.Exit(EXIT_INTERRUPTED if result.interrupted else EXIT_BAD_INPUT) from None
+    if not quiet:
+        typer.echo(result.table())
+        for label, path in (("results:", output), ("junit:", junit)):
+            if path is not None:
+                typer.echo(f"{label:<12}{path}")
+    if result.interrupted:
+        typer.echo("csim: batch interrupted (Ctrl-C); unfinished runs are reported as failed", err=True)
+        raise typer.Exit(EXIT_INTERRUPTED)
+    if not result.passed:
+        names = ", ".join(r.entry.name for r in result.failed)
+        typer.echo(f"csim: batch failed: {len(result.failed)} of {len(result.runs)} case(s) missed an expectation: "
+                   f"{names}", err=True)
+        raise typer.Exit(EXIT_FAILED)
 
 
 @app.command(cls=_Command)

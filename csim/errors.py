@@ -20,6 +20,11 @@ class CaseError(CsimError):
         super().__init__("\n".join(self.problems))
 
 
+class ManifestError(CaseError):
+    """A batch manifest (``csim batch``) is invalid: its keys, its expectations, or the case
+    of one of its entries. ``problems`` as for :class:`CaseError`."""
+
+
 class SimulationFailure(CsimError):
     """The simulation cannot go on (Newton did not converge, singular matrix, blow-up)."""
 

@@ -160,6 +160,23 @@ class Result:
         return float(np.max(np.abs(self.energy_error)) / self.energy_scale) if self.t.size else float("nan")
 
     @property
+    def energy_balance(self) -> tuple[float, str]:
+        """The energy-balance error as the run summary reports it, and its unit.
+
+        Returns
+        -------
+        value : float
+            max |T + V - T0 - V0 - W| over the run, divided by :attr:`energy_scale`
+            (dimensionless); in J when the energy scale is zero (a mechanism at rest, see
+            :attr:`energy_scale_is_zero`). NaN without samples.
+        unit : {"", "J"}
+            ``""`` for the relative error, ``"J"`` for the absolute one.
+        """
+        if self.energy_scale_is_zero:
+            return self.energy_error_max, "J"
+        return self.energy_error_relative, ""
+
+    @property
     def max_phi(self) -> float:
         """max over the run of max_i |Phi_i|."""
         return float(np.max(np.abs(self.phi))) if self.phi.size else float("nan")
@@ -181,11 +198,11 @@ class Result:
             lines.append(f"max |Phi_q qd|:    {self.max_phi_dot:.3e}")
             if self.run_kind == "kinematic":
                 lines.append("energy balance:    - (a kinematic analysis of prescribed motion: no forces)")
-            elif self.energy_scale_is_zero:
-                lines.append(f"energy balance:    {self.energy_error_max:.3e} J (max |T + V - T0 - V0 - W|, in J: "
+            elif self.energy_balance[1] == "J":
+                lines.append(f"energy balance:    {self.energy_balance[0]:.3e} J (max |T + V - T0 - V0 - W|, in J: "
                              f"the energy scale is zero, the mechanism stays at rest)")
             else:
-                lines.append(f"energy balance:    {self.energy_error_relative:.3e} (max |T + V - T0 - V0 - W|"
+                lines.append(f"energy balance:    {self.energy_balance[0]:.3e} (max |T + V - T0 - V0 - W|"
                              f" / {self.energy_scale:.4g} J)")
         lines.append(f"events:            {len(self.event_times)}")
         lines.append(f"wall time:         {self.wall_time:.3f} s ({self.backend} backend)")

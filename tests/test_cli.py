@@ -334,7 +334,7 @@ def test_version():
 
 
 def test_help_lists_flags_without_a_value_type():
-    for command in ([], ["run"], ["compare"], ["plot"], ["animate"], ["describe"]):
+    for command in ([], ["run"], ["compare"], ["batch"], ["plot"], ["animate"], ["describe"]):
         result = invoke(*command, "--help")
         assert_clean_exit(result, 0)
         assert "<bool>" not in result.stdout, command

@@ -1,6 +1,9 @@
-"""Running the cases of a comparison: in this process, or in a pool of worker processes.
+"""Running the cases of a comparison (or a batch): in this process, or in a pool of worker processes.
 
-:func:`run_tasks` runs (Run, Case) pairs and fills each Run with its result. One job runs
+:func:`run_tasks` runs (Run, Case) pairs and fills each Run with its result: a
+:class:`csim.compare.runs.Run`, or any object with a ``result`` attribute (None until it
+ran) and a ``set_result(result, message)`` method (``csim batch``'s
+:class:`csim.batch.runner.CaseRun`). One job runs
 them in order in this process; more go to fresh ("spawn") worker processes that ignore
 Ctrl-C, with one BLAS thread each. Ctrl-C stops the whole comparison: runs that finished
 keep their results, the others stay failed rows with the message
@@ -122,10 +125,12 @@ def _run_serial(tasks: Sequence[Task], n_jobs: int, progress: Progress | None, f
 
 def _run_parallel(tasks: Sequence[Task], n_jobs: int, progress: Progress | None, flag: _InterruptFlag) -> bool:
     """Run the tasks in ``n_jobs`` worker processes; stop them all at Ctrl-C (returns True)."""
-    # derive (and cache on disk) the model once, not in every worker at the same time; should
-    # that fail, each worker reports the failure as its run's
-    with contextlib.suppress(Exception):
-        numeric_model(tasks[0][1])
+    # derive (and cache on disk) each mechanism's model once, not in every worker at the same
+    # time (a batch has several mechanisms); should that fail, each worker reports the
+    # failure as its run's
+    for _, case in tasks:
+        with contextlib.suppress(Exception):
+            numeric_model(case)
     context = multiprocessing.get_context("spawn")  # no fork of a threaded process; same on every OS
     executor = cf.ProcessPoolExecutor(max_workers=n_jobs, mp_context=context, initializer=_worker_init)
     futures: dict[cf.Future, Run] = {}
