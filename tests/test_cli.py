@@ -39,9 +39,14 @@ def assert_clean_exit(result, code: int) -> None:
     assert "Traceback" not in result.output
 
 
+#: status lines of slow steps, where stderr is no terminal (csim.progress.status)
+STATUS_LINES = ("csim: simulating ", "csim: loading the compiled kernels ", "csim: deriving the equations ",
+                "csim: generating the compiled module ")
+
+
 def errors(result) -> str:
-    """stderr without the status line of a slow run ("csim: simulating CASE ..." where stderr is no terminal)."""
-    return "".join(line for line in result.stderr.splitlines(keepends=True) if not line.startswith("csim: simulating "))
+    """stderr without the status lines of slow steps ("csim: simulating CASE ..." where stderr is no terminal)."""
+    return "".join(line for line in result.stderr.splitlines(keepends=True) if not line.startswith(STATUS_LINES))
 
 
 def text_attr(fh, name: str) -> str:
