@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Hashable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -187,12 +187,16 @@ class Case:
         Where it came from (a path, or ``"<dict>"``).
     linkage : csim.linkage.model.Linkage or None
         What was derived from a link-coupling description (None for a registered mechanism).
+    warnings : list of str
+        Valid settings that will probably make the run fail, each naming the keys (a
+        stabilizer gain times a fixed step beyond the integrator's stability region).
     """
 
     data: dict
     mechanism: MechanismDefinition
     source: str = "<dict>"
     linkage: Linkage | None = None
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def kinematic(self) -> bool:
@@ -360,7 +364,18 @@ def validate_case(data: dict, source: str = "<dict>") -> Case:
     _validate_combination(out, problems)
     if problems:
         raise CaseError(problems)
-    return Case(data=out, mechanism=mech, source=source, linkage=linkage)
+    return Case(data=out, mechanism=mech, source=source, linkage=linkage, warnings=_stability_warnings(out))
+
+
+def _stability_warnings(out: dict) -> list[str]:
+    """Stabilizer gains times a fixed step at or beyond the integrator's stability region
+    (:func:`csim.solver.stability.stability_warnings`)."""
+    from csim.solver.methods import make_stabilizer
+    from csim.solver.stability import stability_warnings
+
+    stab, sim = out["stabilization"], out["simulation"]
+    method = make_stabilizer(stab["method"], {k: v for k, v in stab.items() if k != "method"})
+    return stability_warnings(method, sim["integrator"], sim["step"])
 
 
 #: Keys of ``mechanism`` that belong to a link-coupling description.

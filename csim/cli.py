@@ -251,6 +251,8 @@ def run(
         check_writable(out, protect=[case], suffixes=RESULT_SUFFIXES)
     except CsimError as exc:
         _fail_input(exc)
+    for warning in [] if quiet else c.warnings:  # a failure names the cause again, --quiet or not
+        typer.echo(f"csim: warning: {warning}", err=True)
     result = None
     with reporting(not quiet), _watch_ctrl_c() as ctrl_c:
         try:

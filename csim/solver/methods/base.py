@@ -57,6 +57,39 @@ def option(default: Any, doc: str, unit: str = "", *, gain: bool = False, gt: fl
 
 
 @dataclasses.dataclass(frozen=True)
+class ErrorMode:
+    """One mode of the constraint-error dynamics a method imposes, linearised at Phi = 0.
+
+    The eigenvalue is ``lambda = gain * shape`` [1/s]; an explicit fixed step h is stable
+    for the mode when h lambda lies in the integrator's stability region
+    (:mod:`csim.solver.stability`).
+
+    Attributes
+    ----------
+    keys : str
+        The gain as the case-file keys that make it, e.g. ``"stabilization.w"``.
+    gain : float
+        Its value [1/s].
+    shape : complex
+        lambda / gain, e.g. -1 for Baumgarte with d = 1.
+    note : str
+        What else fixes ``shape`` (``"d = 1"``), or "".
+    constraint : int or None
+        The constraint (0-based) of a gain given one per constraint; None for one gain.
+    saturates : str
+        What happens beyond the region when a nonlinearity bounds the growth (a smooth
+        switching function saturates); "" when the error grows without bound.
+    """
+
+    keys: str
+    gain: float
+    shape: complex
+    note: str = ""
+    constraint: int | None = None
+    saturates: str = ""
+
+
+@dataclasses.dataclass(frozen=True)
 class NoOptions:
     """A method without settings."""
 
@@ -109,6 +142,10 @@ class Method:
         """Scalar settings the core functions read: (floats, integers)."""
         return [], []
 
+    def error_modes(self) -> list[ErrorMode]:
+        """The modes of the constraint-error dynamics the method imposes (none: it imposes none)."""
+        return []
+
     def pack(self, r: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(gains (G * r,), fpar (F,), ipar (I,)): the method as arrays, for ``r`` constraints.
 
@@ -138,6 +175,22 @@ class Method:
     def option_fields(cls) -> list[dataclasses.Field]:
         """The declared settings (dataclass fields with :func:`option` metadata)."""
         return list(dataclasses.fields(cls.Options))
+
+
+def per_constraint(*gains) -> list[tuple[int | None, tuple[float, ...]]]:
+    """The gains of each constraint, ``[(i, (g1, g2, ...)), ...]``, once per distinct tuple.
+
+    ``i`` is None when every gain is one number (the same on every constraint).
+    """
+    arrays = [np.atleast_1d(np.asarray(g, dtype=float)) for g in gains]
+    if all(a.size == 1 for a in arrays):
+        return [(None, tuple(float(a[0]) for a in arrays))]
+    r = max(a.size for a in arrays)
+    rows = np.stack([np.broadcast_to(a, (r,)) for a in arrays], axis=1)
+    seen: dict[tuple, int] = {}
+    for i, row in enumerate(rows):
+        seen.setdefault(tuple(float(v) for v in row), i)
+    return [(i, values) for values, i in seen.items()]
 
 
 def positive_gains(value) -> str | None:
