@@ -35,7 +35,10 @@ from csim.schema import (
     check_value,
     closest,
     describe,
+    described,
+    field_json_schema,
     field_paths,
+    section_json_schema,
     unknown_key,
     validate_section,
 )
@@ -571,3 +574,55 @@ def _validate_formulation(out, mech, problems):
     if bad or len(set(independent)) != n_dof or len(independent) != n_dof:
         problems.append(f"formulation.independent: got {describe(independent)}; expected {n_dof} distinct "
                         f"coordinate name(s) from {names}")
+
+
+def json_schema() -> dict:
+    """The case-file schema as JSON Schema (draft 2020-12), for editors (``csim schema``).
+
+    Generated from :data:`SCHEMA` (the methods' options included), :data:`LOAD_SCHEMA`,
+    the registered mechanisms' parameters, coordinates and loads (one ``if``/``then`` per
+    mechanism name) and the link-coupling tables (:mod:`csim.linkage.json_schema`).
+    """
+    from csim.linkage.json_schema import tables_json_schema
+
+    schema = {"$schema": "https://json-schema.org/draft/2020-12/schema", "title": "csim case file",
+              "description": "A csim case (csim run CASE.yaml); see the README's 'Case files'. Units are SI.",
+              **section_json_schema(SCHEMA)}
+    schema["type"] = "object"
+    mechanism = schema["properties"]["mechanism"]
+    mechanism["type"] = "object"  # the one section that must be there
+    mechanism["anyOf"] = [{"required": ["name"]}, {"required": ["links", "couplings"]}]
+    for key, extra in tables_json_schema().items():
+        mechanism["properties"][key].update(extra)
+    law = section_json_schema(LOAD_SCHEMA)
+    law["type"] = "object"
+    schema["properties"]["loads"]["additionalProperties"] = {"anyOf": [{"type": "number"}, law]}
+    schema["required"] = ["mechanism"]
+    schema["allOf"] = [_mechanism_json_schema(name) for name in sorted(MECHANISMS)]
+    return schema
+
+
+def _mechanism_json_schema(name: str) -> dict:
+    """``if mechanism.name is NAME then``: its parameters, coordinates and loads."""
+    mech = light_mechanism(name)
+    parameters = {p.name: field_json_schema(Field("number", p.default, p.description, p.unit,
+                                                  gt=0.0 if p.strictly_positive else None, ge=p.minimum))
+                  for p in mech.parameters}
+    units = dict(zip(mech.coordinate_names, mech.coordinate_units))
+
+    def coordinates(what: str, per: str) -> dict:
+        return {"properties": {n: {"type": "number", "description": described(f"{what} {n}", units[n] + per)}
+                               for n in units}, "additionalProperties": False}
+    loads = {ld.name: {"description": described(f"load {ld.name}", ld.unit)} for ld in mech.loads}
+    return {
+        "if": {"properties": {"mechanism": {"properties": {"name": {"const": name}}, "required": ["name"]}},
+               "required": ["mechanism"]},
+        "then": {"properties": {
+            "mechanism": {"properties": {"parameters": {"properties": parameters, "additionalProperties": False}}},
+            "initial": {"properties": {
+                "q": coordinates("coordinate", ""), "qd": coordinates("velocity of", "/s"),
+                "guess": coordinates("Newton start of", ""), "q_offset": coordinates("offset of", ""),
+                "qd_offset": coordinates("velocity offset of", "/s")}},
+            "loads": {"properties": loads, "additionalProperties": False},
+        }},
+    }

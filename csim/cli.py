@@ -540,6 +540,39 @@ def describe(
     typer.echo(text, nl=False)
 
 
+@app.command(cls=_Command)
+@_interruptible
+def schema(
+    output: Annotated[Path | None, typer.Option(
+        "--output", "-o", metavar="FILE.json",
+        help="Write the schema to this file (JSON). Default: print it.")] = None,
+):
+    """Print the case-file schema as JSON Schema (draft 2020-12), for editors.
+
+    Generated from csim's own schema: every key with its type, default, bounds, choices
+    (mechanisms, integrators, methods, switching functions) and a description with its
+    unit; the parameters, coordinates and loads of each registered mechanism; the
+    link-coupling tables. With yaml-language-server (VS Code's YAML extension, ...), the
+    first line of a case file, # yaml-language-server: $schema=PATH/csim-case.schema.json,
+    turns on validation and completion.
+
+    Example: csim schema -o csim-case.schema.json
+    """
+    import json
+
+    from csim.case import json_schema
+
+    text = json.dumps(json_schema(), indent=2) + "\n"
+    if output is None:
+        typer.echo(text, nl=False)
+        return
+    try:
+        output.parent.mkdir(parents=True, exist_ok=True)
+        output.write_text(text)
+    except OSError as exc:
+        _fail_input(ResultFileError(f"--output {output}: cannot write there ({exc.strerror or exc})"))
+
+
 def main() -> None:
     """Console-script entry point."""
     app(prog_name="csim")
