@@ -15,6 +15,7 @@ Units are SI throughout (m, kg, s, rad, N, N m, J); see ``csim.io.units``.
 """
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Hashable
 from dataclasses import dataclass, field
@@ -38,6 +39,7 @@ from csim.schema import (
     described,
     field_json_schema,
     field_paths,
+    finite_number,
     section_json_schema,
     unknown_key,
     validate_section,
@@ -495,12 +497,12 @@ def _validate_loads(out, mech, problems):
             law = validate_section(path, spec, LOAD_SCHEMA, problems)
             window = law.get("window")
             if window is not None:
-                ok = len(window) == 2 and all(isinstance(w, (int, float)) and not isinstance(w, bool) for w in window)
-                if not ok or not window[0] < window[1]:
+                bounds = [_window_bound(w) for w in window]
+                if len(bounds) != 2 or None in bounds or not bounds[0] < bounds[1]:
                     problems.append(f"{path}.window: got {describe(window)}; expected [lo, hi] with lo < hi "
                                     f"(use .inf for an open end)")
                 else:
-                    law["window"] = [float(w) for w in window]
+                    law["window"] = bounds
             result[key] = law
         elif isinstance(spec, (int, float)) and not isinstance(spec, bool):
             checked = check_value(f"{path} [{unit}]", spec, Field("number"), problems)
@@ -510,6 +512,14 @@ def _validate_loads(out, mech, problems):
             problems.append(f"{path}: got {describe(spec)}; expected a number [{unit}] (a constant load) or a "
                             f"mapping with keys {', '.join(LOAD_SCHEMA.fields)}")
     out["loads"] = result
+
+
+def _window_bound(value) -> float | None:
+    """A load window's bound as a float (+-.inf allowed: an open end); None for anything else
+    (not a number, .nan, an integer beyond the float range)."""
+    if isinstance(value, float) and math.isinf(value):
+        return value
+    return float(value) if finite_number(value) else None
 
 
 #: Most output samples, and most fixed steps, a run may ask for.
@@ -523,11 +533,19 @@ def _validate_resolution(out, problems):
     if t_end is None:
         return
     if dt is not None and t_end / dt > MAX_OUTPUT_SAMPLES:
-        problems.append(f"output.dt: got {describe(dt)}; expected at least t_end / {MAX_OUTPUT_SAMPLES:.0e} = "
-                        f"{t_end / MAX_OUTPUT_SAMPLES:.3g} s (at most {MAX_OUTPUT_SAMPLES:.0e} output samples)")
+        problems.append(f"output.dt: got {describe(dt)} with simulation.t_end = {t_end:g} s; expected at least "
+                        f"simulation.t_end / {MAX_OUTPUT_SAMPLES:.0e} = {t_end / MAX_OUTPUT_SAMPLES:.3g} s (at most "
+                        f"{MAX_OUTPUT_SAMPLES:.0e} output samples), or a shorter simulation.t_end")
+    for key in ("max_step", "first_step"):  # an adaptive step below min_step is a failure by definition
+        value, min_step = out["simulation"].get(key), out["simulation"].get("min_step")
+        if value is not None and min_step is not None and value < min_step:
+            problems.append(f"simulation.{key}: got {describe(value)} with simulation.min_step = {min_step:g} s; "
+                            f"expected at least simulation.min_step (a step below it stops the run as a step-size "
+                            f"collapse), or a smaller simulation.min_step")
     if step is not None and out["simulation"].get("integrator") == "RK4" and t_end / step > MAX_FIXED_STEPS:
-        problems.append(f"simulation.step: got {describe(step)}; expected at least t_end / {MAX_FIXED_STEPS:.0e} = "
-                        f"{t_end / MAX_FIXED_STEPS:.3g} s (at most {MAX_FIXED_STEPS:.0e} fixed steps)")
+        problems.append(f"simulation.step: got {describe(step)} with simulation.t_end = {t_end:g} s; expected at "
+                        f"least simulation.t_end / {MAX_FIXED_STEPS:.0e} = {t_end / MAX_FIXED_STEPS:.3g} s (at most "
+                        f"{MAX_FIXED_STEPS:.0e} fixed steps), or a shorter simulation.t_end")
 
 
 def _validate_combination(out, problems):

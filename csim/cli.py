@@ -275,8 +275,9 @@ def run(
         typer.echo(result.summary())
         typer.echo(f"result:            {out}{where}" + (", replacing the file there" if replaced else ""))
     if result.failure == "assembly":
-        typer.echo(f"csim: error: the mechanism cannot be assembled at its initial values: {result.message} "
-                   f"(result file with status failed: {out})", err=True)
+        typer.echo(f"csim: error: the mechanism cannot be assembled at its initial values: {result.message}; "
+                   f"expected mechanism.parameters that close the mechanism, and initial.q, initial.guess on an "
+                   f"assembly branch (result file with status failed: {out})", err=True)
         raise typer.Exit(EXIT_BAD_INPUT)
     if not result.ok:
         typer.echo(f"csim: simulation failed: {result.message} (partial result in {out})", err=True)

@@ -104,6 +104,17 @@ def closest(word: str, candidates) -> str | None:
     return by_lower[match[0]] if match else None
 
 
+def finite_number(value: Any) -> bool:
+    """A YAML number (not a boolean) that is finite as a float: not .nan, .inf, nor an
+    integer beyond the float range (10**400)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    try:
+        return math.isfinite(value)
+    except OverflowError:
+        return False
+
+
 def check_value(path: str, value: Any, spec: Field, problems: list[str]) -> Any:
     """Validate one value against ``spec``; append problems; return the normalized value."""
     if value is None:
@@ -169,7 +180,7 @@ def unknown_key(path: str, key: str, valid: list[str]) -> str:
     where = f"{path}.{key}" if path else key
     hint = closest(key, valid)
     extra = f" (did you mean {hint!r}?)" if hint else ""
-    return f"{where}: unknown key{extra}; valid keys here: {', '.join(valid)}"
+    return f"{where}: unknown key{extra}; valid keys here: {', '.join(valid) or '(none)'}"
 
 
 def validate_section(path: str, data: Any, section: Section, problems: list[str]) -> dict:
@@ -178,7 +189,7 @@ def validate_section(path: str, data: Any, section: Section, problems: list[str]
         data = {}
     if not isinstance(data, dict):
         problems.append(f"{path or 'case file'}: got {describe(data)}; expected a mapping (key: value lines)")
-        return {}
+        data = {}  # reported; go on with the defaults, so that later checks find every key
     out = {}
     for key in data:
         if key not in section.fields:

@@ -25,12 +25,12 @@ subclass it finds (:func:`register` takes one defined elsewhere, e.g. in a test)
 from __future__ import annotations
 
 import dataclasses
-import math
 from typing import Any, ClassVar
 
 import numpy as np
 
 from csim.physics.linalg import as_core
+from csim.schema import finite_number
 
 
 def option(default: Any, doc: str, unit: str = "", *, gain: bool = False, gt: float | None = None,
@@ -196,6 +196,5 @@ def per_constraint(*gains) -> list[tuple[int | None, tuple[float, ...]]]:
 def positive_gains(value) -> str | None:
     """None if ``value`` is a positive number or a non-empty list of them, else what was expected."""
     values = value if isinstance(value, list) else [value]
-    ok = bool(values) and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0
-                              for v in values)
+    ok = bool(values) and all(finite_number(v) and v > 0 for v in values)
     return None if ok else "a positive number, or a list of positive numbers (one per constraint)"
