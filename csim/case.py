@@ -399,6 +399,10 @@ def _build_linkage(out: dict, problems: list[str]) -> Linkage:
                                 f"variables ({', '.join(linkage.drive)}) set the motion; expected initial.{key} left "
                                 f"out (initial.guess chooses the assembly branch)")
         mech.default_independent_velocities = at_start["qd"]
+        if out["mechanism"].get("forces"):
+            problems.append("mechanism.forces: given with mechanism.drive; a kinematic analysis prescribes the motion "
+                            "and computes no forces (driven dynamics, the drive torques under these forces, is not "
+                            "implemented); expected mechanism.forces or mechanism.drive, not both")
     elif not any(link.has_mass for link in linkage.tables.links.values() if link.number != 0):
         problems.append("mechanism.links: no link has mass or inertia, and there is no mechanism.drive; expected "
                         "mechanism.drive (a kinematic analysis) or mass and inertia on the moving links (dynamics)")

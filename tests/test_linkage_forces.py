@@ -250,3 +250,29 @@ def test_loads_section_may_not_redefine_a_force_element():
         validate_case(data)
     assert any(p.startswith("loads.push: 'push' is a force element of mechanism.forces") for p in
                excinfo.value.problems)
+
+
+def test_actuator_on_a_cut_joint_works_on_the_relative_angle():
+    """A constant torque in the cut joint C of the four-bar (between coupler and rocker) does
+    tau (theta - theta0), theta = rocker angle - coupler angle from the tree's joint angles."""
+    mech = load_case(CONFIGS / "fourbar_gravity.yaml").data["mechanism"]
+    mech = {k: mech[k] for k in ("label", "parameters", "gravity", "links", "couplings")}
+    tau = 0.8
+    mech["forces"] = [{"name": "knee", "type": "actuator", "joint": "C", "torque": tau}]
+    res = run(mech, {"q": {"q_crank": 0.0}, "qd": {"q_crank": 0.0}, "guess": {"q_B": 1.0, "q_rocker": 1.8}},
+              stabilization={"method": "projection"})
+    names = res.coordinate_names
+    theta = res.q[:, names.index("q_rocker")] - res.q[:, names.index("q_crank")] - res.q[:, names.index("q_B")]
+    work = tau * (theta - theta[0])
+    assert np.max(np.abs(work)) > 0.05
+    assert np.max(np.abs(res.work[:, 0] - work)) < 1e-9 * np.max(np.abs(work))
+    gained = res.kinetic + res.potential - res.kinetic[0] - res.potential[0]
+    assert np.max(np.abs(gained - work)) < 1e-8 * np.max(np.abs(work))
+
+
+def test_forces_with_a_drive_are_rejected_not_ignored():
+    mech = slider([{"name": "push", "type": "actuator", "joint": "slide", "force": 1.0}])
+    mech["drive"] = {"slide": "0.1*t"}
+    with pytest.raises(Exception) as excinfo:
+        validate_case({"mechanism": mech})
+    assert any(p.startswith("mechanism.forces: given with mechanism.drive") for p in excinfo.value.problems)

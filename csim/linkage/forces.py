@@ -222,7 +222,8 @@ def _coupling(geo: Geometry, raw: Any) -> Coupling | None:
 
 
 def _cut_coordinate(geo: Geometry, c: Coupling, slot: int) -> sp.Expr:
-    """The relative motion of frame jm against frame ik of a cut R, P or C joint, from q.
+    """The relative motion of frame jm against frame ik of a cut joint whose variables are
+    about or along z_ik (R, P, C: :attr:`csim.linkage.joints.JointType.along_z`), from q.
 
     Rotation about z_ik: atan2(z_ik . (x_ik x x_jm), x_ik . x_jm); translation along z_ik:
     z_ik . (r_jm - r_ik). Exact on the constraint manifold, where z_jm = z_ik.
@@ -260,9 +261,10 @@ def joint_of(geo: Geometry, path: str, raw: Any, problems: list[str], unit: str 
             return None
         slot = slots[0]
     if c in geo.topology.cut_joints:
-        if c.type not in ("R", "P", "C"):
-            problems.append(f"{path}: {c.label} is a cut {c.type} joint, whose relative motion has no joint "
-                            f"variable; expected an element on a tree joint or on a cut R, P or C joint")
+        if not JOINT_TYPES[c.type].along_z:
+            measured = ", ".join(name for name, kind in JOINT_TYPES.items() if kind.along_z)
+            problems.append(f"{path}: {c.label} is a cut {c.type} joint, whose relative motion csim does not "
+                            f"measure; expected an element on a tree joint or on a cut joint of type {measured}")
             return None
         return JointCoordinate(_cut_coordinate(geo, c, slot), specs[slot].unit, f"{c.label} (cut)")
     var = next(v for v in geo.topology.variables_of(c) if v.slot == slot)
