@@ -276,3 +276,22 @@ def test_forces_with_a_drive_are_rejected_not_ignored():
     with pytest.raises(Exception) as excinfo:
         validate_case({"mechanism": mech})
     assert any(p.startswith("mechanism.forces: given with mechanism.drive") for p in excinfo.value.problems)
+
+
+@pytest.mark.parametrize("on", [None, "G_x", {"distance": [["ground", "E"], ["block", "G"]]}])
+def test_switched_force_stops_at_its_window_bound(on):
+    """A constant push F on the block at rest while x <= 0.8 m (or its distance from E = (-1, 0)
+    <= 1.8 m): s = F t^2 / (2 m) until t1 = sqrt(1.6 m / F), then s = 0.8 + (F t1 / m) (t - t1)."""
+    m, F = 2.0, 5.0
+    force = {"name": "push", "type": "force", "link": "block", "point": "G", "direction": [1, 0, 0], "value": "F",
+             "window": [-1e9, 0.8]}
+    if isinstance(on, dict):
+        force.update(on=on, window=[-1e9, 1.8])
+    elif on is not None:
+        force["on"] = on
+    res = run(slider([force], F=F), {"q": {"s_slide": 0.0}, "qd": {"s_slide": 0.0}}, t_end=1.5)
+    t1 = math.sqrt(1.6 * m / F)
+    assert len(res.event_times) == 1 and abs(res.event_times[0] - t1) < 1e-10
+    s = np.where(res.t < t1, F * res.t**2 / (2 * m), 0.8 + F * t1 / m * (res.t - t1))
+    assert np.max(np.abs(res.q[:, 0] - s)) < 1e-10
+    assert abs(res.work[-1, 0] - F * 0.8) < 1e-9

@@ -271,12 +271,13 @@ def joint_of(geo: Geometry, path: str, raw: Any, problems: list[str], unit: str 
     return JointCoordinate(var.symbol, var.unit, f"{var.name} ({c.label})")
 
 
-def _point_named(geo: Geometry, name: str) -> tuple[sp.Matrix, str] | None:
-    for number, link in sorted(geo.tables.links.items()):
-        for f in link.joints:
-            if f.point == name:
-                return geo.frames.joint_frame(number, f.index)[:3, 3], link.label
-    return None
+def _point_named(geo: Geometry, name: str) -> sp.Matrix | None:
+    """The global position of the point ``name``: its first frame that moves (the two frames
+    of a P joint share a name, and only one of them moves), else its first."""
+    found = [geo.frames.joint_frame(number, f.index)[:3, 3] for number, link in sorted(geo.tables.links.items())
+             for f in link.joints if f.point == name]
+    moving = [r for r in found if r.free_symbols & set(geo.q)]
+    return (moving or found or [None])[0]
 
 
 def switch_coordinate(geo: Geometry, path: str, raw: Any, problems: list[str]) -> tuple[sp.Expr, str] | None:
@@ -297,7 +298,7 @@ def switch_coordinate(geo: Geometry, path: str, raw: Any, problems: list[str]) -
     if isinstance(raw, str) and raw[-2:] in ("_x", "_y", "_z"):
         found = _point_named(geo, raw[:-2])
         if found is not None:
-            return found[0]["xyz".index(raw[-1])], "m"
+            return found["xyz".index(raw[-1])], "m"
     problems_here: list[str] = []
     joint = joint_of(geo, path, raw, problems_here)
     if joint is None:
