@@ -117,6 +117,8 @@ SCHEMA = Section({
                          nullable=True),
         "drive": Field("mapping", None, "link coupling: prescribed driving joint variables, joint: value or "
                        "expression of t (a kinematic analysis)", nullable=True),
+        "forces": Field("list", None, "link coupling: force elements (spring, joint_spring, actuator, force, "
+                        "torque), checked by csim.linkage.forces", nullable=True),
     }, "the mechanism and its parameters"),
     "initial": Section({
         "q": Field("mapping", None, "independent coordinates, name: value [rad or m]", nullable=True),
@@ -217,8 +219,11 @@ class Case:
     def load_set(self) -> LoadSet:
         laws = []
         for load in self.mechanism.loads:
-            spec = self.data["loads"].get(load.name, 0.0)
-            if isinstance(spec, dict):
+            # a load the case does not name keeps the mechanism's law (0 for a registered one)
+            spec = self.data["loads"].get(load.name)
+            if spec is None:
+                laws.append(LoadLaw(load.name, load.magnitude, tuple(load.window), load.velocity))
+            elif isinstance(spec, dict):
                 window = spec["window"] or [-np.inf, np.inf]
                 bounds = (float(window[0]), float(window[1]))
                 laws.append(LoadLaw(load.name, spec["magnitude"], bounds, spec["velocity"]))
@@ -389,7 +394,7 @@ def _stability_warnings(out: dict) -> list[str]:
 
 
 #: Keys of ``mechanism`` that belong to a link-coupling description.
-LINKAGE_KEYS = ("label", "links", "couplings", "gravity", "drive")
+LINKAGE_KEYS = ("label", "links", "couplings", "gravity", "drive", "forces")
 
 
 def _is_linkage(section: dict) -> bool:
@@ -419,6 +424,10 @@ def _build_linkage(out: dict, problems: list[str]) -> Linkage:
                                 f"variables ({', '.join(linkage.drive)}) set the motion; expected initial.{key} left "
                                 f"out (initial.guess chooses the assembly branch)")
         mech.default_independent_velocities = at_start["qd"]
+        if out["mechanism"].get("forces"):
+            problems.append("mechanism.forces: given with mechanism.drive; a kinematic analysis prescribes the motion "
+                            "and computes no forces (driven dynamics, the drive torques under these forces, is not "
+                            "implemented); expected mechanism.forces or mechanism.drive, not both")
     elif not any(link.has_mass for link in linkage.tables.links.values() if link.number != 0):
         problems.append("mechanism.links: no link has mass or inertia, and there is no mechanism.drive; expected "
                         "mechanism.drive (a kinematic analysis) or mass and inertia on the moving links (dynamics)")
@@ -497,7 +506,12 @@ def _validate_loads(out, mech, problems):
         if str(key) not in load_names:
             problems.append(unknown_key("loads", str(key), load_names))
             continue
-        unit = mech.loads[load_names.index(key)].unit
+        load = mech.loads[load_names.index(key)]
+        unit = load.unit
+        if load.law is not None:
+            problems.append(f"{path}: {key!r} is a force element of mechanism.forces, whose law is set there; "
+                            f"expected no loads.{key} (change the element in mechanism.forces)")
+            continue
         if isinstance(spec, dict):
             law = validate_section(path, spec, LOAD_SCHEMA, problems)
             window = law.get("window")

@@ -6,12 +6,13 @@ loop allocates once per run, at offsets that are compile-time constants (``W_M``
 ...; matrices row-major), and the terms one evaluation needs share one
 common-subexpression elimination (each sin and cos of the coordinates is computed once):
 
-``terms(y, par, w)``
-    M (m, m), C qd (m,), h (m,), Phi (r,), Phi_q (r, m), gamma (r,), s (k,), B (m, k)
+``terms(t, y, par, w)``
+    M (m, m), C qd (m,), h (m,), Phi (r,), Phi_q (r, m), gamma (r,), s (k,), B (m, k),
+    S = ds/dq^T (m, k), the load laws f(q, qd, t) (k,); t is the time [s]
 ``phi_(y, par, w)``, ``jac(y, par, w)``, ``mass(y, par, w)``
     the pieces the projection and the divergence checks need on their own
 ``loads_(y, par, w)``
-    load coordinates and their Jacobian, for the switching functions
+    load coordinates s and their Jacobian S, for the switching functions
 ``kinetic(y, par)``, ``potential(y, par)``
     energies [J] (floats)
 ``observe(y, par, out)``
@@ -20,7 +21,7 @@ common-subexpression elimination (each sin and cos of the coordinates is compute
 ``y`` is a state [q, qd, ...] (functions of q alone read its first m entries). The symbols
 of the mechanism are unpacked into locals of the same name, as in
 :mod:`csim.model.codegen`; the arguments are named ``_y``, ``_par``, ``_w`` so that no
-parameter name can shadow them.
+parameter name can shadow them; ``terms`` unpacks ``_t`` into the time symbol ``t``.
 """
 from __future__ import annotations
 
@@ -28,10 +29,12 @@ import sympy as sp
 from sympy.printing.pycode import PythonCodePrinter
 
 #: the terms the right-hand side needs, in their order in the workspace w
-TERMS = ("mass", "velocity_terms", "gravity", "phi", "phi_q", "gamma", "load_coordinates", "load_matrix")
+TERMS = ("mass", "velocity_terms", "gravity", "phi", "phi_q", "gamma", "load_coordinates", "load_matrix",
+         "load_jacobian", "load_law")
 #: DerivedModel attribute -> name of its offset in w (matrices row-major)
 OFFSETS = {"mass": "W_M", "velocity_terms": "W_CQD", "gravity": "W_H", "phi": "W_PHI", "phi_q": "W_J",
-           "gamma": "W_GAM", "load_coordinates": "W_S", "load_matrix": "W_B"}
+           "gamma": "W_GAM", "load_coordinates": "W_S", "load_matrix": "W_B", "load_jacobian": "W_SQ",
+           "load_law": "W_L"}
 
 #: function name -> the DerivedModel attributes it writes into w
 FUNCTIONS = {
@@ -39,8 +42,10 @@ FUNCTIONS = {
     "phi_": ("phi",),
     "jac": ("phi_q",),
     "mass": ("mass",),
-    "loads_": ("load_coordinates", "load_matrix"),
+    "loads_": ("load_coordinates", "load_jacobian"),
 }
+#: the functions that take the time [s] as their first argument (the load laws may depend on it)
+TIMED = ("terms",)
 
 #: scalar functions: name -> DerivedModel attribute
 SCALARS = {"kinetic": "kinetic_energy", "potential": "potential_energy"}
@@ -66,15 +71,17 @@ def _cse(exprs):
 
 
 def function_source(fname, attrs, derived, unpack) -> str:
-    """One njit function ``fname(_y, _par, _w)`` writing the terms ``attrs`` into _w."""
+    """One njit function ``fname(_y, _par, _w)`` (``fname(_t, _y, _par, _w)`` if in :data:`TIMED`)
+    writing the terms ``attrs`` into _w."""
     printer = _Printer()
     targets = []
     for attr in attrs:
         matrix = getattr(derived, attr)
         targets += [(f"{OFFSETS[attr]} + {i}", e) for i, e in enumerate(matrix)]  # row-major
     temps, reduced, used = _cse([e for _, e in targets])
-    lines = [DECORATOR, f"def {fname}(_y, _par, _w):"]
-    lines += _unpack_lines(used, unpack)
+    timed = fname in TIMED
+    lines = [DECORATOR, f"def {fname}({'_t, ' if timed else ''}_y, _par, _w):"]
+    lines += _unpack_lines(used, unpack + ([("t", "_t")] if timed else []))
     lines += [f"    {sym} = {printer.doprint(value)}" for sym, value in temps]
     lines += [f"    _w[{ix}] = {printer.doprint(value)}" for (ix, _), value in zip(targets, reduced)]
     lines.append("    return None")
@@ -115,7 +122,7 @@ def model_source(derived) -> str:
     unpack += [(str(s), f"_y[{m + i}]") for i, s in enumerate(d.velocities)]
     unpack += [(name, f"_par[{i}]") for i, name in enumerate(d.parameter_names)]
     sizes = {"mass": m * m, "velocity_terms": m, "gravity": m, "phi": r, "phi_q": r * m, "gamma": r,
-             "load_coordinates": k, "load_matrix": m * k}
+             "load_coordinates": k, "load_matrix": m * k, "load_jacobian": m * k, "load_law": k}
     layout, offset = [], 0
     for attr in TERMS:
         layout.append(f"{OFFSETS[attr]} = {offset}")

@@ -146,9 +146,9 @@ def copy_row(src, dst, row):
 # ---------------------------------------------------------------------------------------
 @hot
 def switching_from(y, pf, pi, w):
-    """Switching functions into w[W_G:] from s and B in w (loads_ or terms evaluated) and qd in y."""
+    """Switching functions into w[W_G:] from s and S = ds/dq^T in w (loads_ or terms evaluated) and qd in y."""
     n_sw = pi[PI_NSW]
-    load_rates(w[W_B:W_B + NQ * NL], y[NQ:2 * NQ], w[W_SD:W_SD + NL], NQ, NL)
+    load_rates(w[W_SQ:W_SQ + NQ * NL], y[NQ:2 * NQ], w[W_SD:W_SD + NL], NQ, NL)
     switching_functions(w[W_S:W_S + NL], w[W_SD:W_SD + NL], pi[PI_HEAD:PI_HEAD + n_sw],
                         pi[PI_HEAD + n_sw:PI_HEAD + 2 * n_sw], pf[NL:NL + n_sw], w[W_G:W_G + n_sw])
 
@@ -162,13 +162,13 @@ def mode_at(y, par, pf, pi, w, mode):
 
 
 @hot
-def rhs(y, mode, located, par, pf, pi, w, piv, f):
-    """dy/dt = [qd, qdd, u * ds/dt] into f; [qdd, lambda] left in w[W_X:]. Returns OK or SINGULAR_KKT.
+def rhs(t, y, mode, located, par, pf, pi, w, piv, f):
+    """dy/dt = [qd, qdd, u * B^T qd] at time t into f; [qdd, lambda] left in w[W_X:]. Returns OK or SINGULAR_KKT.
 
     The load laws are held in ``mode``; with ``located`` False they are evaluated at y
     itself (``mode`` is then overwritten: pass a scratch array).
     """
-    terms(y, par, w)
+    terms(t, y, par, w)
     qd = y[NQ:2 * NQ]
     B = w[W_B:W_B + NQ * NL]
     J = w[W_J:W_J + NC * NQ]
@@ -176,7 +176,7 @@ def rhs(y, mode, located, par, pf, pi, w, piv, f):
         switching_from(y, pf, pi, w)
         mode_of(w[W_G:W_G + pi[PI_NSW]], mode)
     u = w[W_U:W_U + NL]
-    load_values(pf[:NL], mode, pi[PI_HEAD:PI_HEAD + pi[PI_NSW]], u)
+    load_values(pf[:NL], mode, pi[PI_HEAD:PI_HEAD + pi[PI_NSW]], w[W_L:W_L + NL], u)
     p = w[W_P:W_P + NQ]
     generalized_forces(B, u, w[W_CQD:W_CQD + NQ], w[W_H:W_H + NQ], p, NQ, NL)
     phi_dot = w[W_PD:W_PD + NC]
@@ -194,7 +194,7 @@ def rhs(y, mode, located, par, pf, pi, w, piv, f):
     for i in range(NQ):
         f[i] = qd[i]
         f[NQ + i] = x[i]
-    for kk in range(NL):  # dW/dt = u * ds/dt
+    for kk in range(NL):  # dW/dt = u * (B^T qd), the power of each load
         f[2 * NQ + kk] = u[kk] * sdot[kk]
     return OK
 
@@ -202,7 +202,7 @@ def rhs(y, mode, located, par, pf, pi, w, piv, f):
 @hot
 def feval(t, y, mode, located, par, pf, pi, w, piv, f, info):
     """rhs plus the driver's check of a non-finite result (info = [t, max |y|] then)."""
-    code = rhs(y, mode, located, par, pf, pi, w, piv, f)
+    code = rhs(t, y, mode, located, par, pf, pi, w, piv, f)
     if code == OK and not all_finite(f):
         code = NONFINITE_RHS
     if code != OK:
@@ -931,11 +931,13 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset):
 # the recorded quantities at the output samples (csim.pipeline.assemble_result)
 # ---------------------------------------------------------------------------------------
 @njit(cache=True, error_model="numpy")
-def evaluate_samples(ys, modes, par, pf, pi):
+def evaluate_samples(ts, ys, modes, par, pf, pi):
     """Everything a result records at each sample, from the same right-hand side the loop ran.
 
     Parameters
     ----------
+    ts : ndarray (N,)
+        Sample times [s] (the load laws may depend on t).
     ys : ndarray (N, 2 m + k)
         Recorded states [q, qd, W].
     modes : ndarray (N, n_sw) bool
@@ -972,7 +974,7 @@ def evaluate_samples(ys, modes, par, pf, pi):
         y = ys[i]
         observe(y, par, obs[i])
         mode[:] = modes[i]
-        if rhs(y, mode, True, par, pf, pi, w, piv, f) != OK:
+        if rhs(ts[i], y, mode, True, par, pf, pi, w, piv, f) != OK:
             ok[i] = False
             continue
         x[i] = w[W_X:W_X + NK]
@@ -993,12 +995,12 @@ def evaluate_samples(ys, modes, par, pf, pi):
 # entry points for the tests and the benchmark
 # ---------------------------------------------------------------------------------------
 @njit(cache=True, error_model="numpy")
-def rhs_entry(y, mode, par, pf, pi):
-    """dy/dt and [qdd, lambda] at one state (mode held), for comparison with the Python path."""
+def rhs_entry(t, y, mode, par, pf, pi):
+    """dy/dt and [qdd, lambda] at time t and one state (mode held), for comparison with the Python path."""
     w = np.zeros(W_G + pi[PI_NSW])
     piv = np.zeros(NK, np.int64)
     f = np.empty(y.size)
-    code = rhs(y, mode.copy(), True, par, pf, pi, w, piv, f)
+    code = rhs(t, y, mode.copy(), True, par, pf, pi, w, piv, f)
     return code, f, w[W_X:W_X + NK].copy()
 
 
@@ -1010,7 +1012,7 @@ def rhs_repeat(y, mode, par, pf, pi, n_eval):
     f = np.empty(y.size)
     acc = 0.0
     for _ in range(n_eval):
-        rhs(y, mode, True, par, pf, pi, w, piv, f)
+        rhs(0.0, y, mode, True, par, pf, pi, w, piv, f)
         acc += f[NQ]
     return acc
 
