@@ -101,6 +101,9 @@ def _construct_mapping(loader, node, deep=False):
 CaseLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
 
 
+#: values of ``mechanism.drive_mode``: kinematic analysis, or driven dynamics
+DRIVE_MODES = ("kinematic", "dynamic")
+
 #: The case-file schema (mechanism-specific parts are checked by :func:`validate_case`).
 SCHEMA = Section({
     "mechanism": Section({
@@ -116,7 +119,10 @@ SCHEMA = Section({
         "gravity": Field("list", None, "link coupling: gravity [gx, gy, gz] in the fixed frame", "m/s^2",
                          nullable=True),
         "drive": Field("mapping", None, "link coupling: prescribed driving joint variables, joint: value or "
-                       "expression of t (a kinematic analysis)", nullable=True),
+                       "expression of t (a kinematic analysis, or driven dynamics: see drive_mode)", nullable=True),
+        "drive_mode": Field("string", None, "link coupling with drive: kinematic (default: the motion alone) or "
+                            "dynamic (driven dynamics: the drives are constraints, their torques and forces are "
+                            "recorded)", nullable=True, choices=DRIVE_MODES),
         "forces": Field("list", None, "link coupling: force elements (spring, joint_spring, actuator, force, "
                         "torque), checked by csim.linkage.forces", nullable=True),
     }, "the mechanism and its parameters"),
@@ -209,8 +215,16 @@ class Case:
 
     @property
     def kinematic(self) -> bool:
-        """True for a link-coupling case with prescribed drives (a kinematic analysis)."""
-        return self.linkage is not None and bool(self.linkage.drive)
+        """True for a link-coupling case with prescribed drives and ``drive_mode: kinematic`` (a
+        kinematic analysis)."""
+        return self.linkage is not None and bool(self.linkage.drive) and not self.driven
+
+    @property
+    def driven(self) -> bool:
+        """True for a link-coupling case with prescribed drives and ``drive_mode: dynamic``
+        (driven dynamics, :mod:`csim.solver.driven`)."""
+        return (self.linkage is not None and bool(self.linkage.drive)
+                and self.data["mechanism"].get("drive_mode") == "dynamic")
 
     @property
     def parameters(self) -> dict[str, float]:
@@ -394,7 +408,7 @@ def _stability_warnings(out: dict) -> list[str]:
 
 
 #: Keys of ``mechanism`` that belong to a link-coupling description.
-LINKAGE_KEYS = ("label", "links", "couplings", "gravity", "drive", "forces")
+LINKAGE_KEYS = ("label", "links", "couplings", "gravity", "drive", "drive_mode", "forces")
 
 
 def _is_linkage(section: dict) -> bool:
@@ -424,10 +438,21 @@ def _build_linkage(out: dict, problems: list[str]) -> Linkage:
                                 f"variables ({', '.join(linkage.drive)}) set the motion; expected initial.{key} left "
                                 f"out (initial.guess chooses the assembly branch)")
         mech.default_independent_velocities = at_start["qd"]
-        if out["mechanism"].get("forces"):
-            problems.append("mechanism.forces: given with mechanism.drive; a kinematic analysis prescribes the motion "
-                            "and computes no forces (driven dynamics, the drive torques under these forces, is not "
-                            "implemented); expected mechanism.forces or mechanism.drive, not both")
+        if out["mechanism"].get("drive_mode") is None:
+            out["mechanism"]["drive_mode"] = "kinematic"
+        if out["mechanism"]["drive_mode"] == "dynamic":
+            from csim.solver.driven import driven_problems
+
+            problems += driven_problems(out)
+        elif out["mechanism"].get("forces"):
+            problems.append("mechanism.forces: given with mechanism.drive and mechanism.drive_mode 'kinematic'; a "
+                            "kinematic analysis prescribes the motion and computes no forces; expected "
+                            "mechanism.drive_mode: dynamic (driven dynamics: the drive torques under these forces), "
+                            "or mechanism.forces or mechanism.drive, not both")
+    elif out["mechanism"].get("drive_mode") is not None:
+        problems.append(f"mechanism.drive_mode: got {describe(out['mechanism']['drive_mode'])} without "
+                        f"mechanism.drive; expected mechanism.drive (the prescribed joint variables) with it, or "
+                        f"no drive_mode (forward dynamics)")
     elif not any(link.has_mass for link in linkage.tables.links.values() if link.number != 0):
         problems.append("mechanism.links: no link has mass or inertia, and there is no mechanism.drive; expected "
                         "mechanism.drive (a kinematic analysis) or mass and inertia on the moving links (dynamics)")

@@ -47,6 +47,12 @@ def build_system(case: Case) -> ConstrainedSystem:
         )
     stab = {k: v for k, v in case.data["stabilization"].items() if k != "method"}
     stabilizer = make_stabilizer(case.data["stabilization"]["method"], stab)
+    if case.driven:  # drives as rheonomic constraints (csim.solver.driven)
+        from csim.solver.driven import DrivenSystem
+
+        return DrivenSystem(model, model.parameter_vector(case.parameters), case.load_set(),
+                            make_formulation(form["method"], **settings), stabilizer,
+                            case.linkage.driven_indices, case.linkage.drive_function(case.parameters))
     return stabilizer.system_class()(
         model=model,
         par=model.parameter_vector(case.parameters),
@@ -72,7 +78,7 @@ def initial_state(case: Case, system: ConstrainedSystem) -> np.ndarray:
         q0[names.index(name)] += dq
     for name, dqd in ini["qd_offset"].items():
         qd0[names.index(name)] += dqd
-    return np.concatenate((q0, qd0, np.zeros(system.k)))
+    return np.concatenate((q0, qd0, np.zeros(system.n_state - 2 * system.m)))  # W = 0 (loads, drives)
 
 
 def run_case(case: Case, progress: Callable[[float], None] | None = None) -> Result:
@@ -117,6 +123,10 @@ def run_case(case: Case, progress: Callable[[float], None] | None = None) -> Res
     if why:
         trajectory.message += f" (on the Python path: {why})"
     result = assemble_result(case, system, trajectory, time.perf_counter() - start, backend=backend)
+    if case.linkage is not None:  # drive forces, cut-joint reactions
+        from csim.linkage.results import linkage_outputs
+
+        linkage_outputs(case, system, trajectory, result)
     result.kernel_load_time = load_time
     if backend == "python" and case.data["simulation"]["backend"] == "auto":  # why auto fell back (run summary)
         from csim.fast.support import numba_available, unsupported

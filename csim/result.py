@@ -21,6 +21,37 @@ FAILURES = ("", "assembly", "interrupted")
 
 
 @dataclass
+class JointReaction:
+    """The reaction of one cut joint of a link-coupling mechanism over a run (N samples).
+
+    The force F and moment M that link i exerts on link j (coupling row (i, k, j, m)) at
+    the origin of joint frame jm; link i receives -F and -M there. Derived from the
+    multipliers by :mod:`csim.linkage.reactions`.
+
+    Attributes
+    ----------
+    name : str
+        The coupling's name, or its number.
+    label : str
+        ``"joint C (R, link 2 'coupler' on link 3 'rocker')"``.
+    force_global, torque_global : ndarray (N, 3)
+        F [N] and M [N m] in the fixed frame's axes.
+    force_joint, torque_joint : ndarray (N, 3)
+        The same in the axes of joint frame ik (A_ik^T F, A_ik^T M) [N], [N m].
+    undetermined : list of str
+        Reaction unknowns whose equations were removed, each with why (reported as 0).
+    """
+
+    name: str
+    label: str
+    force_global: np.ndarray
+    torque_global: np.ndarray
+    force_joint: np.ndarray
+    torque_joint: np.ndarray
+    undetermined: list[str] = field(default_factory=list)
+
+
+@dataclass
 class Result:
     """One simulation run.
 
@@ -57,6 +88,16 @@ class Result:
         Why a run under ``simulation.backend: auto`` ran on the Python path (the combination
         has no compiled path, numba is missing, or the kernels could not be loaded); ``""``
         when it ran compiled or the Python path was asked for.
+    reactions : list of JointReaction
+        The reactions of the cut joints of a link-coupling mechanism (empty otherwise, and
+        for a kinematic analysis).
+    drive_names, drive_units : list of str
+        The driven joint variables of a driven-dynamics run and the unit of each drive's
+        force (``"N m"`` for a rotation, ``"N"`` for a translation); empty otherwise.
+    drive_forces : ndarray (N, d) or None
+        The torque or force each drive applies along its joint variable [N m or N].
+    drive_work : ndarray (N, d) or None
+        The work of each drive since t = 0 [J], part of the energy balance.
     """
 
     mechanism: str
@@ -92,6 +133,11 @@ class Result:
     kernel_load_time: float = 0.0
     failure: str = ""
     backend_reason: str = ""
+    reactions: list[JointReaction] = field(default_factory=list)
+    drive_names: list[str] = field(default_factory=list)
+    drive_units: list[str] = field(default_factory=list)
+    drive_forces: np.ndarray | None = None
+    drive_work: np.ndarray | None = None
 
     @classmethod
     def empty(cls, mechanism: str, coordinate_names: list[str], load_names: list[str],
@@ -123,11 +169,18 @@ class Result:
         return self.status == "success"
 
     @property
+    def total_work(self) -> np.ndarray:
+        """(N,) the work of every load and every drive since t = 0 [J]."""
+        work = self.work.sum(axis=1)
+        return work if self.drive_work is None else work + self.drive_work.sum(axis=1)
+
+    @property
     def energy_error(self) -> np.ndarray:
-        """(N,) T + V - (T0 + V0) - sum_k W_k [J]: zero for exact motion (ideal constraints)."""
+        """(N,) T + V - (T0 + V0) - sum_k W_k [J] (the drives' work included): zero for exact
+        motion (ideal constraints)."""
         if self.t.size == 0:
             return np.zeros(0)
-        return self.kinetic + self.potential - self.kinetic[0] - self.potential[0] - self.work.sum(axis=1)
+        return self.kinetic + self.potential - self.kinetic[0] - self.potential[0] - self.total_work
 
     @property
     def energy_scale(self) -> float:
@@ -135,7 +188,7 @@ class Result:
         if self.t.size == 0:
             return 1.0
         return float(max(np.max(np.abs(self.kinetic)), np.max(np.abs(self.potential - self.potential[0])),
-                         np.max(np.abs(self.work.sum(axis=1))), np.finfo(float).tiny))
+                         np.max(np.abs(self.total_work)), np.finfo(float).tiny))
 
     @property
     def energy_scale_is_zero(self) -> bool:
@@ -144,7 +197,7 @@ class Result:
         is best read in J, not relative to the scale."""
         if self.t.size == 0:
             return False
-        work = np.abs(self.work.sum(axis=1))
+        work = np.abs(self.total_work)
         moved = max(np.max(np.abs(self.kinetic)), np.max(np.abs(self.potential - self.potential[0])), np.max(work))
         magnitude = max(np.max(np.abs(self.kinetic)), np.max(np.abs(self.potential)), np.max(work))
         return bool(moved <= TINY_ENERGY_SCALE * magnitude)  # False for NaN (a blow-up)

@@ -50,6 +50,9 @@ def unsupported(data: dict) -> list[str]:
                "minimal": "coordinate partitioning re-partitions and solves Newton at every evaluation in Python"}
         reasons.append(f"stabilization.method {method!r}: {why.get(method, 'not implemented in compiled code')}; "
                        f"the compiled backend supports {', '.join(compiled_stabilizers())}")
+    if data.get("mechanism", {}).get("drive_mode") == "dynamic":
+        reasons.append("mechanism.drive_mode 'dynamic': the drives are constraints that depend on time, which the "
+                       "compiled kernels do not evaluate (csim.solver.driven runs on the Python path)")
     integrator = data.get("simulation", {}).get("integrator")
     if integrator is not None and integrator not in INTEGRATORS:
         reasons.append(f"simulation.integrator {integrator!r}: the compiled backend implements "

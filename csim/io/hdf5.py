@@ -5,6 +5,9 @@ Layout of a single run (a comparison file has one such group per method)::
     /t (N,)  /q /qd /qdd (N, m)  /lambda /phi /phi_dot (N, r)
     /energy/kinetic /energy/potential (N,)  /energy/work (N, k)  /energy/balance_error (N,)
     /forces/loads (N, k)  /forces/generalized (N, m)
+    /forces/drive (N, d)  /energy/drive_work (N, d)       driven dynamics only
+    /reactions/JOINT/force_global, force_joint, torque_global, torque_joint (N, 3)
+                                                          link-coupling mechanisms with cut joints
     /observables/NAME (N,)  /observables/NAME_rate (N,)
     /events/times (E,)  /events/labels (E,)
     attributes: csim_version, format_version, mechanism, case (YAML), coordinate_names,
@@ -44,7 +47,7 @@ import numpy as np
 from csim import __version__
 from csim.errors import ResultFileError
 from csim.io.units import UNITS
-from csim.result import Result
+from csim.result import JointReaction, Result
 
 FORMAT_VERSION = 1
 _STR = h5py.string_dtype()
@@ -119,6 +122,10 @@ def write_result_group(group: h5py.Group, result: Result, coordinate_units: list
     forces = group.create_group("forces")
     _dataset(forces, "loads", result.loads, UNITS["forces/loads"])
     _dataset(forces, "generalized", result.generalized_forces, UNITS["forces/generalized"])
+    if result.drive_forces is not None:
+        _write_drives(group, result)
+    if result.reactions:
+        _write_reactions(group.create_group("reactions"), result.reactions)
     obs = group.create_group("observables")
     for j, name in enumerate(result.observable_names):
         _dataset(obs, name, result.observables[:, j], "")
@@ -126,6 +133,45 @@ def write_result_group(group: h5py.Group, result: Result, coordinate_units: list
     events = group.create_group("events")
     _dataset(events, "times", np.asarray(result.event_times, dtype=float), UNITS["events/times"])
     events.create_dataset("labels", data=np.array(result.event_labels, dtype=_STR))
+
+
+def _write_drives(group: h5py.Group, result: Result) -> None:
+    """``forces/drive`` and ``energy/drive_work`` (N, d), the drives named by an attribute."""
+    names = np.array(result.drive_names, dtype=_STR)
+    ds = _dataset(group["forces"], "drive", result.drive_forces, np.array(result.drive_units, dtype=_STR))
+    ds.attrs["names"] = names
+    ds.attrs["description"] = UNITS["forces/drive"]
+    work = _dataset(group["energy"], "drive_work", result.drive_work, UNITS["energy/drive_work"])
+    work.attrs["names"] = names
+
+
+def _write_reactions(group: h5py.Group, reactions) -> None:
+    """One group per cut joint: force and torque, global and in joint frame ik, (N, 3)."""
+    group.attrs["joints"] = np.array([r.name for r in reactions], dtype=_STR)  # their order
+    for r in reactions:
+        g = group.create_group(r.name)
+        g.attrs["label"] = r.label
+        g.attrs["convention"] = UNITS["reactions"]
+        g.attrs["undetermined"] = np.array(r.undetermined, dtype=_STR)
+        for name in ("force_global", "force_joint", "torque_global", "torque_joint"):
+            _dataset(g, name, getattr(r, name), UNITS[f"reactions/{name}"])
+
+
+def _read_extras(group: h5py.Group) -> dict:
+    """The drives and reactions of a run, where the file has them (as Result fields)."""
+    out: dict = {}
+    forces = group.get("forces")
+    if forces is not None and "drive" in forces:
+        ds = forces["drive"]
+        out.update(drive_forces=ds[()], drive_names=[_text(x) for x in ds.attrs["names"]],
+                   drive_units=[_text(x) for x in ds.attrs["units"]], drive_work=group["energy/drive_work"][()])
+    if "reactions" in group:
+        rg = group["reactions"]
+        out["reactions"] = [
+            JointReaction(name, _text(g.attrs["label"]), g["force_global"][()], g["torque_global"][()],
+                          g["force_joint"][()], g["torque_joint"][()], [_text(x) for x in g.attrs["undetermined"]])
+            for name, g in ((_text(n), rg[_text(n)]) for n in rg.attrs.get("joints", list(rg)))]
+    return out
 
 
 def write_result(path: str | Path, result: Result, coordinate_units: list[str] | None = None) -> None:
@@ -181,6 +227,7 @@ def read_result_group(group: h5py.Group) -> Result:
             run_kind=_text(a.get("run_kind", "simulation")), backend=_text(a.get("backend", "python")),
             kernel_load_time=float(a.get("kernel_load_time", 0.0)), failure=_text(a.get("failure", "")),
             backend_reason=_text(a.get("backend_reason", "")),
+            **_read_extras(group),
         )
     except KeyError as exc:
         raise ResultFileError(f"{group.file.filename}: not a csim result (missing {exc})") from None

@@ -21,6 +21,15 @@ UNITS: dict[str, str] = {
     "energy/balance_error": "J: T + V - (T0 + V0) - sum of load work",
     "forces/loads": "per load: N or N m",
     "forces/generalized": "per coordinate: N m for angles, N for lengths",
+    "forces/drive": "per drive: N m for a rotation, N for a translation; the torque or force the drive "
+                    "applies along its joint variable (driven dynamics)",
+    "energy/drive_work": "J, one column per drive: the work of the drive since t = 0",
+    "reactions": "the force and the moment that link i exerts on link j of the cut joint (i, k)-(j, m), at the "
+                 "origin of joint frame jm; link i receives the opposite",
+    "reactions/force_global": "N, in the fixed frame's axes",
+    "reactions/force_joint": "N, in the axes of joint frame ik",
+    "reactions/torque_global": "N m, about the origin of joint frame jm, in the fixed frame's axes",
+    "reactions/torque_joint": "N m, about the origin of joint frame jm, in the axes of joint frame ik",
     "events/times": "s",
     "wall_time": "s",
 }

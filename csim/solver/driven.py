@@ -1,0 +1,161 @@
+"""Driven dynamics: prescribed joint motion as rheonomic constraints, and the drive forces.
+
+A driven joint variable q_j = f_j(t) (``mechanism.drive`` with ``mechanism.drive_mode:
+dynamic``) adds the constraint
+
+    Phi_d(q, t) = q_j - f_j(t) = 0
+
+to the mechanism's own Phi(q) = 0. Its derivatives, from sympy in
+:meth:`csim.linkage.model.Linkage.drive_function`, enter the acceleration equation:
+Phi_d,q = e_j^T (a constant row), Phi_d,t = -f_j', Phi_d,qt = 0, Phi_d,tt = -f_j'', so
+
+    d/dt Phi_d = qd_j - f_j'(t),      Phi_d,q qdd = gamma_d = f_j''(t)
+
+(gamma = -(Phi_q qd)_q qd - 2 Phi_qt qd - Phi_tt). With as many drives as degrees of
+freedom, the KKT system has a square, regular Phi_q: the motion is the prescribed one and
+the multipliers are the forces that keep it. The constraint force of a drive is
+-Phi_d,q^T lambda_d = -e_j lambda_d, a generalized force along q_j alone: the drive's
+torque (R joint) or force (P joint) is
+
+    tau_j = -lambda_d      [N m or N],
+
+the torque the motor applies on the joint (positive in the sense of q_j), and its power is
+tau_j qd_j. The work of each drive is integrated with the motion as an extra quadrature
+state, so the energy balance T + V - T0 - V0 - W_loads - W_drives stays a check.
+
+The stabilizers act on the mechanism's constraints as configured; the drive rows are
+imposed at acceleration level (their residual q_j - f_j(t) is the integration error).
+Stabilizers that project or integrate another system, and the elimination, are not
+offered here (:func:`driven_problems`).
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from csim.errors import SimulationFailure
+from csim.physics.kkt import constraint_rates, generalized_forces
+from csim.physics.linalg import as_core
+from csim.solver.system import ConstrainedSystem, Evaluation
+
+#: stabilization methods that run with drives as rheonomic constraints
+DRIVEN_METHODS = ("none", "baumgarte", "sliding_mode")
+
+
+def driven_problems(data: dict) -> list[str]:
+    """Why a validated case with ``mechanism.drive_mode: dynamic`` cannot run (empty: it can).
+
+    Parameters
+    ----------
+    data : dict
+        The case with defaults filled in.
+    """
+    problems = []
+    method = data["stabilization"].get("method")
+    if method not in DRIVEN_METHODS:
+        problems.append(f"stabilization.method: got {method!r} with mechanism.drive_mode 'dynamic'; the drives "
+                        f"are constraints that depend on time, which {method} does not take (it projects or "
+                        f"integrates a system of its own); expected one of {', '.join(DRIVEN_METHODS)}")
+    if data["formulation"].get("method") != "kkt":
+        problems.append(f"formulation.method: got {data['formulation'].get('method')!r} with mechanism.drive_mode "
+                        f"'dynamic'; with one drive per degree of freedom no coordinate is independent, so "
+                        f"there is nothing to eliminate onto; expected 'kkt'")
+    return problems
+
+
+class DrivenSystem(ConstrainedSystem):
+    """The constrained ODE with drives as rheonomic constraints (see the module docstring).
+
+    State y (2 m + k + d,) = [q, qd, W (k loads), W_d (d drives)].
+
+    Parameters
+    ----------
+    model, par, loads, formulation, stabilizer
+        As :class:`ConstrainedSystem`.
+    driven : sequence of int
+        Indices of the driven coordinates (d,).
+    drive : callable t -> (f, f', f'')
+        The prescribed values, each (d,) [rad or m, per s, per s^2].
+    """
+
+    def __init__(self, model, par, loads, formulation, stabilizer, driven, drive: Callable):
+        super().__init__(model, par, loads, formulation, stabilizer)
+        self.driven = np.asarray(driven, dtype=int)
+        self.drive = drive
+        self.d = self.driven.size
+        self._rows = np.eye(self.m)[self.driven]  # Phi_d,q (d, m)
+
+    @property
+    def n_state(self) -> int:
+        return 2 * self.m + self.k + self.d
+
+    @property
+    def work_slice(self) -> slice:
+        return slice(2 * self.m, self.n_state)
+
+    def _solve_driven(self, t, q, qd, u):
+        """qdd (m,), lambda (r,), lambda_d (d,), Phi (r,), Phi_q qd (r,), Q (m,), B (m, k) at time t."""
+        model, par, r = self.model, self.par, self.r
+        M = model.mass(q, par)
+        phi_q = model.phi_q(q, par)
+        B = model.load_matrix(q, par)
+        p = np.empty(self.m)  # p = B u - C qd - h
+        generalized_forces(as_core(B), u, as_core(model.velocity_terms(q, qd, par)), as_core(model.gravity(q, par)), p,
+                           self.m, self.k)
+        phi = model.phi(q, par)
+        phi_dot = np.empty(r)
+        constraint_rates(as_core(phi_q), as_core(qd), phi_dot, r, self.m)
+        gamma_star = self.stabilizer.gamma_star(model.gamma(q, qd, par), phi, phi_dot) if r else np.zeros(0)
+        f, fd, fdd = self.drive(t)
+        J = np.vstack((phi_q.reshape(r, self.m), self._rows))
+        qdd, lam = self.formulation.solve(M, J, p, np.concatenate((gamma_star, fdd)))
+        return qdd, lam[:r], lam[r:], phi, phi_dot, B @ u, B
+
+    def rhs(self, t: float, y: np.ndarray, mode: np.ndarray) -> np.ndarray:
+        """dy/dt (n_state,): [qd, qdd, u (B^T qd), tau qd_driven]."""
+        q, qd, _ = self.split(y)
+        u = self.load_values(t, q, qd, mode)
+        qdd, _, lam_d, _, _, _, B = self._solve_driven(t, q, qd, u)
+        return np.concatenate((qd, qdd, u * self._load_rates(B, qd), -lam_d * qd[self.driven]))
+
+    def evaluate(self, t: float, y: np.ndarray, mode: np.ndarray) -> Evaluation:
+        """The recorded quantities (the mechanism's constraints only; the drives: :meth:`drive_forces`)."""
+        q, qd, _ = self.split(y)
+        u = self.load_values(t, q, qd, mode)
+        qdd, lam, _, phi, phi_dot, Q, _ = self._solve_driven(t, q, qd, u)
+        return Evaluation(qdd=qdd, lam=lam, phi=phi, phi_dot=phi_dot, u=u, Q=Q,
+                          kinetic=self.model.kinetic_energy(q, qd, self.par),
+                          potential=self.model.potential_energy(q, self.par))
+
+    def drive_forces(self, t: float, y: np.ndarray, mode: np.ndarray) -> np.ndarray:
+        """tau (d,) = -lambda_d: the torque [N m] or force [N] each drive applies along its variable."""
+        q, qd, _ = self.split(y)
+        return -self._solve_driven(t, q, qd, self.load_values(t, q, qd, mode))[2]
+
+
+def record_drives(result, system: DrivenSystem, t: np.ndarray, y: np.ndarray, mode: np.ndarray,
+                  names: list[str], units: list[str]) -> None:
+    """Set a driven run's drive forces and work on ``result`` (and keep its load work only).
+
+    Parameters
+    ----------
+    result : csim.result.Result
+        As assembled from the trajectory (its ``work`` holds the drives' work as extra columns).
+    system : DrivenSystem
+    t : ndarray (N,); y : ndarray (N, n_state); mode : ndarray (N, n_switches)
+        The trajectory's samples.
+    names, units : list of str
+        The driven coordinates and the unit of each drive's force (N m or N).
+    """
+    N, k = t.size, system.k
+    tau = np.full((N, system.d), np.nan)
+    for i in range(N):
+        try:
+            with np.errstate(over="ignore", invalid="ignore"):
+                tau[i] = system.drive_forces(t[i], y[i], mode[i])
+        except SimulationFailure:  # a sample that cannot be evaluated (the last state of a blow-up) stays NaN
+            continue
+    work = np.asarray(result.work)
+    result.work, result.drive_work = work[:, :k], work[:, k:k + system.d]
+    result.drive_forces, result.drive_names, result.drive_units = tau, list(names), list(units)

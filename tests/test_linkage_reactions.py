@@ -1,0 +1,200 @@
+"""Cut-joint reactions (csim.linkage.reactions) against statics and Newton-Euler solved by hand.
+
+The four-bar of configs/fourbar_gravity.yaml: crank AB (link 1), coupler BC (link 2),
+rocker DC (link 3), ground pivots A = (0, 0) and D = (d, 0). Absolute link angles t1 =
+q_crank, t2 = q_crank + q_B, t3 = q_rocker; each centre of mass halfway along its link.
+The reference equations below are written from free-body diagrams, not from csim.
+"""
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from csim.case import validate_case
+from csim.io.hdf5 import read_result, write_result
+from csim.pipeline import run_case
+
+CONFIG = Path(__file__).resolve().parents[1] / "configs" / "fourbar_gravity.yaml"
+G = np.array([0.0, -9.81])
+
+
+def _e(angle):
+    return np.array([np.cos(angle), np.sin(angle)])
+
+
+def _cross(a, b):
+    return a[0] * b[1] - a[1] * b[0]
+
+
+def _case(**changes) -> dict:
+    data = yaml.safe_load(CONFIG.read_text())
+    data = copy.deepcopy(data)
+    data["simulation"]["backend"] = "python"  # a first compiled run of each variant would compile for a minute
+    for key, value in changes.items():
+        section, name = key.split("__")
+        data.setdefault(section, {})[name] = value
+    return data
+
+
+def _points(p, t1, t2, t3):
+    """A, B, C (from the coupler), D and the centres G1, G2, G3 [m], each (2,)."""
+    A, D = np.zeros(2), np.array([p["d"], 0.0])
+    B = p["a"] * _e(t1)
+    C = B + p["b"] * _e(t2)
+    return dict(A=A, B=B, C=C, D=D, G1=B / 2, G2=B + p["b"] / 2 * _e(t2), G3=D + p["c"] / 2 * _e(t3))
+
+
+def _static_solution(p, t1, t2, t3):
+    """F, the force of the coupler on the rocker at C, and the crank torque tau that hold the
+    four-bar at rest under gravity.
+
+    Rocker, moments about D: (C - D) x F + (G3 - D) x m3 g = 0.
+    Coupler (forces F_B from the crank at B, -F at C, m2 g), moments about B:
+    (C - B) x (-F) + (G2 - B) x m2 g = 0. Two linear equations in F = (Fx, Fy).
+    Coupler forces: F_B = F - m2 g. Crank, moments about A: tau - (B - A) x F_B + (G1 - A) x m1 g = 0.
+    """
+    P = _points(p, t1, t2, t3)
+    rD, rB = P["C"] - P["D"], P["C"] - P["B"]
+    # a x F = a_x F_y - a_y F_x
+    K = np.array([[-rD[1], rD[0]], [rB[1], -rB[0]]])
+    rhs = np.array([-_cross(P["G3"] - P["D"], p["m3"] * G), -_cross(P["G2"] - P["B"], p["m2"] * G)])
+    F = np.linalg.solve(K, rhs)
+    F_B = F - p["m2"] * G
+    tau = _cross(P["B"] - P["A"], F_B) - _cross(P["G1"] - P["A"], p["m1"] * G)
+    return F, tau
+
+
+def test_cut_pin_reaction_of_a_four_bar_at_rest_against_hand_statics():
+    """Held at rest by gravity and the crank torque of the hand statics, the reaction at the
+    cut pin C (coupler on rocker) is the statics' force, in global and joint-frame axes."""
+    q0 = 0.7
+    first = validate_case(_case(initial__q={"q_crank": q0}))
+    p = first.parameters
+    start = first.linkage.start
+    t1, t2, t3 = start["q_crank"], start["q_crank"] + start["q_B"], start["q_rocker"]
+    P = _points(p, t1, t2, t3)
+    assert np.allclose(P["C"], P["D"] + p["c"] * _e(t3), atol=1e-12)  # the loop closes
+    F, tau = _static_solution(p, t1, t2, t3)
+    data = _case(initial__q={"q_crank": q0}, simulation__t_end=0.2)
+    data["mechanism"]["forces"] = [{"name": "motor", "type": "actuator", "joint": "crank", "torque": float(tau)}]
+    result = run_case(validate_case(data))
+    assert result.ok, result.message
+    assert np.max(np.abs(result.qdd[0])) < 1e-9                # static: the torque holds it
+    assert np.max(np.abs(result.q - result.q[0])) < 1e-9       # and it stays at rest
+    (reaction,) = result.reactions
+    assert reaction.name == "C"
+    scale = np.linalg.norm(F)
+    assert np.allclose(reaction.force_global[:, :2], F, atol=1e-8 * scale, rtol=0)
+    assert np.allclose(reaction.force_global[:, 2], 0.0) and np.allclose(reaction.torque_global, 0.0)
+    # frame ik is the coupler's frame at C: turned by t2 about z
+    c, s = np.cos(t2), np.sin(t2)
+    local = np.array([c * F[0] + s * F[1], -s * F[0] + c * F[1]])
+    assert np.allclose(reaction.force_joint[0, :2], local, atol=1e-8 * scale, rtol=0)
+    # the planar model carries no f_z, m_x, m_y: named, not silently zero
+    assert len(reaction.undetermined) == 3
+    assert all("planar" in u for u in reaction.undetermined)
+
+
+def _accelerations(p, q, qd, qdd):
+    """Coupler: acceleration of G2 (N, 2) [m/s^2] and angular acceleration (N,) [rad/s^2], from
+    a four-bar run (coordinates q_crank, q_B, q_rocker) differentiated by hand."""
+    t1, t2 = q[:, 0], q[:, 0] + q[:, 1]
+    w1, w2 = qd[:, 0], qd[:, 0] + qd[:, 1]
+    a1, a2 = qdd[:, 0], qdd[:, 0] + qdd[:, 1]
+
+    def acc(length, t, w, a):  # d2/dt2 of length * e(t)
+        return length * (a[:, None] * np.column_stack((-np.sin(t), np.cos(t)))
+                         - (w ** 2)[:, None] * np.column_stack((np.cos(t), np.sin(t))))
+
+    return acc(p["a"], t1, w1, a1) + acc(p["b"] / 2, t2, w2, a2), a2
+
+
+def test_newton_euler_on_the_coupler_with_reactions_at_both_ends():
+    """The coupler swinging under gravity: m2 a_G2 = F_B + (-F_C) + m2 g and
+    I2 alpha2 = (B - G2) x F_B + (C - G2) x (-F_C), with F_C from a run that cuts C and F_B
+    from a run of the same four-bar whose table order cuts B instead."""
+    settings = {"t_end": 0.6, "rtol": 1e-11, "atol": 1e-11}
+    cut_c = run_case(validate_case(_case(**{f"simulation__{k}": v for k, v in settings.items()})))
+    assert cut_c.ok and [r.name for r in cut_c.reactions] == ["C"]
+    data = _case(**{f"simulation__{k}": v for k, v in settings.items()})
+    rows = data["mechanism"]["couplings"]
+    data["mechanism"]["couplings"] = [rows[0], rows[2], rows[3], rows[1]]  # crank, rocker, C, then B: B is cut
+    q = dict(zip(cut_c.coordinate_names, cut_c.q[0]))
+    data["initial"]["guess"] = {"q_rocker": q["q_rocker"], "q_C": q["q_rocker"] - q["q_crank"] - q["q_B"]}
+    cut_b = run_case(validate_case(data))
+    assert cut_b.ok and [r.name for r in cut_b.reactions] == ["B"]
+    assert np.array_equal(cut_b.t, cut_c.t)
+    assert np.max(np.abs(cut_b.q[:, 0] - cut_c.q[:, 0])) < 1e-8   # the same motion
+    p = validate_case(_case()).parameters
+    F_C = cut_c.reactions[0].force_global[:, :2]                 # coupler on rocker
+    F_B = cut_b.reactions[0].force_global[:, :2]                 # crank on coupler
+    a_G2, alpha2 = _accelerations(p, cut_c.q, cut_c.qd, cut_c.qdd)
+    m2, I2 = p["m2"], p["m2"] * p["b"] ** 2 / 12
+    scale = np.max(np.abs(F_C))
+    assert scale > 1.0 and np.ptp(alpha2) > 10.0                   # real forces, a real motion
+    assert np.max(np.abs(F_B - F_C + m2 * G - m2 * a_G2)) < 1e-8 * scale   # measured 1.5e-10
+    t1, t2 = cut_c.q[:, 0], cut_c.q[:, 0] + cut_c.q[:, 1]
+    B = p["a"] * np.column_stack((np.cos(t1), np.sin(t1)))
+    u2 = np.column_stack((np.cos(t2), np.sin(t2)))
+    G2, C = B + p["b"] / 2 * u2, B + p["b"] * u2
+    moments = _cross((B - G2).T, F_B.T) + _cross((C - G2).T, -F_C.T)
+    assert np.max(np.abs(moments - I2 * alpha2)) < 1e-8 * scale * p["b"]   # measured 3.5e-11
+
+
+def test_reactions_round_trip_through_hdf5(tmp_path):
+    result = run_case(validate_case(_case(simulation__t_end=0.05)))
+    path = tmp_path / "fourbar.h5"
+    write_result(path, result)
+    back = read_result(path)
+    (a,), (b,) = result.reactions, back.reactions
+    assert (b.name, b.label, b.undetermined) == (a.name, a.label, a.undetermined)
+    for name in ("force_global", "force_joint", "torque_global", "torque_joint"):
+        assert np.array_equal(getattr(a, name), getattr(b, name))
+    import h5py
+
+    with h5py.File(path) as fh:
+        assert fh["reactions/C/force_global"].attrs["units"].startswith("N,")
+        assert fh["reactions/C/torque_joint"].attrs["units"].startswith("N m")
+        assert fh["reactions/C/force_global"].shape == (result.t.size, 3)
+
+
+@pytest.mark.parametrize("joint_type", ["R", "P", "C", "U", "S"])
+def test_wrench_jacobian_is_the_derivative_of_the_cut_equations(joint_type):
+    """dPhi/d(r_jm, theta_j) from sympy against central differences of the same equations at
+    random frame poses (a check of the virtual-motion derivation, not of the equations)."""
+    import sympy as sp
+
+    from csim.linkage.joints import JOINT_TYPES, CutGeometry
+    from csim.linkage.reactions import wrench_jacobian
+
+    rng = np.random.default_rng(5)
+    r_ik, r_jm = rng.normal(size=3), rng.normal(size=3)
+    A_ik, A_jm = _rodrigues(rng.normal(size=3)), _rodrigues(rng.normal(size=3))
+    J = wrench_jacobian(joint_type)(r_ik, A_ik, r_jm, A_jm)
+    eqs = JOINT_TYPES[joint_type].cut_equations
+
+    def phi(rj, Aj):
+        g = CutGeometry(sp.Matrix(r_ik), sp.Matrix(rj), sp.Matrix(A_ik), sp.Matrix(Aj))
+        return np.array([float(eq.expression(g)) for eq in eqs])
+
+    h = 1e-6
+    for axis in range(3):
+        step = np.eye(3)[axis] * h
+        d_r = (phi(r_jm + step, A_jm) - phi(r_jm - step, A_jm)) / (2 * h)
+        d_t = (phi(r_jm, _rodrigues(step) @ A_jm) - phi(r_jm, _rodrigues(-step) @ A_jm)) / (2 * h)
+        assert np.allclose(J[axis], d_r, atol=1e-8)
+        assert np.allclose(J[3 + axis], d_t, atol=1e-8)
+
+
+def _rodrigues(v):
+    """The rotation matrix of the rotation vector v [rad], (3, 3)."""
+    angle = np.linalg.norm(v)
+    if angle == 0:
+        return np.eye(3)
+    k = v / angle
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
