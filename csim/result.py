@@ -257,6 +257,10 @@ class Result:
             else:
                 lines.append(f"energy balance:    {self.energy_balance[0]:.3e} (max |T + V - T0 - V0 - W|"
                              f" / {self.energy_scale:.4g} J)")
+        if self.drive_forces is not None and self.t.size:
+            lines.append("drives:            " + ", ".join(
+                f"{n}: max |force| = {np.nanmax(np.abs(self.drive_forces[:, j])):.6g} {u}"
+                for j, (n, u) in enumerate(zip(self.drive_names, self.drive_units))))
         lines.append(f"events:            {len(self.event_times)}")
         lines.append(f"wall time:         {self.wall_time:.3f} s ({self.backend} backend)")
         if self.backend_reason:

@@ -82,7 +82,7 @@ def test_quick_return_run_gives_the_paper_figures_and_the_generic_ones(qr_file, 
     assert [p.name for p in report.written] == [f"{n}.png" for n in QR_FIGURES]
     for path in report.written:
         assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert report.skipped == {}
+    assert set(report.skipped) == {"drive", "reactions"}  # a registered mechanism: no drives, no cut joints
 
 
 def test_crank_velocity_H2_plots_qd1(qr_file):
@@ -410,3 +410,30 @@ def test_cli_plot_run_without_samples(tmp_path):
     path = tmp_path / "failed.h5"
     write_result(path, result, case.mechanism.coordinate_units)
     assert_bad_input(invoke("plot", path, "-o", tmp_path / "o"), "no samples to plot")
+
+
+# --------------------------------------------------------------------------- drives and joint reactions
+
+
+@pytest.fixture(scope="module")
+def driven_file(tmp_path_factory):
+    """Driven dynamics of the slider-crank (configs/slider_crank_dynamic.yaml), 0.3 s."""
+    return simulated_file(tmp_path_factory, "slider_crank_dynamic.yaml", "driven.h5", "simulation.t_end=0.3")
+
+
+def test_drive_and_reactions_figures_plot_the_recorded_values(driven_file):
+    (ax,) = build(driven_file, "drive").axes
+    np.testing.assert_array_equal(data_lines(ax)[0].get_ydata(), read(driven_file, "forces/drive")[:, 0])
+    assert ax.get_ylabel() == "drive torque on q_crank [N m]"
+    force, torque = build(driven_file, "reactions").axes
+    f = read(driven_file, "reactions/C/force_global")
+    lines = data_lines(force)
+    assert len(lines) == 2  # F_z is zero throughout in the plane: left out
+    np.testing.assert_array_equal(lines[0].get_ydata(), f[:, 0])
+    np.testing.assert_array_equal(lines[1].get_ydata(), f[:, 1])
+    assert force.get_ylabel() == "joint C force [N]" and torque.get_ylabel() == "joint C torque [N m]"
+
+
+def test_drive_and_reactions_figures_are_skipped_with_the_reason(qr_file):
+    _, skipped, _ = figures(qr_file)
+    assert "no drives" in skipped["drive"] and "no joint reactions" in skipped["reactions"]

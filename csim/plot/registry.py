@@ -64,6 +64,18 @@ def _no_loads(run: RunData) -> str | None:
     return None if run.result.load_names else "the mechanism has no loads"
 
 
+def _no_reactions(run: RunData) -> str | None:
+    if run.result.run_kind == "kinematic":
+        return "a kinematic analysis of prescribed motion has no forces"
+    return None if run.result.reactions else "the run records no joint reactions (no cut joints of a link-coupling " \
+                                               "mechanism)"
+
+
+def _no_drives(run: RunData) -> str | None:
+    return None if run.result.drive_forces is not None else \
+        "the run has no drives (driven dynamics: mechanism.drive with drive_mode: dynamic)"
+
+
 def _no_drawing(run: RunData) -> str | None:
     if run.definition is None:
         return f"mechanism {run.result.mechanism!r} is not known to this csim"
@@ -82,6 +94,9 @@ RUN_FIGURES: dict[str, FigureKind] = {k.name: k for k in (
                _no_forces_at_all),
     FigureKind("multipliers", "Lagrange multipliers against time", rf.multipliers_figure, _no_forces),
     FigureKind("loads", "applied loads against time", rf.loads_figure, _no_loads),
+    FigureKind("drive", "drive torques and forces of driven dynamics against time", rf.drive_figure, _no_drives),
+    FigureKind("reactions", "force and torque of every cut joint against time", rf.reactions_figure,
+               _no_reactions),
     FigureKind("mechanism", "the mechanism drawn at six instants of the run", rf.snapshots_figure, _no_drawing),
 )}
 

@@ -209,6 +209,64 @@ def loads_figure(run: RunData) -> Figure:
     return time_history_figure(run, load_panels(run), "Applied loads")
 
 
+def _component_lines(ax: Axes, t: np.ndarray, values: np.ndarray, symbol: str) -> int:
+    """Plot the global x, y, z components of ``values`` (N, 3) that are not zero throughout;
+    returns how many were drawn."""
+    drawn = 0
+    for j, axis in enumerate("xyz"):
+        column = values[:, j]
+        if np.any(np.abs(column[np.isfinite(column)]) > 0):
+            ax.plot(t, column, label=f"${symbol}_{axis}$")
+            drawn += 1
+    return drawn
+
+
+@styled
+def reactions_figure(run: RunData) -> Figure:
+    """The force and torque of every cut joint (link i on link j, global axes) against time:
+    one row per joint, force on the left, torque on the right; components that are zero
+    throughout (the out-of-plane ones of a planar mechanism) are left out."""
+    reactions = run.result.reactions
+    if not reactions:
+        raise PlotError(f"{run.path}: the run records no joint reactions")
+    fig, axes = new_figure(len(reactions), 2, width=SIZE[0] + 3.0)
+    t = run.result.t
+    for row, r in zip(axes, reactions):
+        for ax, values, symbol, word, unit in ((row[0], r.force_global, "F", "force", "N"),
+                                               (row[1], r.torque_global, "M", "torque", "N m")):
+            n = _component_lines(ax, t, values, symbol)
+            if n == 0:
+                ax.text(0.5, 0.5, f"no {word} component", transform=ax.transAxes, ha="center", va="center")
+            ax.set_ylabel(label_with_unit(f"joint {r.name} {word}", unit))
+            legend(ax, n)
+        _time_limits(row[0], t)
+    for ax in axes[-1]:
+        ax.set_xlabel(TIME_LABEL)
+    fig.align_ylabels(axes[:, 0])
+    title(fig, "Joint reactions (link i on link j at the joint, global axes)", run.describe())
+    return fig
+
+
+@styled
+def drive_figure(run: RunData) -> Figure:
+    """The torque or force of every drive of a driven-dynamics run against time, one panel per unit."""
+    res = run.result
+    if res.drive_forces is None:
+        raise PlotError(f"{run.path}: the run has no drives (mechanism.drive_mode: dynamic)")
+    groups = _by_unit(res.drive_names, res.drive_units)
+    fig, axes = new_figure(len(groups), 1)
+    for ax, (unit, cols) in zip(axes[:, 0], groups):
+        for j in cols:
+            ax.plot(res.t, res.drive_forces[:, j], label=res.drive_names[j])
+        word = {"N m": "drive torque", "N": "drive force"}.get(unit, "drive")
+        ax.set_ylabel(label_with_unit(word if len(cols) > 1 else f"{word} on {res.drive_names[cols[0]]}", unit))
+        legend(ax, len(cols))
+    axes[-1, 0].set_xlabel(TIME_LABEL)
+    _time_limits(axes[0, 0], res.t)
+    title(fig, "Drive torques and forces of the prescribed motion", run.describe())
+    return fig
+
+
 # --------------------------------------------------------------------------- the mechanism drawn
 
 
