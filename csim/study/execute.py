@@ -16,7 +16,6 @@ import concurrent.futures as cf
 import contextlib
 import copy
 import math
-import multiprocessing
 import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -24,8 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from csim.case import apply_overrides, validate_case
-from csim.compare.pool import _InterruptFlag, _worker_environment, _worker_init
 from csim.errors import CaseError
+from csim.parallel import InterruptFlag, process_pool, stop_processes, worker_environment
 from csim.study.metrics import failed_row, run_row
 from csim.study.plan import override
 
@@ -88,7 +87,7 @@ def chunks(todo: Sequence[int], rows: Sequence[tuple], workers: int) -> list[lis
 
 def run_serial(work: Work, parts: list, deliver: Callable[[list[Done]], None]) -> bool:
     """Every chunk in this process, in order; True when Ctrl-C stopped it."""
-    with _InterruptFlag() as flag:
+    with InterruptFlag() as flag:
         for part in parts:
             try:
                 done = run_chunk(work, part)
@@ -104,16 +103,15 @@ def run_local(work: Work, parts: list, jobs: int, deliver: Callable[[list[Done]]
     """The chunks in ``jobs`` worker processes ("spawn", one BLAS thread each); True when Ctrl-C stopped it."""
     if jobs == 1:
         return run_serial(work, parts, deliver)
-    context = multiprocessing.get_context("spawn")
-    executor = cf.ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=_worker_init)
+    executor = process_pool(jobs)
     pending: dict[cf.Future, list] = {}
     try:
-        with _worker_environment():
+        with worker_environment():
             pending = {executor.submit(run_chunk, work, part): part for part in parts}
         for future in cf.as_completed(list(pending)):
             deliver(_chunk_result(future, pending.pop(future)))
     except KeyboardInterrupt:
-        _stop_processes(executor)
+        stop_processes(executor)
         for future in pending:  # chunks that finished before Ctrl-C
             if future.done() and not future.cancelled() and future.exception() is None:
                 deliver(future.result())
@@ -129,15 +127,6 @@ def _chunk_result(future, part) -> list[Done]:
     except Exception as exc:  # the worker died, or its result could not come back
         message = f"worker failed: {type(exc).__name__}: {exc}"
         return [(i, failed_row(message, "other"), None) for i, _ in part]
-
-
-def _stop_processes(executor: cf.ProcessPoolExecutor) -> None:
-    processes = list((getattr(executor, "_processes", None) or {}).values())
-    executor.shutdown(wait=False, cancel_futures=True)
-    for process in processes:
-        process.terminate()
-    for process in processes:
-        process.join(5)
 
 
 def run_dask(work: Work, parts: list, address: str, deliver: Callable[[list[Done]], None]) -> bool:
