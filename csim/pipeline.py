@@ -78,7 +78,8 @@ def initial_state(case: Case, system: ConstrainedSystem) -> np.ndarray:
         q0[names.index(name)] += dq
     for name, dqd in ini["qd_offset"].items():
         qd0[names.index(name)] += dqd
-    return np.concatenate((q0, qd0, np.zeros(system.n_state - 2 * system.m)))  # W = 0 (loads, drives)
+    # W = 0: the work of the loads, and of the drives of driven dynamics (csim.solver.driven)
+    return np.concatenate((q0, qd0, np.zeros(system.k + getattr(system, "d", 0))))
 
 
 def run_case(case: Case, progress: Callable[[float], None] | None = None) -> Result:

@@ -67,7 +67,8 @@ def driven_problems(data: dict) -> list[str]:
 class DrivenSystem(ConstrainedSystem):
     """The constrained ODE with drives as rheonomic constraints (see the module docstring).
 
-    State y (2 m + k + d,) = [q, qd, W (k loads), W_d (d drives)].
+    State y (2 m + k + d,) = [q, qd, W (k loads), W_d (d drives)], integrated and recorded
+    whole (:func:`csim.pipeline.initial_state` starts W_d at 0).
 
     Parameters
     ----------
