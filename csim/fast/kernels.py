@@ -115,6 +115,11 @@ from csim.solver.methods.sliding_mode import sliding_mode_gamma_star
 #: reference counting of arrays (NRT), which would cost two atomic operations per array
 #: argument and per slice at every call; the arrays live as long as ``integrate`` holds them
 hot = njit(**NJIT_OPTIONS)
+#: the same, inlined into its callers in numba's IR (constant arguments become constants of the copy)
+sized = njit(inline="always", **NJIT_OPTIONS)
+#: the (m, r) whose right-hand side has a copy with constant sizes: the planar one-loop linkages
+#: (quick-return, four-bar, slider-crank) and the Cartesian pendulum
+SIZED = ((3, 2), (2, 1))
 
 
 def _dop853_coefficients():
@@ -306,14 +311,10 @@ def mode_at(y, par, pf, pi, w, mode):
     mode_of(w[pi[W_G]:pi[W_G] + pi[PI_NSW]], mode)
 
 
-@hot
-def rhs(t, y, mode, located, par, pf, pi, w, piv, f):
-    """dy/dt = [qd, qdd, u * ds/dt] at time t into f; [qdd, lambda] left in w[W_X:]. Returns OK or SINGULAR_KKT.
-
-    The load laws are held in ``mode``; with ``located`` False they are evaluated at y
-    itself (``mode`` is then overwritten: pass a scratch array).
-    """
-    nq, nc, nl = pi[PI_NQ], pi[PI_NC], pi[PI_NL]
+@sized
+def _rhs_sized(t, y, mode, located, par, pf, pi, w, piv, f, nq, nc):
+    """:func:`rhs` for nq coordinates and nc constraints (inlined where called: constants there fix the loops)."""
+    nl = pi[PI_NL]
     nk = nq + nc
     terms(t, y, par, pi, w)
     qd = y[nq:2 * nq]
@@ -335,7 +336,8 @@ def rhs(t, y, mode, located, par, pf, pi, w, piv, f):
     method_gamma_star(pi[PI_MK], nc, w[pi[W_GAM]:pi[W_GAM] + nc], w[pi[W_PHI]:pi[W_PHI] + nc], phi_dot, gains, fpar,
                       ipar, gstar, pi)
     x = w[pi[W_X]:pi[W_X] + nk]
-    if not kkt_solve(w[pi[W_M]:pi[W_M] + nq * nq], J, p, gstar, w[pi[W_A]:pi[W_A] + nk * nk], x, piv, nq, nc):
+    A = w[pi[W_A]:pi[W_A] + nk * nk]
+    if not kkt_solve(w[pi[W_M]:pi[W_M] + nq * nq], J, p, gstar, A, x, piv, nq, nc):
         return SINGULAR_KKT
     sdot = w[pi[W_SD]:pi[W_SD] + nl]
     load_rates(B, qd, sdot, nq, nl)
@@ -345,6 +347,23 @@ def rhs(t, y, mode, located, par, pf, pi, w, piv, f):
     for kk in range(nl):  # dW/dt = u * ds/dt
         f[2 * nq + kk] = u[kk] * sdot[kk]
     return OK
+
+
+@hot
+def rhs(t, y, mode, located, par, pf, pi, w, piv, f):
+    """dy/dt = [qd, qdd, u * ds/dt] at time t into f; [qdd, lambda] left in w[W_X:]. Returns OK or SINGULAR_KKT.
+
+    The load laws are held in ``mode``; with ``located`` False they are evaluated at y
+    itself (``mode`` is then overwritten: pass a scratch array). For the commonest sizes
+    (:data:`SIZED`) the sizes are constants of a copy of the code each (loops of known length,
+    as plain C has them); other ones run with the sizes read from pi.
+    """
+    nq, nc = pi[PI_NQ], pi[PI_NC]
+    if nq == 3 and nc == 2:
+        return _rhs_sized(t, y, mode, located, par, pf, pi, w, piv, f, 3, 2)
+    if nq == 2 and nc == 1:
+        return _rhs_sized(t, y, mode, located, par, pf, pi, w, piv, f, 2, 1)
+    return _rhs_sized(t, y, mode, located, par, pf, pi, w, piv, f, nq, nc)
 
 
 @hot
