@@ -97,7 +97,7 @@ def main(argv=None):
     row = lambda label, b, a: print(f"{label:<52}{b:>12}{a:>12}")  # noqa: E731
     row(f"(a) first csim run {args.config}, warm install [s]", *(", ".join(f"{v:.2f}" for v in first[n])
                                                                 for n in trees))
-    row(f"    second run (all cached) [s]", *(f"{again[n]:.2f}" for n in trees))
+    row("    second run (all cached) [s]", *(f"{again[n]:.2f}" for n in trees))
     row("(b) quick-return RHS, compiled [ns]", *(f"{rhs[n]['compiled']:.0f}" for n in trees))
     row("    plain C, same run [ns]", *(f"{rhs[n]['c']:.0f}" for n in trees))
     row("    compiled / C", *(f"{rhs[n]['compiled'] / rhs[n]['c']:.2f}" for n in trees))

@@ -15,9 +15,10 @@ Units are SI throughout (m, kg, s, rad, N, N m, J); see ``csim.io.units``.
 """
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Hashable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -35,7 +36,11 @@ from csim.schema import (
     check_value,
     closest,
     describe,
+    described,
+    field_json_schema,
     field_paths,
+    finite_number,
+    section_json_schema,
     unknown_key,
     validate_section,
 )
@@ -112,6 +117,8 @@ SCHEMA = Section({
                          nullable=True),
         "drive": Field("mapping", None, "link coupling: prescribed driving joint variables, joint: value or "
                        "expression of t (a kinematic analysis)", nullable=True),
+        "forces": Field("list", None, "link coupling: force elements (spring, joint_spring, actuator, force, "
+                        "torque), checked by csim.linkage.forces", nullable=True),
     }, "the mechanism and its parameters"),
     "initial": Section({
         "q": Field("mapping", None, "independent coordinates, name: value [rad or m]", nullable=True),
@@ -189,12 +196,16 @@ class Case:
         Where it came from (a path, or ``"<dict>"``).
     linkage : csim.linkage.model.Linkage or None
         What was derived from a link-coupling description (None for a registered mechanism).
+    warnings : list of str
+        Valid settings that will probably make the run fail, each naming the keys (a
+        stabilizer gain times a fixed step beyond the integrator's stability region).
     """
 
     data: dict
     mechanism: MechanismDefinition
     source: str = "<dict>"
     linkage: Linkage | None = None
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def kinematic(self) -> bool:
@@ -208,8 +219,11 @@ class Case:
     def load_set(self) -> LoadSet:
         laws = []
         for load in self.mechanism.loads:
-            spec = self.data["loads"].get(load.name, 0.0)
-            if isinstance(spec, dict):
+            # a load the case does not name keeps the mechanism's law (0 for a registered one)
+            spec = self.data["loads"].get(load.name)
+            if spec is None:
+                laws.append(LoadLaw(load.name, load.magnitude, tuple(load.window), load.velocity))
+            elif isinstance(spec, dict):
                 window = spec["window"] or [-np.inf, np.inf]
                 bounds = (float(window[0]), float(window[1]))
                 laws.append(LoadLaw(load.name, spec["magnitude"], bounds, spec["velocity"]))
@@ -365,11 +379,22 @@ def validate_case(data: dict, source: str = "<dict>") -> Case:
     _validate_combination(out, problems)
     if problems:
         raise CaseError(problems)
-    return Case(data=out, mechanism=mech, source=source, linkage=linkage)
+    return Case(data=out, mechanism=mech, source=source, linkage=linkage, warnings=_stability_warnings(out))
+
+
+def _stability_warnings(out: dict) -> list[str]:
+    """Stabilizer gains times a fixed step at or beyond the integrator's stability region
+    (:func:`csim.solver.stability.stability_warnings`)."""
+    from csim.solver.methods import make_stabilizer
+    from csim.solver.stability import stability_warnings
+
+    stab, sim = out["stabilization"], out["simulation"]
+    method = make_stabilizer(stab["method"], {k: v for k, v in stab.items() if k != "method"})
+    return stability_warnings(method, sim["integrator"], sim["step"])
 
 
 #: Keys of ``mechanism`` that belong to a link-coupling description.
-LINKAGE_KEYS = ("label", "links", "couplings", "gravity", "drive")
+LINKAGE_KEYS = ("label", "links", "couplings", "gravity", "drive", "forces")
 
 
 def _is_linkage(section: dict) -> bool:
@@ -399,6 +424,10 @@ def _build_linkage(out: dict, problems: list[str]) -> Linkage:
                                 f"variables ({', '.join(linkage.drive)}) set the motion; expected initial.{key} left "
                                 f"out (initial.guess chooses the assembly branch)")
         mech.default_independent_velocities = at_start["qd"]
+        if out["mechanism"].get("forces"):
+            problems.append("mechanism.forces: given with mechanism.drive; a kinematic analysis prescribes the motion "
+                            "and computes no forces (driven dynamics, the drive torques under these forces, is not "
+                            "implemented); expected mechanism.forces or mechanism.drive, not both")
     elif not any(link.has_mass for link in linkage.tables.links.values() if link.number != 0):
         problems.append("mechanism.links: no link has mass or inertia, and there is no mechanism.drive; expected "
                         "mechanism.drive (a kinematic analysis) or mass and inertia on the moving links (dynamics)")
@@ -477,17 +506,22 @@ def _validate_loads(out, mech, problems):
         if str(key) not in load_names:
             problems.append(unknown_key("loads", str(key), load_names))
             continue
-        unit = mech.loads[load_names.index(key)].unit
+        load = mech.loads[load_names.index(key)]
+        unit = load.unit
+        if load.law is not None:
+            problems.append(f"{path}: {key!r} is a force element of mechanism.forces, whose law is set there; "
+                            f"expected no loads.{key} (change the element in mechanism.forces)")
+            continue
         if isinstance(spec, dict):
             law = validate_section(path, spec, LOAD_SCHEMA, problems)
             window = law.get("window")
             if window is not None:
-                ok = len(window) == 2 and all(isinstance(w, (int, float)) and not isinstance(w, bool) for w in window)
-                if not ok or not window[0] < window[1]:
+                bounds = [_window_bound(w) for w in window]
+                if len(bounds) != 2 or None in bounds or not bounds[0] < bounds[1]:
                     problems.append(f"{path}.window: got {describe(window)}; expected [lo, hi] with lo < hi "
                                     f"(use .inf for an open end)")
                 else:
-                    law["window"] = [float(w) for w in window]
+                    law["window"] = bounds
             result[key] = law
         elif isinstance(spec, (int, float)) and not isinstance(spec, bool):
             checked = check_value(f"{path} [{unit}]", spec, Field("number"), problems)
@@ -497,6 +531,14 @@ def _validate_loads(out, mech, problems):
             problems.append(f"{path}: got {describe(spec)}; expected a number [{unit}] (a constant load) or a "
                             f"mapping with keys {', '.join(LOAD_SCHEMA.fields)}")
     out["loads"] = result
+
+
+def _window_bound(value) -> float | None:
+    """A load window's bound as a float (+-.inf allowed: an open end); None for anything else
+    (not a number, .nan, an integer beyond the float range)."""
+    if isinstance(value, float) and math.isinf(value):
+        return value
+    return float(value) if finite_number(value) else None
 
 
 #: Most output samples, and most fixed steps, a run may ask for.
@@ -510,11 +552,19 @@ def _validate_resolution(out, problems):
     if t_end is None:
         return
     if dt is not None and t_end / dt > MAX_OUTPUT_SAMPLES:
-        problems.append(f"output.dt: got {describe(dt)}; expected at least t_end / {MAX_OUTPUT_SAMPLES:.0e} = "
-                        f"{t_end / MAX_OUTPUT_SAMPLES:.3g} s (at most {MAX_OUTPUT_SAMPLES:.0e} output samples)")
+        problems.append(f"output.dt: got {describe(dt)} with simulation.t_end = {t_end:g} s; expected at least "
+                        f"simulation.t_end / {MAX_OUTPUT_SAMPLES:.0e} = {t_end / MAX_OUTPUT_SAMPLES:.3g} s (at most "
+                        f"{MAX_OUTPUT_SAMPLES:.0e} output samples), or a shorter simulation.t_end")
+    for key in ("max_step", "first_step"):  # an adaptive step below min_step is a failure by definition
+        value, min_step = out["simulation"].get(key), out["simulation"].get("min_step")
+        if value is not None and min_step is not None and value < min_step:
+            problems.append(f"simulation.{key}: got {describe(value)} with simulation.min_step = {min_step:g} s; "
+                            f"expected at least simulation.min_step (a step below it stops the run as a step-size "
+                            f"collapse), or a smaller simulation.min_step")
     if step is not None and out["simulation"].get("integrator") == "RK4" and t_end / step > MAX_FIXED_STEPS:
-        problems.append(f"simulation.step: got {describe(step)}; expected at least t_end / {MAX_FIXED_STEPS:.0e} = "
-                        f"{t_end / MAX_FIXED_STEPS:.3g} s (at most {MAX_FIXED_STEPS:.0e} fixed steps)")
+        problems.append(f"simulation.step: got {describe(step)} with simulation.t_end = {t_end:g} s; expected at "
+                        f"least simulation.t_end / {MAX_FIXED_STEPS:.0e} = {t_end / MAX_FIXED_STEPS:.3g} s (at most "
+                        f"{MAX_FIXED_STEPS:.0e} fixed steps), or a shorter simulation.t_end")
 
 
 def _validate_combination(out, problems):
@@ -561,3 +611,55 @@ def _validate_formulation(out, mech, problems):
     if bad or len(set(independent)) != n_dof or len(independent) != n_dof:
         problems.append(f"formulation.independent: got {describe(independent)}; expected {n_dof} distinct "
                         f"coordinate name(s) from {names}")
+
+
+def json_schema() -> dict:
+    """The case-file schema as JSON Schema (draft 2020-12), for editors (``csim schema``).
+
+    Generated from :data:`SCHEMA` (the methods' options included), :data:`LOAD_SCHEMA`,
+    the registered mechanisms' parameters, coordinates and loads (one ``if``/``then`` per
+    mechanism name) and the link-coupling tables (:mod:`csim.linkage.json_schema`).
+    """
+    from csim.linkage.json_schema import tables_json_schema
+
+    schema = {"$schema": "https://json-schema.org/draft/2020-12/schema", "title": "csim case file",
+              "description": "A csim case (csim run CASE.yaml); see the README's 'Case files'. Units are SI.",
+              **section_json_schema(SCHEMA)}
+    schema["type"] = "object"
+    mechanism = schema["properties"]["mechanism"]
+    mechanism["type"] = "object"  # the one section that must be there
+    mechanism["anyOf"] = [{"required": ["name"]}, {"required": ["links", "couplings"]}]
+    for key, extra in tables_json_schema().items():
+        mechanism["properties"][key].update(extra)
+    law = section_json_schema(LOAD_SCHEMA)
+    law["type"] = "object"
+    schema["properties"]["loads"]["additionalProperties"] = {"anyOf": [{"type": "number"}, law]}
+    schema["required"] = ["mechanism"]
+    schema["allOf"] = [_mechanism_json_schema(name) for name in sorted(MECHANISMS)]
+    return schema
+
+
+def _mechanism_json_schema(name: str) -> dict:
+    """``if mechanism.name is NAME then``: its parameters, coordinates and loads."""
+    mech = light_mechanism(name)
+    parameters = {p.name: field_json_schema(Field("number", p.default, p.description, p.unit,
+                                                  gt=0.0 if p.strictly_positive else None, ge=p.minimum))
+                  for p in mech.parameters}
+    units = dict(zip(mech.coordinate_names, mech.coordinate_units))
+
+    def coordinates(what: str, per: str) -> dict:
+        return {"properties": {n: {"type": "number", "description": described(f"{what} {n}", units[n] + per)}
+                               for n in units}, "additionalProperties": False}
+    loads = {ld.name: {"description": described(f"load {ld.name}", ld.unit)} for ld in mech.loads}
+    return {
+        "if": {"properties": {"mechanism": {"properties": {"name": {"const": name}}, "required": ["name"]}},
+               "required": ["mechanism"]},
+        "then": {"properties": {
+            "mechanism": {"properties": {"parameters": {"properties": parameters, "additionalProperties": False}}},
+            "initial": {"properties": {
+                "q": coordinates("coordinate", ""), "qd": coordinates("velocity of", "/s"),
+                "guess": coordinates("Newton start of", ""), "q_offset": coordinates("offset of", ""),
+                "qd_offset": coordinates("velocity offset of", "/s")}},
+            "loads": {"properties": loads, "additionalProperties": False},
+        }},
+    }

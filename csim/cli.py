@@ -256,6 +256,8 @@ def run(
         check_writable(out, protect=[case], suffixes=RESULT_SUFFIXES)
     except CsimError as exc:
         _fail_input(exc)
+    for warning in [] if quiet else c.warnings:  # a failure names the cause again, --quiet or not
+        typer.echo(f"csim: warning: {warning}", err=True)
     result = None
     with reporting(not quiet), _watch_ctrl_c() as ctrl_c:
         try:
@@ -278,8 +280,9 @@ def run(
         typer.echo(result.summary())
         typer.echo(f"result:            {out}{where}" + (", replacing the file there" if replaced else ""))
     if result.failure == "assembly":
-        typer.echo(f"csim: error: the mechanism cannot be assembled at its initial values: {result.message} "
-                   f"(result file with status failed: {out})", err=True)
+        typer.echo(f"csim: error: the mechanism cannot be assembled at its initial values: {result.message}; "
+                   f"expected mechanism.parameters that close the mechanism, and initial.q, initial.guess on an "
+                   f"assembly branch (result file with status failed: {out})", err=True)
         raise typer.Exit(EXIT_BAD_INPUT)
     if not result.ok:
         typer.echo(f"csim: simulation failed: {result.message} (partial result in {out})", err=True)
@@ -746,6 +749,39 @@ def describe(
     except CsimError as exc:
         _fail_input(exc)
     typer.echo(text, nl=False)
+
+
+@app.command(cls=_Command)
+@_interruptible
+def schema(
+    output: Annotated[Path | None, typer.Option(
+        "--output", "-o", metavar="FILE.json",
+        help="Write the schema to this file (JSON). Default: print it.")] = None,
+):
+    """Print the case-file schema as JSON Schema (draft 2020-12), for editors.
+
+    Generated from csim's own schema: every key with its type, default, bounds, choices
+    (mechanisms, integrators, methods, switching functions) and a description with its
+    unit; the parameters, coordinates and loads of each registered mechanism; the
+    link-coupling tables. With yaml-language-server (VS Code's YAML extension, ...), the
+    first line of a case file, # yaml-language-server: $schema=PATH/csim-case.schema.json,
+    turns on validation and completion.
+
+    Example: csim schema -o csim-case.schema.json
+    """
+    import json
+
+    from csim.case import json_schema
+
+    text = json.dumps(json_schema(), indent=2) + "\n"
+    if output is None:
+        typer.echo(text, nl=False)
+        return
+    try:
+        output.parent.mkdir(parents=True, exist_ok=True)
+        output.write_text(text)
+    except OSError as exc:
+        _fail_input(ResultFileError(f"--output {output}: cannot write there ({exc.strerror or exc})"))
 
 
 def main() -> None:

@@ -4,8 +4,11 @@ Each load u_k of a mechanism does work along its coordinate s_k(q) (see
 :class:`csim.model.definition.Load`). Its law is a magnitude switched on and off by
 conditions on s_k and its rate ds_k/dt:
 
-    u_k = magnitude   if  lo <= s_k <= hi  and  (ds_k/dt < 0 | > 0 | any)
-    u_k = 0           otherwise
+    u_k = magnitude * f_k   if  lo <= s_k <= hi  and  (ds_k/dt < 0 | > 0 | any)
+    u_k = 0                 otherwise
+
+where f_k(q, qd, t) is the load's law in the mechanism (1 for a switched constant; a force
+element of a link-coupling mechanism may give an expression, e.g. a damper's c ldot).
 
 Each condition is a *switching function* g(s, sdot) that is positive where it holds
 (s - lo, hi - s, -sdot or sdot). The solver locates the zeros of the switching functions as
@@ -109,10 +112,14 @@ class LoadSet:
                                  self.sw_kind, self.sw_value, g)
         return g
 
-    def values(self, mode: np.ndarray) -> np.ndarray:
-        """Load values u (k,) in a mode: ``mode`` (n_switches,) bool, the conditions that hold."""
+    def values(self, mode: np.ndarray, law: np.ndarray | None = None) -> np.ndarray:
+        """Load values u (k,) in a mode: ``mode`` (n_switches,) bool, the conditions that hold.
+
+        ``law`` (k,): the loads' laws f(q, qd, t) at the state (None: 1, switched constants).
+        """
         u = np.empty(len(self.laws))
-        core.load_values(self.magnitudes, np.asarray(mode, dtype=np.bool_), self.sw_load, u)
+        law = np.ones(len(self.laws)) if law is None else np.asarray(law, dtype=float)
+        core.load_values(self.magnitudes, np.asarray(mode, dtype=np.bool_), self.sw_load, law, u)
         return u
 
     def mode(self, g: np.ndarray) -> np.ndarray:

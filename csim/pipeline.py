@@ -180,7 +180,7 @@ def _sample_values(system: ConstrainedSystem, traj: Trajectory, backend: str,
     if backend == "compiled" and N:
         from csim.fast.runner import evaluate_compiled
 
-        values = evaluate_compiled(system, traj.y, traj.mode)
+        values = evaluate_compiled(system, traj.t, traj.y, traj.mode)
         for name, a in arrays.items():
             a[:] = values[name]
         todo = np.flatnonzero(~values["ok"])

@@ -179,12 +179,12 @@ class Result:
     @property
     def max_phi(self) -> float:
         """max over the run of max_i |Phi_i|."""
-        return float(np.max(np.abs(self.phi))) if self.phi.size else float("nan")
+        return float(np.max(np.abs(self.phi), initial=0.0)) if self.t.size else float("nan")  # a tree: 0
 
     @property
     def max_phi_dot(self) -> float:
         """max over the run of max_i |(Phi_q qd)_i|."""
-        return float(np.max(np.abs(self.phi_dot))) if self.phi_dot.size else float("nan")
+        return float(np.max(np.abs(self.phi_dot), initial=0.0)) if self.t.size else float("nan")
 
     def summary(self) -> str:
         """A short, human-readable account of the run."""

@@ -2,6 +2,8 @@
 
 Validation collects every problem at once, each naming the key path, the value found and
 what was expected, e.g. ``simulation.t_end: got -1 (number); expected a number > 0``.
+The same declarations give the JSON Schema that editors validate case files with
+(:func:`section_json_schema`, ``csim schema``).
 """
 from __future__ import annotations
 
@@ -43,6 +45,9 @@ class Field:
         ``null`` is allowed.
     check : callable or None
         Extra check ``check(value) -> str or None`` returning what was expected.
+    json : dict or None
+        JSON Schema keywords saying what ``check`` tests (for ``type: "any"``, the whole
+        schema of the value), added to what the other attributes give.
     """
 
     type: str
@@ -55,6 +60,7 @@ class Field:
     le: float | None = None
     nullable: bool = False
     check: Callable[[Any], str | None] | None = None
+    json: dict | None = None
 
     def expected(self) -> str:
         """What a valid value looks like, for error messages."""
@@ -96,6 +102,17 @@ def closest(word: str, candidates) -> str | None:
     by_lower = {str(c).lower(): str(c) for c in candidates}
     match = difflib.get_close_matches(str(word).lower(), list(by_lower), n=1)
     return by_lower[match[0]] if match else None
+
+
+def finite_number(value: Any) -> bool:
+    """A YAML number (not a boolean) that is finite as a float: not .nan, .inf, nor an
+    integer beyond the float range (10**400)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    try:
+        return math.isfinite(value)
+    except OverflowError:
+        return False
 
 
 def check_value(path: str, value: Any, spec: Field, problems: list[str]) -> Any:
@@ -163,7 +180,7 @@ def unknown_key(path: str, key: str, valid: list[str]) -> str:
     where = f"{path}.{key}" if path else key
     hint = closest(key, valid)
     extra = f" (did you mean {hint!r}?)" if hint else ""
-    return f"{where}: unknown key{extra}; valid keys here: {', '.join(valid)}"
+    return f"{where}: unknown key{extra}; valid keys here: {', '.join(valid) or '(none)'}"
 
 
 def validate_section(path: str, data: Any, section: Section, problems: list[str]) -> dict:
@@ -172,7 +189,7 @@ def validate_section(path: str, data: Any, section: Section, problems: list[str]
         data = {}
     if not isinstance(data, dict):
         problems.append(f"{path or 'case file'}: got {describe(data)}; expected a mapping (key: value lines)")
-        return {}
+        data = {}  # reported; go on with the defaults, so that later checks find every key
     out = {}
     for key in data:
         if key not in section.fields:
@@ -200,3 +217,55 @@ def field_paths(section: Section, prefix: str = "") -> dict[str, Field]:
         else:
             paths[path] = spec
     return paths
+
+
+#: field type -> JSON Schema type
+JSON_TYPES = {"number": "number", "integer": "integer", "string": "string", "boolean": "boolean",
+              "mapping": "object", "list": "array"}
+
+
+def described(doc: str, unit: str = "") -> str:
+    """A JSON Schema description: the documentation line, then the unit in brackets."""
+    return f"{doc} [{unit}]" if unit and unit != "-" else doc
+
+
+def field_json_schema(spec: Field) -> dict:
+    """The JSON Schema (draft 2020-12) of one field: type, bounds, choices, default, description.
+
+    Non-finite numbers, which :func:`check_value` rejects, cannot be told apart in JSON
+    Schema; everything else a field declares can.
+    """
+    out: dict[str, Any] = {}
+    if spec.type in JSON_TYPES:
+        out["type"] = JSON_TYPES[spec.type]
+    for key, bound in (("exclusiveMinimum", spec.gt), ("minimum", spec.ge), ("maximum", spec.le)):
+        if bound is not None:
+            out[key] = bound
+    choices = spec.valid_choices()
+    if choices is not None:
+        out["enum"] = list(choices)
+    out.update(spec.json or {})
+    if spec.nullable:
+        if "type" in out and "enum" not in out:
+            out["type"] = [out["type"], "null"]
+        else:
+            out = {"anyOf": [out, {"type": "null"}]}
+    if spec.doc or spec.unit:
+        out["description"] = described(spec.doc, spec.unit)
+    if spec.default is not REQUIRED and (spec.default is not None or spec.nullable):
+        out["default"] = spec.default
+    return out
+
+
+def section_json_schema(section: Section) -> dict:
+    """The JSON Schema of a section: an object (or null, read as empty) of its fields, no other keys."""
+    out: dict[str, Any] = {"type": ["object", "null"]}
+    if section.doc:
+        out["description"] = section.doc
+    out["properties"] = {key: section_json_schema(spec) if isinstance(spec, Section) else field_json_schema(spec)
+                         for key, spec in section.fields.items()}
+    required = [key for key, spec in section.fields.items() if isinstance(spec, Field) and spec.default is REQUIRED]
+    if required:
+        out["required"] = required
+    out["additionalProperties"] = False
+    return out

@@ -428,3 +428,51 @@ def test_missing_and_unreadable_files(tmp_path):
     with pytest.raises(CaseError) as excinfo:
         load_case(binary)
     assert str(binary) in only_problem(excinfo)
+
+
+# --------------------------------------------------------------------------- found by fuzzing (tests/test_fuzz.py)
+
+HUGE = "1" + "0" * 400  # a YAML integer beyond the float range
+
+
+@pytest.mark.parametrize("override, key", [
+    (f"stabilization.w={HUGE}", "stabilization.w"),
+    (f"stabilization.K=[1, {HUGE}]", "stabilization.K"),
+])
+def test_integers_beyond_the_float_range_are_rejected_not_a_traceback(override, key):
+    with pytest.raises(CaseError) as excinfo:
+        load_case(CONFIG, [override])
+    assert only_problem(excinfo).startswith(f"{key}: got ")
+
+
+def test_a_load_window_bound_beyond_the_float_range_is_rejected():
+    with pytest.raises(CaseError) as excinfo:
+        load_case(CONFIG, [f"loads.torque={{magnitude: 1, window: [0, {HUGE}]}}"])
+    assert only_problem(excinfo).startswith("loads.torque.window: got ")
+    assert load_case(CONFIG, ["loads.torque={magnitude: 1, window: [0, .inf]}"]).data["loads"]["torque"][
+        "window"] == [0.0, math.inf]
+
+
+@pytest.mark.parametrize("section", ["initial", "simulation", "stabilization", "formulation", "output"])
+def test_a_section_that_is_not_a_mapping_is_one_problem(section):
+    data = yaml.safe_load(CONFIG.read_text())
+    data[section] = ""
+    with pytest.raises(CaseError) as excinfo:
+        validate_case(data)
+    assert only_problem(excinfo) == f"{section}: got '' (string); expected a mapping (key: value lines)"
+
+
+@pytest.mark.parametrize("key", ["max_step", "first_step"])
+def test_an_adaptive_step_limit_below_min_step_is_rejected(key):
+    with pytest.raises(CaseError) as excinfo:
+        load_case(CONFIG, [f"simulation.{key}=1e-12"])
+    msg = only_problem(excinfo)
+    assert msg.startswith(f"simulation.{key}: got 1e-12 (number) with simulation.min_step = 1e-10 s")
+    load_case(CONFIG, [f"simulation.{key}=1e-12", "simulation.min_step=1e-13"])  # consistent: accepted
+
+
+def test_too_many_samples_names_t_end_as_well():
+    with pytest.raises(CaseError) as excinfo:
+        load_case(CONFIG, ["simulation.t_end=1e300"])
+    msg = only_problem(excinfo)
+    assert msg.startswith("output.dt: ") and "simulation.t_end = 1e+300 s" in msg

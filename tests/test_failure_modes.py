@@ -48,9 +48,9 @@ def test_quick_return_drift_grows_over_100_s():
 
 def test_baumgarte_beyond_rk4s_stability_bound_blows_up():
     # d = 1 puts both constraint eigenvalues at -w; RK4 is stable on the negative real axis
-    # up to w h = 2.785 for a simple root. Measured with w = 100: w h = 2.0 decays (|Phi| in
-    # the last second 3.9e-4 from 8.7e-3), 2.5 barely holds (9.5e-3), 2.7 and 3.0 diverge (the
-    # double root and the coupling with the pendulum's own motion pull the bound below 2.785).
+    # up to w h = 2.785 (tests/test_stability.py). Measured with w = 100: w h = 2.0 decays
+    # (|Phi| in the last second 3.9e-4 from 8.7e-3), 2.5 holds, 2.6 and above diverge: the
+    # frozen Jacobian is stable up to 2.785, so the nonlinear constraint pulls the bound down.
     w = 100.0
     stable = pendulum(f"stabilization.w={w}", "simulation.integrator=RK4", "simulation.step=0.02", "simulation.t_end=3")
     assert stable.ok

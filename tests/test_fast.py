@@ -45,7 +45,7 @@ def test_compiled_rhs_equals_python_rhs(kernels, method):
     for _ in range(20):
         y = y0 + rng.normal(scale=[0.3, 0.05, 0.05, 2, 2, 2, 10, 10])
         mode = rng.random(system.loads.n_switches) < 0.5
-        code, f, x = kernels.rhs_entry(y, mode, par, pf, pi)
+        code, f, x = kernels.rhs_entry(0.0, y, mode, par, pf, pi)
         assert code == 0
         expected = system.rhs(0.0, y, mode)
         scale = np.maximum(1.0, np.abs(expected))

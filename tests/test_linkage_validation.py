@@ -211,3 +211,32 @@ def test_valid_examples_still_derive_with_their_masses():
         data = config(name)
         lk = build_linkage(data["mechanism"], data.get("initial"))
         assert lk.dof >= 1 and np.isfinite(list(lk.start.values())).all()
+
+
+# --------------------------------------------------------------------------- found by fuzzing (tests/test_fuzz.py)
+
+
+def test_a_huge_link_number_is_a_gap_not_a_memory_error(tmp_path):
+    data = config("fourbar")
+    data["mechanism"]["links"][3]["link"] = 10**12
+    problems = failed(tmp_path, data)
+    gap = next(p for p in problems if p.startswith("mechanism.links: "))
+    assert "links 3" in gap and f"3, 4, 5, 6, 7, 8, 9, 10, 11, 12 and {10**12 - 13} more are missing" in gap
+
+
+def test_a_parameter_beyond_the_float_range_is_rejected(tmp_path):
+    data = config("fourbar")
+    data["mechanism"]["parameters"]["a"] = 10**400
+    problems = failed(tmp_path, data)
+    assert problems[0].startswith("mechanism.parameters.a: got ") and "expected a finite number" in problems[0]
+    data = config("fourbar")
+    data["mechanism"]["links"][1]["joints"][1][1][0] = 10**400
+    problems = failed(tmp_path, data)
+    assert problems[0].startswith("mechanism.links[1].joints[1][1][0]: got ")
+
+
+def test_a_coupling_name_that_is_a_list_is_rejected(tmp_path):
+    data = config("fourbar")
+    data["mechanism"]["couplings"][2]["name"] = [1, 2]
+    (problem,) = failed(tmp_path, data)
+    assert problem.startswith("mechanism.couplings[2] (coupling 3).name: got [1, 2] (list); not a usable name")

@@ -8,11 +8,12 @@ matrices row-major), and the terms one evaluation needs share one common-subexpr
 elimination (each sin and cos of the coordinates is computed once):
 
 ``terms``
-    M (m, m), C qd (m,), h (m,), Phi (r,), Phi_q (r, m), gamma (r,), s (k,), B (m, k)
+    M (m, m), C qd (m,), h (m,), Phi (r,), Phi_q (r, m), gamma (r,), s (k,), B (m, k),
+    S = ds/dq^T (m, k), the load laws f(q, qd, t) (k,); t is the time [s]
 ``phi_``, ``jac``, ``mass``
     the pieces the projection and the divergence checks need on their own
 ``loads_``
-    load coordinates and their Jacobian, for the switching functions
+    load coordinates s and their Jacobian S, for the switching functions
 ``kinetic``, ``potential``
     energies [J] into out[0]
 ``observe``
@@ -32,10 +33,12 @@ from sympy.printing.pycode import PythonCodePrinter
 from csim.fast.layout import MODEL_FUNCTIONS, model_offsets
 
 #: the terms the right-hand side needs, in their order in the workspace w
-TERMS = ("mass", "velocity_terms", "gravity", "phi", "phi_q", "gamma", "load_coordinates", "load_matrix")
+TERMS = ("mass", "velocity_terms", "gravity", "phi", "phi_q", "gamma", "load_coordinates", "load_matrix",
+         "load_jacobian", "load_law")
 #: DerivedModel attribute -> name of its offset in w (csim.fast.layout.MODEL_TERMS)
 OFFSETS = {"mass": "W_M", "velocity_terms": "W_CQD", "gravity": "W_H", "phi": "W_PHI", "phi_q": "W_J",
-           "gamma": "W_GAM", "load_coordinates": "W_S", "load_matrix": "W_B"}
+           "gamma": "W_GAM", "load_coordinates": "W_S", "load_matrix": "W_B", "load_jacobian": "W_SQ",
+           "load_law": "W_L"}
 
 #: function name -> the DerivedModel attributes it writes into w
 FUNCTIONS = {
@@ -43,7 +46,7 @@ FUNCTIONS = {
     "phi_": ("phi",),
     "jac": ("phi_q",),
     "mass": ("mass",),
-    "loads_": ("load_coordinates", "load_matrix"),
+    "loads_": ("load_coordinates", "load_jacobian"),
 }
 
 #: scalar functions: name -> DerivedModel attribute, written to out[0]

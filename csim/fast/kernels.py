@@ -75,6 +75,7 @@ from csim.fast.layout import (
     W_GS,
     W_H,
     W_J,
+    W_L,
     W_M,
     W_M2,
     W_P,
@@ -83,6 +84,7 @@ from csim.fast.layout import (
     W_S,
     W_S2,
     W_SD,
+    W_SQ,
     W_U,
     W_WINV,
     W_WJT,
@@ -295,10 +297,10 @@ def method_gamma_star(mk, r, gamma, phi, phi_dot, gains, fpar, ipar, out, pi):
 # ---------------------------------------------------------------------------------------
 @hot
 def switching_from(y, pf, pi, w):
-    """Switching functions into w[W_G:] from s and B in w (loads_ or terms evaluated) and qd in y."""
+    """Switching functions into w[W_G:] from s and S = ds/dq^T in w (loads_ or terms evaluated) and qd in y."""
     n_sw, nq, nl = pi[PI_NSW], pi[PI_NQ], pi[PI_NL]
     w_sd, w_g = pi[W_SD], pi[W_G]
-    load_rates(w[pi[W_B]:pi[W_B] + nq * nl], y[nq:2 * nq], w[w_sd:w_sd + nl], nq, nl)
+    load_rates(w[pi[W_SQ]:pi[W_SQ] + nq * nl], y[nq:2 * nq], w[w_sd:w_sd + nl], nq, nl)
     switching_functions(w[pi[W_S]:pi[W_S] + nl], w[w_sd:w_sd + nl], pi[PI_HEAD:PI_HEAD + n_sw],
                         pi[PI_HEAD + n_sw:PI_HEAD + 2 * n_sw], pf[nl:nl + n_sw], w[w_g:w_g + n_sw])
 
@@ -324,7 +326,7 @@ def _rhs_sized(t, y, mode, located, par, pf, pi, w, piv, f, nq, nc):
         switching_from(y, pf, pi, w)
         mode_of(w[pi[W_G]:pi[W_G] + pi[PI_NSW]], mode)
     u = w[pi[W_U]:pi[W_U] + nl]
-    load_values(pf[:nl], mode, pi[PI_HEAD:PI_HEAD + pi[PI_NSW]], u)
+    load_values(pf[:nl], mode, pi[PI_HEAD:PI_HEAD + pi[PI_NSW]], w[pi[W_L]:pi[W_L] + nl], u)
     p = w[pi[W_P]:pi[W_P] + nq]
     generalized_forces(B, u, w[pi[W_CQD]:pi[W_CQD] + nq], w[pi[W_H]:pi[W_H] + nq], p, nq, nl)
     phi_dot = w[pi[W_PD]:pi[W_PD] + nc]
@@ -344,14 +346,14 @@ def _rhs_sized(t, y, mode, located, par, pf, pi, w, piv, f, nq, nc):
     for i in range(nq):
         f[i] = qd[i]
         f[nq + i] = x[i]
-    for kk in range(nl):  # dW/dt = u * ds/dt
+    for kk in range(nl):  # dW/dt = u * (B^T qd), the power of each load
         f[2 * nq + kk] = u[kk] * sdot[kk]
     return OK
 
 
 @hot
 def rhs(t, y, mode, located, par, pf, pi, w, piv, f):
-    """dy/dt = [qd, qdd, u * ds/dt] at time t into f; [qdd, lambda] left in w[W_X:]. Returns OK or SINGULAR_KKT.
+    """dy/dt = [qd, qdd, u * B^T qd] at time t into f; [qdd, lambda] left in w[W_X:]. Returns OK or SINGULAR_KKT.
 
     The load laws are held in ``mode``; with ``located`` False they are evaluated at y
     itself (``mode`` is then overwritten: pass a scratch array). For the commonest sizes
@@ -1101,11 +1103,13 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset):
 # the recorded quantities at the output samples (csim.pipeline.assemble_result)
 # ---------------------------------------------------------------------------------------
 @njit(cache=True, error_model="numpy")
-def evaluate_samples(ys, modes, par, pf, pi):
+def evaluate_samples(ts, ys, modes, par, pf, pi):
     """Everything a result records at each sample, from the same right-hand side the loop ran.
 
     Parameters
     ----------
+    ts : ndarray (N,)
+        Sample times [s] (the load laws may depend on t).
     ys : ndarray (N, 2 m + k)
         Recorded states [q, qd, W].
     modes : ndarray (N, n_sw) bool
@@ -1145,7 +1149,7 @@ def evaluate_samples(ys, modes, par, pf, pi):
         if no > 0:
             observe(y, par, pi, obs[i])
         mode[:] = modes[i]
-        if rhs(0.0, y, mode, True, par, pf, pi, w, piv, f) != OK:
+        if rhs(ts[i], y, mode, True, par, pf, pi, w, piv, f) != OK:
             ok[i] = False
             continue
         x[i] = w[pi[W_X]:pi[W_X] + nk]
@@ -1166,12 +1170,12 @@ def evaluate_samples(ys, modes, par, pf, pi):
 # entry points for the tests and the benchmark
 # ---------------------------------------------------------------------------------------
 @njit(cache=True, error_model="numpy")
-def rhs_entry(y, mode, par, pf, pi):
-    """dy/dt and [qdd, lambda] at one state (mode held), for comparison with the Python path."""
+def rhs_entry(t, y, mode, par, pf, pi):
+    """dy/dt and [qdd, lambda] at time t and one state (mode held), for comparison with the Python path."""
     w = np.zeros(pi[W_END])
     piv = np.zeros(pi[PI_NQ] + pi[PI_NC], np.int64)
     f = np.empty(y.size)
-    code = rhs(0.0, y, mode.copy(), True, par, pf, pi, w, piv, f)
+    code = rhs(t, y, mode.copy(), True, par, pf, pi, w, piv, f)
     return code, f, w[pi[W_X]:pi[W_X] + pi[PI_NQ] + pi[PI_NC]].copy()
 
 

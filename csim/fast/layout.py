@@ -21,7 +21,7 @@ MODEL_FUNCTIONS = ("terms", "phi_", "jac", "mass", "loads_", "kinetic", "potenti
 F_TERMS, F_PHI, F_JAC, F_MASS, F_LOADS, F_KINETIC, F_POTENTIAL, F_OBSERVE = range(len(MODEL_FUNCTIONS))
 
 #: the model terms in the workspace, in their order there (csim.fast.codegen.TERMS) -> their pi index name
-MODEL_TERMS = ("W_M", "W_CQD", "W_H", "W_PHI", "W_J", "W_GAM", "W_S", "W_B")
+MODEL_TERMS = ("W_M", "W_CQD", "W_H", "W_PHI", "W_J", "W_GAM", "W_S", "W_B", "W_SQ", "W_L")
 #: the kernels' scratch after the model terms: name -> size from (m, r, k, n_sw)
 SCRATCH = (
     ("W_A", lambda m, r, k, n: (m + r) ** 2),  # KKT matrix
@@ -55,15 +55,15 @@ PI_FN = 13
 #: the workspace offsets (MODEL_TERMS, then SCRATCH)
 PI_W = PI_FN + len(MODEL_FUNCTIONS)
 _W_NAMES = MODEL_TERMS + tuple(name for name, _ in SCRATCH)
-(W_M, W_CQD, W_H, W_PHI, W_J, W_GAM, W_S, W_B, W_A, W_X, W_P, W_U, W_SD, W_PD, W_GS, W_WINV, W_M2, W_WJT, W_S2, W_Z,
- W_DQ, W_COL, W_E, W_G, W_END) = range(PI_W, PI_W + len(_W_NAMES))
+(W_M, W_CQD, W_H, W_PHI, W_J, W_GAM, W_S, W_B, W_SQ, W_L, W_A, W_X, W_P, W_U, W_SD, W_PD, W_GS, W_WINV, W_M2,
+ W_WJT, W_S2, W_Z, W_DQ, W_COL, W_E, W_G, W_END) = range(PI_W, PI_W + len(_W_NAMES))
 #: the header's length; then sw_load (n_sw), sw_kind (n_sw), ipar (I)
 PI_HEAD = PI_W + len(_W_NAMES)
 
 
 def model_offsets(m: int, r: int, k: int) -> tuple[dict[str, int], int]:
     """The offsets of the model terms in w (the generated functions write there), and their end."""
-    sizes = dict(W_M=m * m, W_CQD=m, W_H=m, W_PHI=r, W_J=r * m, W_GAM=r, W_S=k, W_B=m * k)
+    sizes = dict(W_M=m * m, W_CQD=m, W_H=m, W_PHI=r, W_J=r * m, W_GAM=r, W_S=k, W_B=m * k, W_SQ=m * k, W_L=k)
     offsets, at = {}, 0
     for name in MODEL_TERMS:
         offsets[name] = at

@@ -115,11 +115,14 @@ def _event_labels(switched: np.ndarray, labels: list[str]) -> list[str]:
     return [text[i] for i in index.ravel()]
 
 
-def evaluate_compiled(system: ConstrainedSystem, y: np.ndarray, mode: np.ndarray) -> dict[str, np.ndarray]:
+def evaluate_compiled(system: ConstrainedSystem, t: np.ndarray, y: np.ndarray,
+                      mode: np.ndarray) -> dict[str, np.ndarray]:
     """The recorded quantities at the samples of a compiled run, in one compiled call.
 
     Parameters
     ----------
+    t : ndarray (N,)
+        The sample times [s].
     y : ndarray (N, 2 m + k)
         The trajectory's states.
     mode : ndarray (N, n_sw) bool
@@ -138,7 +141,8 @@ def evaluate_compiled(system: ConstrainedSystem, y: np.ndarray, mode: np.ndarray
     mod = load_kernels()
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         ok, x, phi, phi_dot, u, Q, energy, obs = mod.evaluate_samples(
-            np.ascontiguousarray(y, dtype=float), np.ascontiguousarray(mode, dtype=np.bool_), par, pf, pi)
+            np.ascontiguousarray(t, dtype=float), np.ascontiguousarray(y, dtype=float),
+            np.ascontiguousarray(mode, dtype=np.bool_), par, pf, pi)
     m, o = system.m, obs.shape[1] // 2
     return dict(ok=ok, qdd=x[:, :m], lam=x[:, m:], phi=phi, phi_dot=phi_dot, loads=u, generalized_forces=Q,
                 kinetic=energy[:, 0], potential=energy[:, 1], observables=obs[:, :o], observable_rates=obs[:, o:])

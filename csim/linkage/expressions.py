@@ -15,7 +15,7 @@ from typing import Any
 import sympy as sp
 from sympy.parsing.sympy_parser import parse_expr
 
-from csim.schema import describe
+from csim.schema import describe, finite_number
 
 #: Functions and constants an expression may use besides the parameters.
 FUNCTIONS: dict[str, Any] = {
@@ -104,12 +104,12 @@ def _parse(path: str, value: Any, symbols: dict[str, sp.Symbol], problems: list[
         problems.append(f"{path}: got {describe(value)}; expected a number or an expression of the parameters "
                         f"({allowed})")
         return None
+    if isinstance(value, (int, float)) and not finite_number(value):  # .nan, .inf, 10**400
+        problems.append(f"{path}: got {describe(value)}; expected a finite number")
+        return None
     if isinstance(value, int):
         return sp.Integer(value)
     if isinstance(value, float):
-        if not math.isfinite(value):
-            problems.append(f"{path}: got {describe(value)}; expected a finite number")
-            return None
         return sp.Rational(repr(value))
     text = value.strip()
     if "//" in text or "**" in text or re.search(r"\^[^()+\-*/]*\^", text):

@@ -204,6 +204,13 @@ class JointType:
         """Reaction unknowns of the cut joint, one per equation, in the joint frame ik."""
         return [e.unknown for e in self.cut_equations]
 
+    @property
+    def along_z(self) -> bool:
+        """Whether every joint variable is a rotation about or a translation along z_ik (R, P,
+        C): frame jm is then frame ik turned and moved along z_ik, and a cut joint's relative
+        motion is measured from its two frames (:mod:`csim.linkage.forces`)."""
+        return all(v.meaning in (_ROTATION.meaning, _TRANSLATION.meaning) for v in self.variables)
+
     def variable_names(self, coupling: str) -> list[str]:
         """Names of the joint variables of a coupling named ``coupling``."""
         return [v.template.format(J=coupling) for v in self.variables]

@@ -6,7 +6,9 @@ constraints (cut-joint equations, independent set, DOF) -> MechanismDefinition:
 - coordinates: the joint variables of the tree joints;
 - constraints: the independent cut-joint equations;
 - kinetic energy sum 1/2 m |v_C|^2 + 1/2 omega^T I omega over the links with mass, with
-  omega in link axes accumulated along the tree, and potential energy -sum m g . r_C;
+  omega in link axes accumulated along the tree, and potential energy -sum m g . r_C plus
+  the potentials of the force elements (springs, :mod:`csim.linkage.forces`);
+- loads: the non-conservative force elements (dampers, actuators, applied forces);
 - observables: the global coordinates of every named point that moves;
 - a Drawing through the joint-frame origins of each link (x, y; a spatial mechanism is
   drawn in its x-y projection).
@@ -24,6 +26,7 @@ import sympy as sp
 from csim.errors import CaseError
 from csim.linkage.constraints import Plane, Reduction, cut_joint_equations, plane_of_motion, reduce_equations
 from csim.linkage.expressions import evaluate, parse_expression, value_problem
+from csim.linkage.forces import Contribution, Geometry, build_forces
 from csim.linkage.frames import Frames, build_frames
 from csim.linkage.inertia import check_inertia
 from csim.linkage.joints import JOINT_TYPES
@@ -55,6 +58,8 @@ class Linkage:
     start : dict variable name -> float
         The assembled given configuration.
     definition : MechanismDefinition
+    forces : Contribution
+        What ``mechanism.forces`` adds: potential [J], loads and observables.
     """
 
     tables: Tables
@@ -69,6 +74,7 @@ class Linkage:
     definition: MechanismDefinition | None = None
     notes: list[str] = field(default_factory=list)
     drive_source: dict[str, str] = field(default_factory=dict)
+    forces: Contribution = field(default_factory=Contribution)
 
     @property
     def variable_names(self) -> list[str]:
@@ -236,7 +242,8 @@ def build_linkage(mechanism: dict, initial: dict | None = None, tol: float = 1e-
     Parameters
     ----------
     mechanism : dict
-        ``links``, ``couplings``, ``parameters``, optional ``gravity``, ``drive``, ``label``.
+        ``links``, ``couplings``, ``parameters``, optional ``gravity``, ``drive``, ``label``,
+        ``forces`` (:mod:`csim.linkage.forces`).
     initial : dict, optional
         The case's ``initial`` section: ``guess`` (start values of joint variables) and, for
         a run without drive, ``q`` (held fixed while assembling).
@@ -264,6 +271,7 @@ def build_linkage(mechanism: dict, initial: dict | None = None, tol: float = 1e-
     if problems:
         raise CaseError(problems)
     frames = build_frames(tables, topology)
+    forces = build_forces(mechanism.get("forces"), Geometry(tables, topology, frames), problems)
     equations = [e for c in topology.cut_joints for e in cut_joint_equations(c, frames)]
     names = [v.name for v in topology.variables]
     start, fixed = _start(tables, names, drive, drive_source, initial or {}, problems)
@@ -280,7 +288,7 @@ def build_linkage(mechanism: dict, initial: dict | None = None, tol: float = 1e-
     linkage = Linkage(tables=tables, topology=topology, frames=frames, reduction=reduction, planar=planar,
                       grubler=grubler_kutzbach(tables, planar), dof=dof, drive=drive,
                       start=dict(zip(names, reduction.q_start.tolist())), notes=list(reduction.notes),
-                      drive_source=drive_source)
+                      drive_source=drive_source, forces=forces)
     if drive and len(drive) != dof:
         raise CaseError(_drive_count(drive, dof))
     linkage.definition = _definition(linkage)
@@ -360,9 +368,10 @@ def _definition(linkage: Linkage) -> MechanismDefinition:
         coordinate_units=[v.unit for v in variables],
         parameters=[Parameter(k, v, "", "parameter of the case file") for k, v in tables.parameters.items()],
         kinetic_energy=kinetic,
-        potential_energy=potential,
+        potential_energy=potential + linkage.forces.potential,
         constraints=[e.expression for e in kept],
-        observables=observables,
+        loads=list(linkage.forces.loads),
+        observables=observables + linkage.forces.observables,
         drawing=drawing,
         default_independent={n: linkage.start[n] for n in independent},
         default_independent_velocities={n: 0.0 for n in independent},

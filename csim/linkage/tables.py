@@ -23,7 +23,7 @@ is wrong is reported once, not again by every coupling that names its link.
 """
 from __future__ import annotations
 
-import math
+import itertools
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -32,7 +32,7 @@ import sympy as sp
 from csim.linkage.expressions import RESERVED, Scope, valid_name
 from csim.linkage.inertia import parse_mass_properties
 from csim.linkage.joints import JOINT_TYPES
-from csim.schema import describe
+from csim.schema import describe, finite_number
 
 
 @dataclass(frozen=True)
@@ -183,7 +183,7 @@ def _parameters(given: Any, problems: list[str]) -> tuple[dict[str, float], dict
             problems.append(f"{path}: not a usable parameter name; expected a letter followed by letters, digits "
                             f"or _, other than {', '.join(sorted(RESERVED))} and Python keywords")
             continue
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        if not finite_number(value):
             problems.append(f"{path}: got {describe(value)}; expected a finite number")
             continue
         values[key] = float(value)
@@ -343,10 +343,14 @@ def _numbering(rows: LinkRows, problems: list[str]) -> None:
         return
     if 0 not in numbers:
         problems.append("mechanism.links: no link 0; expected the fixed link (the frame of reference) numbered 0")
-    missing = sorted(set(range(1, max(numbers))) - numbers)
+    top = max(numbers)
+    # counted, not listed: a link numbered 10**9 must not build a billion-element set
+    count = top - 1 - sum(1 for n in numbers if 1 <= n < top)
+    missing = list(itertools.islice((n for n in range(1, top) if n not in numbers), 10))
     if missing:
         given = ", ".join(map(str, sorted(numbers)))
-        which = f"link {missing[0]} is" if len(missing) == 1 else f"links {', '.join(map(str, missing))} are"
+        more = f" and {count - len(missing)} more" if count > len(missing) else ""
+        which = f"link {missing[0]} is" if count == 1 else f"links {', '.join(map(str, missing))}{more} are"
         problems.append(f"mechanism.links: {which} missing (links given: {given}); expected the links numbered "
                         f"0 to {max(numbers)} without gaps")
 
@@ -377,7 +381,7 @@ def _coupling_name(path: str, row: Any, names: dict[str, str], problems: list[st
         return False, None, None
     name, spec = row.get("name"), row.get("couple")
     if name is not None and (not valid_name(name) or name in names):
-        why = f"already the name of {names[name]}" if name in names else "not a usable name"
+        why = f"already the name of {names[name]}" if valid_name(name) else "not a usable name"
         problems.append(f"{path}.name: got {describe(name)}; {why}; expected a unique name (letter, then "
                         f"letters, digits, _)")
         return False, None, None

@@ -16,7 +16,8 @@ from csim.model.light import LightDefinition
 
 #: Generated functions: name -> (arguments, attribute of DerivedModel, kind of output).
 #: kind "matrix" returns (rows, cols), "vector" returns (rows,), "scalar" a float,
-#: "points" returns (rows/d, d), d = 2 or 3 (DerivedModel.point_dim).
+#: "points" returns (rows/d, d), d = 2 or 3 (DerivedModel.point_dim). The argument ``t`` is
+#: the time [s], a float (the symbol ``t`` of the load laws).
 FUNCTIONS: dict[str, tuple[tuple[str, ...], str, str]] = {
     "mass": (("q", "par"), "mass", "matrix"),
     "velocity_terms": (("q", "qd", "par"), "velocity_terms", "vector"),
@@ -26,6 +27,8 @@ FUNCTIONS: dict[str, tuple[tuple[str, ...], str, str]] = {
     "gamma": (("q", "qd", "par"), "gamma", "vector"),
     "load_coordinates": (("q", "par"), "load_coordinates", "vector"),
     "load_matrix": (("q", "par"), "load_matrix", "matrix"),
+    "load_jacobian": (("q", "par"), "load_jacobian", "matrix"),
+    "load_law": (("q", "qd", "t", "par"), "load_law", "vector"),
     "kinetic_energy": (("q", "qd", "par"), "kinetic_energy", "scalar"),
     "potential_energy": (("q", "par"), "potential_energy", "scalar"),
     "observables": (("q", "par"), "observables", "vector"),
@@ -34,7 +37,7 @@ FUNCTIONS: dict[str, tuple[tuple[str, ...], str, str]] = {
 }
 
 #: Bump when the generated code changes shape, to invalidate old caches.
-CODEGEN_VERSION = "2"
+CODEGEN_VERSION = "3"
 
 
 def definition_key(definition: MechanismDefinition) -> str:
@@ -53,6 +56,8 @@ def definition_key(definition: MechanismDefinition) -> str:
         sp.srepr(definition.potential_energy),
         sp.srepr(definition.constraints),
         sp.srepr([ld.coordinate for ld in definition.loads]),
+        sp.srepr([ld.direction for ld in definition.loads]),
+        sp.srepr([ld.law for ld in definition.loads]),
         sp.srepr([o.expression for o in definition.observables]),
         sp.srepr(list(definition.drawing.points.values()) if definition.drawing else []),
     ]

@@ -51,9 +51,18 @@ class Parameter:
 
 @dataclass(frozen=True)
 class Load:
-    """An applied load u_k that does work along a scalar coordinate s_k(q).
+    """An applied load u_k: a force element that does work as the mechanism moves.
 
-    Its generalized force is Q_k = (ds_k/dq)^T u_k (virtual work), its power u_k ds_k/dt.
+    Its generalized force is Q_k = b_k(q) u_k and its power u_k b_k . qd (virtual power),
+    where the direction b_k is ds_k/dq (the load does work along its coordinate s_k), or
+    given (a force fixed in a moving link's frame has no coordinate it works along). The
+    value is
+
+        u_k = magnitude_k * active_k * f_k(q, qd, t)
+
+    with the magnitude and the switching law (``active_k``: conditions on s_k and ds_k/dt)
+    from the case (:mod:`csim.loads`), and the law f_k of the mechanism (1 when ``law`` is
+    None: a switched constant).
 
     Parameters
     ----------
@@ -61,13 +70,25 @@ class Load:
         Key under ``loads`` in a case file.
     coordinate : sympy expression
         s_k(q): the crank angle for a torque on the crank, the x coordinate of the point
-        of application for a horizontal force, ...
+        of application for a horizontal force, ... The switching conditions watch it.
     unit : str
         Unit of u_k (``"N m"`` or ``"N"``).
     coordinate_unit : str
         Unit of s_k (``"rad"`` or ``"m"``).
     description : str
         One line for a person, saying the positive sense.
+    direction : list of sympy expressions (m,) or None
+        b_k(q), generalized force per unit of u_k [N or N m per unit of u_k, per unit of
+        q]; None: ds_k/dq.
+    law : sympy expression or None
+        f_k(q, qd, t) in the coordinates, velocities, the time ``t`` [s] and the
+        parameters; None: 1.
+    magnitude : float
+        Default magnitude when the case's ``loads`` section does not name the load.
+    window : (float, float)
+        Default window of s_k (see :class:`csim.loads.LoadLaw`).
+    velocity : {"any", "positive", "negative"}
+        Default sign condition on ds_k/dt.
     """
 
     name: str
@@ -75,6 +96,22 @@ class Load:
     unit: str
     coordinate_unit: str
     description: str
+    direction: list | None = None
+    law: sp.Expr | None = None
+    magnitude: float = 0.0
+    window: tuple[float, float] = (float("-inf"), float("inf"))
+    velocity: str = "any"
+
+
+#: the symbol of time in load laws [s]
+TIME = "t"
+
+
+def time_symbol() -> sp.Symbol:
+    """The time t [s] as it appears in load laws (real)."""
+    import sympy as sp
+
+    return sp.Symbol(TIME, real=True)
 
 
 @dataclass(frozen=True)

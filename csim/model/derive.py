@@ -11,7 +11,10 @@ with every term derived here from T(q, qd), V(q), Phi(q) and the load coordinate
     h      = dV/dq
     Phi_q  = dPhi/dq
     gamma  = -(d(Phi_q qd)/dq) qd                 (Phi_q qdd = gamma on the manifold)
-    B      = [ds_1/dq, ..., ds_k/dq]              (Q = B u, virtual work of the loads)
+    S      = [ds_1/dq, ..., ds_k/dq]              (ds/dt = S^T qd, watched by the switching laws)
+    B      = [b_1, ..., b_k],  b_k = ds_k/dq unless the load gives its direction
+                                                  (Q = B u, virtual power of the loads)
+    f      = [f_1(q, qd, t), ..., f_k]            (load laws; u_k = magnitude * active * f_k)
 """
 from __future__ import annotations
 
@@ -29,7 +32,8 @@ class DerivedModel:
 
     Shapes: ``mass`` (m, m), ``velocity_terms`` (m, 1), ``gravity`` (m, 1),
     ``phi`` (r, 1), ``phi_q`` (r, m), ``gamma`` (r, 1), ``load_matrix`` (m, k),
-    ``load_coordinates`` (k, 1), ``observables`` (o, 1), ``observable_jacobian`` (o, m),
+    ``load_coordinates`` (k, 1), ``load_jacobian`` (m, k) = ds/dq^T, ``load_law`` (k, 1)
+    (of q, qd and the time t), ``observables`` (o, 1), ``observable_jacobian`` (o, m),
     ``points`` (d P, 1) as x0, y0, x1, y1, ... (d = ``point_dim``: 2, or 3 for a spatial
     drawing, with z0, z1, ... between)
     """
@@ -43,6 +47,8 @@ class DerivedModel:
     gamma: sp.Matrix
     load_coordinates: sp.Matrix
     load_matrix: sp.Matrix
+    load_jacobian: sp.Matrix
+    load_law: sp.Matrix
     kinetic_energy: sp.Expr
     potential_energy: sp.Expr
     observables: sp.Matrix
@@ -88,16 +94,10 @@ def derive(definition: MechanismDefinition) -> DerivedModel:
     # h = dV/dq
     h = sp.Matrix([V]).jacobian(q).T.applyfunc(_simplify)
     # Phi_q = dPhi/dq;  gamma = -(d(Phi_q qd)/dq) qd
-    Phi = sp.Matrix(definition.constraints)
+    Phi = sp.Matrix(definition.constraints) if definition.constraints else sp.zeros(0, 1)  # a tree: no constraints
     Phi_q = Phi.jacobian(q)
     gamma = (-(Phi_q * qd).jacobian(q) * qd).applyfunc(_simplify)
-    # B = ds/dq^T
-    if definition.loads:
-        s = sp.Matrix([load.coordinate for load in definition.loads])
-        B = s.jacobian(q).T
-    else:
-        s = sp.zeros(0, 1)
-        B = sp.zeros(len(q), 0)
+    s, S, B, f = _loads(definition, q)
     if definition.observables:
         obs = sp.Matrix([o.expression for o in definition.observables])
         obs_q = obs.jacobian(q)
@@ -121,6 +121,8 @@ def derive(definition: MechanismDefinition) -> DerivedModel:
         gamma=gamma,
         load_coordinates=s,
         load_matrix=B,
+        load_jacobian=S,
+        load_law=f,
         kinetic_energy=T,
         potential_energy=V,
         observables=obs,
@@ -128,3 +130,23 @@ def derive(definition: MechanismDefinition) -> DerivedModel:
         points=sp.Matrix(pts) if pts else sp.zeros(0, 1),
         point_dim=dims.pop(),
     )
+
+
+def _loads(definition: MechanismDefinition, q: sp.Matrix) -> tuple[sp.Matrix, sp.Matrix, sp.Matrix, sp.Matrix]:
+    """Load coordinates s (k, 1), S = ds/dq^T (m, k), directions B (m, k), laws f (k, 1)."""
+    loads = definition.loads
+    if not loads:
+        return sp.zeros(0, 1), sp.zeros(len(q), 0), sp.zeros(len(q), 0), sp.zeros(0, 1)
+    s = sp.Matrix([load.coordinate for load in loads])
+    # S = ds/dq^T: the rates the switching laws watch, ds/dt = S^T qd
+    S = s.jacobian(q).T
+    # B: b_k = ds_k/dq, or the load's own direction (virtual power u_k b_k . qd)
+    columns = [S[:, k] if load.direction is None else sp.Matrix(list(load.direction)) for k, load in enumerate(loads)]
+    for load, column in zip(loads, columns):
+        if column.shape != (len(q), 1):
+            raise ValueError(f"{definition.name}: load {load.name!r} has a direction of {column.shape[0]} entries; "
+                             f"expected one per coordinate ({len(q)})")
+    B = sp.Matrix.hstack(*columns)
+    # f: u_k = magnitude * active * f_k(q, qd, t)
+    f = sp.Matrix([sp.Integer(1) if load.law is None else sp.sympify(load.law) for load in loads])
+    return s, S, B, f

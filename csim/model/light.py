@@ -30,12 +30,20 @@ MODEL_SOURCES = ("definition.py", "derive.py", "codegen.py", "cache.py", "light.
 
 @dataclass(frozen=True)
 class LoadInfo:
-    """A load's name and units (its coordinate s_k(q) is on the full definition)."""
+    """A load's name, units and default law (its coordinate s_k(q) is on the full definition).
+
+    A registered mechanism's loads are switched constants (``law`` None) of magnitude 0
+    unless the case names them.
+    """
 
     name: str
     unit: str
     coordinate_unit: str
     description: str
+    law: None = None
+    magnitude: float = 0.0
+    window: tuple[float, float] = (float("-inf"), float("inf"))
+    velocity: str = "any"
 
 
 @dataclass(frozen=True)

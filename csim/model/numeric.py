@@ -20,7 +20,8 @@ class NumericModel:
     ``mass(q, par)`` (m, m); ``velocity_terms(q, qd, par)`` (m,) = C qd;
     ``gravity(q, par)`` (m,) = h; ``phi(q, par)`` (r,); ``phi_q(q, par)`` (r, m);
     ``gamma(q, qd, par)`` (r,); ``load_coordinates(q, par)`` (k,);
-    ``load_matrix(q, par)`` (m, k) = B; ``kinetic_energy``, ``potential_energy`` floats [J];
+    ``load_matrix(q, par)`` (m, k) = B; ``load_jacobian(q, par)`` (m, k) = ds/dq^T;
+    ``load_law(q, qd, t, par)`` (k,) the laws f(q, qd, t) (t [s]); ``kinetic_energy``, ``potential_energy`` floats [J];
     ``observables(q, par)`` (o,); ``observable_jacobian(q, par)`` (o, m);
     ``points(q, par)`` (P, 2), or (P, 3) for a spatial drawing [m].
     """
@@ -35,6 +36,8 @@ class NumericModel:
     gamma: Callable
     load_coordinates: Callable
     load_matrix: Callable
+    load_jacobian: Callable
+    load_law: Callable
     kinetic_energy: Callable
     potential_energy: Callable
     observables: Callable

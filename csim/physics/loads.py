@@ -9,8 +9,8 @@ A load set with n_sw switching functions is packed (by :class:`csim.loads.LoadSe
 ``sw_value`` (n_sw,) float
     lo or hi (0 for the velocity conditions).
 
-Each function is positive where its condition holds; load k takes its magnitude while
-every condition of load k holds (the *mode*), and 0 otherwise.
+Each function is positive where its condition holds; load k takes its magnitude times its
+law f_k(q, qd, t) while every condition of load k holds (the *mode*), and 0 otherwise.
 """
 from __future__ import annotations
 
@@ -53,10 +53,13 @@ def mode_of(g, mode):
 
 
 @inline_kernel
-def load_values(magnitudes, mode, sw_load, u):
-    """u (k,): each load's magnitude while all its conditions hold in ``mode`` (n_sw,) bool, else 0."""
+def load_values(magnitudes, mode, sw_load, law, u):
+    """u (k,): magnitude * law while all the load's conditions hold in ``mode`` (n_sw,) bool, else 0.
+
+    ``law`` (k,) is the value of each load's law f_k(q, qd, t) (1 for a switched constant).
+    """
     for kk in range(u.size):
-        u[kk] = magnitudes[kk]
+        u[kk] = magnitudes[kk] * law[kk]
     for j in range(mode.size):
         if not mode[j]:
             u[sw_load[j]] = 0.0

@@ -36,18 +36,15 @@ def failure_message(code: int, a: float, b: float, settings, method=None, switch
     settings : csim.solver.settings.IntegrationSettings
         The run's settings (limits are quoted by their case-file keys).
     method : object, optional
-        The stabilization method (the projection's messages quote its tolerance).
+        The stabilization method (the projection's messages quote its tolerance; a
+        divergence names a gain times a fixed step beyond the integrator's stability region,
+        :func:`csim.solver.stability.stability_cause`).
     switches : sequence of str, optional
         Labels of the switching functions involved (CHATTER names them).
     """
     s = settings
-    if code == NONFINITE_RHS:
-        return f"blow-up: non-finite right-hand side at t = {a:.6g} s (max |y| = {b:.3g})"
-    if code == NONFINITE_STATE:
-        return f"blow-up: non-finite state at t = {a:.6g} s"
-    if code == MAX_PHI:
-        return (f"constraint violation: max |Phi| = {a:.3g} at t = {b:.6g} s exceeds simulation.max_phi = "
-                f"{s.max_phi:g}; the joints have drifted apart (stabilize, or tighten the tolerances)")
+    if code in (NONFINITE_RHS, NONFINITE_STATE, MAX_PHI):
+        return _divergence(code, a, b, s, method)
     if code == STEP_COLLAPSE:
         return (f"step-size collapse: an accepted step of {a:.3g} s at t = {b:.6g} s is below simulation.min_step "
                 f"= {s.min_step:g} s (a singular configuration, or stiffness beyond this integrator)")
@@ -93,3 +90,23 @@ def _chatter_message(t: float, span: float, settings, switches) -> str:
             f"force: it stalls), which event location cannot step through. Change the load law or its "
             f"magnitude, or run the fixed-step RK4 with simulation.events: false, which averages over the "
             f"switching (to O(h))")
+
+
+def _divergence(code: int, a: float, b: float, settings, method) -> str:
+    """A blow-up or torn-apart joints, and the likely cause: a stabilizer gain times a fixed
+    step beyond the integrator's stability region, else drift."""
+    from csim.solver.stability import stability_cause
+
+    unstable = stability_cause(method, settings)
+    if code == NONFINITE_RHS:
+        text = f"blow-up: non-finite right-hand side at t = {a:.6g} s (max |y| = {b:.3g})"
+    elif code == NONFINITE_STATE:
+        text = f"blow-up: non-finite state at t = {a:.6g} s"
+    else:
+        text = (f"constraint violation: max |Phi| = {a:.3g} at t = {b:.6g} s exceeds simulation.max_phi = "
+                f"{settings.max_phi:g}; the joints have drifted apart")
+        if unstable is None:
+            return text + " (stabilize, or tighten the tolerances)"
+    if unstable is None:
+        return text
+    return f"{text}: {unstable}, so the stabilizer drives the constraint error up (lower simulation.step)"

@@ -31,3 +31,34 @@ def switch(kind, s, width):
     if kind == ATAN:
         return 2.0 / math.pi * math.atan(width * s)
     return s / math.sqrt(s * s + width * width)
+
+
+def slope_at_zero(name: str, width: float | None) -> float:
+    """d sw / ds at s = 0 of the switching function ``name`` with its ``width``.
+
+    Parameters
+    ----------
+    name : {"sgn", "sat", "tanh", "atan", "sqrt"}
+    width : float or None
+        eps for sat and sqrt [unit of s], c for tanh and atan [1 / unit of s].
+
+    Returns
+    -------
+    float
+        1/eps for sat and sqrt, c for tanh, 2 c / pi for atan; inf for sgn (a jump: no
+        linear region around s = 0).
+    """
+    if name == "sgn":
+        return math.inf
+    if name in ("sat", "sqrt"):
+        return 1.0 / width
+    if name == "tanh":
+        return float(width)
+    if name == "atan":
+        return 2.0 * float(width) / math.pi
+    raise ValueError(f"unknown switching function {name!r}; valid names: {', '.join(SWITCHING_NAMES)}")
+
+
+#: name -> k sw'(0) written with the case-file keys, after "stabilization.k" (sgn: none)
+SLOPE_KEYS = {"sgn": None, "sat": "/ stabilization.eps", "tanh": "* stabilization.c",
+              "atan": "* 2 stabilization.c / pi", "sqrt": "/ stabilization.eps"}

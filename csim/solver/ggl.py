@@ -62,7 +62,7 @@ class GGLSystem(ConstrainedSystem):
     def start(self, y_full: np.ndarray) -> np.ndarray:
         """Consistent DAE state at t = 0 from a full state [q, qd, W]; see :meth:`_consistent`."""
         y_full = np.asarray(y_full, dtype=float)
-        return self._consistent(y_full, self.mode_at(y_full))
+        return self._consistent(0.0, y_full, self.mode_at(y_full))
 
     def restart(self, t: float, x: np.ndarray, mode: np.ndarray) -> np.ndarray:
         """Consistent DAE state at a switching event, with the multipliers of the new ``mode``.
@@ -70,13 +70,13 @@ class GGLSystem(ConstrainedSystem):
         A load that jumps changes lambda at once; restarting with the old mode's lambda
         would hand Radau an inconsistent algebraic variable.
         """
-        return self._consistent(self.to_full(x), mode)
+        return self._consistent(t, self.to_full(x), mode)
 
-    def _consistent(self, y_full: np.ndarray, mode: np.ndarray) -> np.ndarray:
+    def _consistent(self, t: float, y_full: np.ndarray, mode: np.ndarray) -> np.ndarray:
         """(q, v) projected onto the manifold (mass metric), mu = 0, lambda from the KKT system."""
         q, qd, W = self.split(y_full)
         q, v = self._projection.project(self.model, self.par, q, qd)
-        _, lam, *_ = self._solve(q, v, self.loads.values(mode))
+        _, lam, *_ = self._solve(q, v, self.load_values(t, q, v, mode))
         return np.concatenate((q, v, W, np.zeros(self.r), lam))
 
     def rhs(self, t: float, x: np.ndarray, mode: np.ndarray) -> np.ndarray:
@@ -84,7 +84,7 @@ class GGLSystem(ConstrainedSystem):
         model, par, m, k, r = self.model, self.par, self.m, self.k, self.r
         q, v = x[:m], x[m:2 * m]
         mu, lam = x[2 * m + k:2 * m + k + r], x[2 * m + k + r:]
-        u = self.loads.values(mode)
+        u = self.load_values(t, q, v, mode)
         M = model.mass(q, par)
         phi_q = model.phi_q(q, par)
         B = model.load_matrix(q, par)

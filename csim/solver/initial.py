@@ -90,7 +90,7 @@ def consistent_initial_state(model: NumericModel, par: np.ndarray, independent: 
             f"(residuals {per_eq}; last q = {_fmt(names, exc.q)}); the mechanism may not "
             f"assemble at the given independent coordinates, or initial.guess is poor") from None
     q, phi_q = solution.q, solution.phi_q
-    if np.linalg.cond(phi_q[:, v]) > MAX_CONDITION:
+    if v.size and np.linalg.cond(phi_q[:, v]) > MAX_CONDITION:  # a tree has no dependent coordinates
         raise singular(q)
     qd = np.zeros(m)
     for name, value in velocities.items():

@@ -173,7 +173,7 @@ class PartitionedSystem(ConstrainedSystem):
     def rhs(self, t: float, y: np.ndarray, mode: np.ndarray) -> np.ndarray:
         """dy/dt = [ud, udd, dW/dt] (2 n + k,)."""
         q, qd, _ = self.split(self.to_full(y))
-        loads = self.loads.values(mode)
+        loads = self.load_values(t, q, qd, mode)
         qdd, _, _, _, _, B = self._solve(q, qd, loads)
         return np.concatenate((qd[self.independent], qdd[self.independent], loads * (B.T @ qd)))
 

@@ -209,7 +209,7 @@ def _check_step(system: ConstrainedSystem, solver, settings: IntegrationSettings
     code = check_step(y, max_phi, solver.t - solver.t_old, solver.t, solver.t_bound, adaptive, settings.max_phi,
                       settings.min_step, info)
     if code != st.OK:
-        raise SimulationFailure(st.failure_message(code, info[0], info[1], settings))
+        raise SimulationFailure(st.failure_message(code, info[0], info[1], settings, system.stabilizer))
 
 
 def _check_chatter(events_t: list, events_sw: list, labels: list, settings: IntegrationSettings) -> None:

@@ -6,7 +6,9 @@ T + V - (T0 + V0) = sum W_k can be checked to the integrator's accuracy).
 
     dq/dt = qd
     dqd/dt = qdd  from  M qdd + Phi_q^T lambda = B u - C qd - h,  Phi_q qdd = gamma*
-    dW_k/dt = u_k ds_k/dt,   ds/dt = B^T qd
+    dW_k/dt = u_k (B^T qd)_k       (the power of load k; B^T qd = ds/dt unless it has a direction)
+
+with u = magnitude * active * f(q, qd, t) (:meth:`csim.loads.LoadSet.values`).
 """
 from __future__ import annotations
 
@@ -136,10 +138,14 @@ class ConstrainedSystem:
         """Switching functions of the load laws at state y (n_switches,)."""
         q, qd, _ = self.split(self.to_full(y))
         s = self.model.load_coordinates(q, self.par)
-        return self.loads.switching(s, self._load_rates(self.model.load_matrix(q, self.par), qd))
+        return self.loads.switching(s, self._load_rates(self.model.load_jacobian(q, self.par), qd))
+
+    def load_values(self, t: float, q: np.ndarray, qd: np.ndarray, mode: np.ndarray) -> np.ndarray:
+        """u (k,) = magnitude * active * f(q, qd, t): the loads at time t [s] in ``mode``."""
+        return self.loads.values(mode, self.model.load_law(q, qd, t, self.par))
 
     def _load_rates(self, B, qd):
-        """ds/dt = B^T qd (k,)."""
+        """B^T qd (k,): ds/dt for B = S, the loads' power per unit value for B their directions."""
         sdot = np.empty(self.k)
         load_rates(as_core(B), as_core(qd), sdot, self.m, self.k)
         return sdot
@@ -164,9 +170,9 @@ class ConstrainedSystem:
     def rhs(self, t: float, y: np.ndarray, mode: np.ndarray) -> np.ndarray:
         """dy/dt (n_state,) with the load laws held in ``mode`` (n_switches,) bool."""
         q, qd, _ = self.split(y)
-        u = self.loads.values(mode)
+        u = self.load_values(t, q, qd, mode)
         qdd, _, _, _, _, B = self._solve(q, qd, u)
-        # dW/dt = u * ds/dt
+        # dW/dt = u * (B^T qd)
         return np.concatenate((qd, qdd, u * self._load_rates(B, qd)))
 
     def rhs_unlocated(self, t: float, y: np.ndarray) -> np.ndarray:
@@ -187,7 +193,7 @@ class ConstrainedSystem:
     def evaluate(self, t: float, y: np.ndarray, mode: np.ndarray) -> Evaluation:
         """All recorded quantities at one instant, from a full state y = [q, qd, W]."""
         q, qd, _ = self.split(y)
-        u = self.loads.values(mode)
+        u = self.load_values(t, q, qd, mode)
         qdd, lam, phi, phi_dot, Q, _ = self._solve(q, qd, u)
         return Evaluation(
             qdd=qdd, lam=lam, phi=phi, phi_dot=phi_dot, u=u, Q=Q,

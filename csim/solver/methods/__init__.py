@@ -59,13 +59,17 @@ def make_stabilizer(name: str, settings: dict | None = None) -> Method:
 
 _TYPES = {float: "number", int: "integer", str: "string", bool: "boolean"}
 
+#: what :func:`~csim.solver.methods.base.positive_gains` accepts, as JSON Schema
+GAIN_JSON = {"anyOf": [{"type": "number", "exclusiveMinimum": 0},
+                       {"type": "array", "items": {"type": "number", "exclusiveMinimum": 0}, "minItems": 1}]}
+
 
 def option_field(method: type[Method], f: dataclasses.Field) -> Field:
     """The case-schema field of one method setting (``stabilization.<name>``)."""
     meta = f.metadata
     doc = f"{method.name}: {meta['doc']}"
     if meta["gain"]:
-        return Field("any", f.default, doc, meta["unit"], check=positive_gains)
+        return Field("any", f.default, doc, meta["unit"], check=positive_gains, json=GAIN_JSON)
     return Field(_TYPES[type(f.default)], f.default, doc, meta["unit"], choices=meta["choices"], gt=meta["gt"],
                  ge=meta["ge"], le=meta["le"])
 

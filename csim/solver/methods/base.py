@@ -25,12 +25,12 @@ subclass it finds (:func:`register` takes one defined elsewhere, e.g. in a test)
 from __future__ import annotations
 
 import dataclasses
-import math
 from typing import Any, ClassVar
 
 import numpy as np
 
 from csim.physics.linalg import as_core
+from csim.schema import finite_number
 
 
 def option(default: Any, doc: str, unit: str = "", *, gain: bool = False, gt: float | None = None,
@@ -54,6 +54,39 @@ def option(default: Any, doc: str, unit: str = "", *, gain: bool = False, gt: fl
     """
     meta = dict(doc=doc, unit=unit, gain=gain, gt=gt, ge=ge, le=le, choices=choices)
     return dataclasses.field(default=default, metadata=meta)
+
+
+@dataclasses.dataclass(frozen=True)
+class ErrorMode:
+    """One mode of the constraint-error dynamics a method imposes, linearised at Phi = 0.
+
+    The eigenvalue is ``lambda = gain * shape`` [1/s]; an explicit fixed step h is stable
+    for the mode when h lambda lies in the integrator's stability region
+    (:mod:`csim.solver.stability`).
+
+    Attributes
+    ----------
+    keys : str
+        The gain as the case-file keys that make it, e.g. ``"stabilization.w"``.
+    gain : float
+        Its value [1/s].
+    shape : complex
+        lambda / gain, e.g. -1 for Baumgarte with d = 1.
+    note : str
+        What else fixes ``shape`` (``"d = 1"``), or "".
+    constraint : int or None
+        The constraint (0-based) of a gain given one per constraint; None for one gain.
+    saturates : str
+        What happens beyond the region when a nonlinearity bounds the growth (a smooth
+        switching function saturates); "" when the error grows without bound.
+    """
+
+    keys: str
+    gain: float
+    shape: complex
+    note: str = ""
+    constraint: int | None = None
+    saturates: str = ""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -109,6 +142,10 @@ class Method:
         """Scalar settings the core functions read: (floats, integers)."""
         return [], []
 
+    def error_modes(self) -> list[ErrorMode]:
+        """The modes of the constraint-error dynamics the method imposes (none: it imposes none)."""
+        return []
+
     def pack(self, r: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(gains (G * r,), fpar (F,), ipar (I,)): the method as arrays, for ``r`` constraints.
 
@@ -140,9 +177,24 @@ class Method:
         return list(dataclasses.fields(cls.Options))
 
 
+def per_constraint(*gains) -> list[tuple[int | None, tuple[float, ...]]]:
+    """The gains of each constraint, ``[(i, (g1, g2, ...)), ...]``, once per distinct tuple.
+
+    ``i`` is None when every gain is one number (the same on every constraint).
+    """
+    arrays = [np.atleast_1d(np.asarray(g, dtype=float)) for g in gains]
+    if all(a.size == 1 for a in arrays):
+        return [(None, tuple(float(a[0]) for a in arrays))]
+    r = max(a.size for a in arrays)
+    rows = np.stack([np.broadcast_to(a, (r,)) for a in arrays], axis=1)
+    seen: dict[tuple, int] = {}
+    for i, row in enumerate(rows):
+        seen.setdefault(tuple(float(v) for v in row), i)
+    return [(i, values) for values, i in seen.items()]
+
+
 def positive_gains(value) -> str | None:
     """None if ``value`` is a positive number or a non-empty list of them, else what was expected."""
     values = value if isinstance(value, list) else [value]
-    ok = bool(values) and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0
-                              for v in values)
+    ok = bool(values) and all(finite_number(v) and v > 0 for v in values)
     return None if ok else "a positive number, or a list of positive numbers (one per constraint)"

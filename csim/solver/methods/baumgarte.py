@@ -4,12 +4,13 @@
 """
 from __future__ import annotations
 
+import cmath
 import dataclasses
 
 import numpy as np
 
 from csim.physics.jit import kernel
-from csim.solver.methods.base import Method, _gain_array, option
+from csim.solver.methods.base import ErrorMode, Method, _gain_array, option, per_constraint
 
 
 @kernel
@@ -23,8 +24,9 @@ def baumgarte_gamma_star(r, gamma, phi, phi_dot, gains, fpar, ipar, out):
 @dataclasses.dataclass(frozen=True)
 class BaumgarteOptions:
     d: object = option(1.0, "damping ratio (1 = critical, fastest decay without overshoot)", gain=True)
-    w: object = option(10.0, "natural frequency; Phi decays like exp(-d w t). Well above 1/t_end, and w h << 2.8 "
-                       "for explicit steps h", "1/s", gain=True)
+    w: object = option(10.0, "natural frequency; Phi decays like exp(-d w t). Well above 1/t_end; with RK4, w h "
+                       "below 2.5 (its stability bound is w h = 2.785 for d = 1, and csim warns beyond 0.9 of it)",
+                       "1/s", gain=True)
 
 
 class Baumgarte(Method):
@@ -50,3 +52,11 @@ class Baumgarte(Method):
 
     def gains(self, r):
         return [_gain_array(self.d, r), _gain_array(self.w, r)]
+
+    def error_modes(self):
+        """lambda^2 + 2 d w lambda + w^2 = 0: lambda = w (-d +- sqrt(d^2 - 1)) per constraint."""
+        modes = []
+        for i, (d, w) in per_constraint(self.d, self.w):
+            shapes = dict.fromkeys((-d + cmath.sqrt(d * d - 1.0), -d - cmath.sqrt(d * d - 1.0)))
+            modes += [ErrorMode("stabilization.w", w, shape, f"d = {d:g}", i) for shape in shapes]
+        return modes

@@ -13,8 +13,8 @@ import dataclasses
 import numpy as np
 
 from csim.physics.jit import kernel
-from csim.physics.switching import SWITCHING_NAMES, switch
-from csim.solver.methods.base import Method, _gain_array, option
+from csim.physics.switching import SLOPE_KEYS, SWITCHING_NAMES, slope_at_zero, switch
+from csim.solver.methods.base import ErrorMode, Method, _gain_array, option, per_constraint
 
 
 @kernel
@@ -86,3 +86,17 @@ class SlidingMode(Method):
     def parameters(self):
         code = list(SWITCHING_NAMES).index(self.switching)
         return [1.0 if self.width is None else float(self.width)], [code]
+
+    def error_modes(self):
+        """Near s = 0: Phi' = s - Lambda Phi and s' = -(K + k sw'(0)) s, so lambda = -Lambda and
+        -(K + k sw'(0)) per constraint; once sw has saturated (sgn: always), s' = -K s -+ k, rate -K."""
+        slope = slope_at_zero(self.switching, self.width)
+        modes = []
+        for i, (lam, K, k) in per_constraint(self.Lambda, self.K, self.k):
+            modes += [ErrorMode("stabilization.Lambda", lam, -1.0, "", i), ErrorMode("stabilization.K", K, -1.0, "", i)]
+            if slope < np.inf and k > 0:  # sw saturates at +-1: beyond the region s chatters, it does not grow
+                modes.append(ErrorMode(f"(stabilization.K + stabilization.k {SLOPE_KEYS[self.switching]})",
+                                       K + k * slope, -1.0, f"switching {self.switching}", i,
+                                       saturates=f"s chatters in a band about k h wide instead of settling "
+                                                 f"(as with sgn), since {self.switching} saturates"))
+        return modes

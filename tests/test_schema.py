@@ -1,0 +1,171 @@
+"""The declarative schema and its JSON Schema (``csim schema``), checked by an independent
+validator (jsonschema): every shipped case file passes, invalid ones fail, and the enums
+are the registries."""
+from __future__ import annotations
+
+import json
+
+import jsonschema
+import pytest
+import yaml
+from conftest import CONFIGS, invoke
+
+from csim.case import SCHEMA, CaseLoader, json_schema, validate_case
+from csim.linkage.joints import JOINT_TYPES
+from csim.linkage.json_schema import link_row
+from csim.linkage.tables import LINK_KEYS
+from csim.mechanisms import MECHANISMS
+from csim.physics.switching import SWITCHING_NAMES
+from csim.schema import REQUIRED, Field, Section, field_json_schema, field_paths, section_json_schema
+from csim.solver.formulations import FORMULATIONS
+from csim.solver.integrators import INTEGRATORS
+from csim.solver.methods import STABILIZERS
+
+
+@pytest.fixture(scope="module")
+def validator():
+    schema = json_schema()
+    jsonschema.Draft202012Validator.check_schema(schema)
+    return jsonschema.Draft202012Validator(schema)
+
+
+def read(path) -> dict:
+    return yaml.load(path.read_text(), Loader=CaseLoader)
+
+
+def errors(validator, document) -> list[str]:
+    return [f"{'.'.join(map(str, e.absolute_path))}: {e.message}" for e in validator.iter_errors(document)]
+
+
+@pytest.mark.parametrize("path", sorted(CONFIGS.glob("*.yaml")), ids=lambda p: p.name)
+def test_every_shipped_case_file_is_valid(validator, path):
+    assert errors(validator, read(path)) == []
+
+
+def test_a_minimal_case_and_empty_sections_are_valid(validator):
+    assert errors(validator, {"mechanism": {"name": "pendulum"}}) == []
+    assert errors(validator, {"mechanism": {"name": "pendulum"}, "simulation": None, "loads": None}) == []
+
+
+def pendulum(**sections) -> dict:
+    return {"mechanism": {"name": "pendulum"}, **sections}
+
+
+INVALID = {
+    "no mechanism": {"simulation": {"t_end": 1.0}},
+    "neither name nor tables": {"mechanism": {"parameters": {"m": 1.0}}},
+    "unknown mechanism": {"mechanism": {"name": "pendulun"}},
+    "unknown section": pendulum(simulaton={"t_end": 1.0}),
+    "unknown key": pendulum(simulation={"t_end": 1.0, "tend": 2.0}),
+    "wrong type": pendulum(simulation={"t_end": "long"}),
+    "t_end 0": pendulum(simulation={"t_end": 0}),
+    "rtol above 1": pendulum(simulation={"rtol": 2.0}),
+    "integrator case": pendulum(simulation={"integrator": "rk4"}),
+    "max_events 0": pendulum(simulation={"max_events": 0}),
+    "max_steps 1.5": pendulum(simulation={"max_steps": 1.5}),
+    "events a string": pendulum(simulation={"events": "yes"}),
+    "method": pendulum(stabilization={"method": "baumgarte_"}),
+    "negative gain": pendulum(stabilization={"w": -1.0}),
+    "empty gain list": pendulum(stabilization={"K": []}),
+    "gain list entry": pendulum(stabilization={"K": [1.0, 0.0]}),
+    "switching": pendulum(stabilization={"switching": "sign"}),
+    "eps 0": pendulum(stabilization={"eps": 0.0}),
+    "parameter of another mechanism": pendulum(mechanism={"name": "pendulum", "parameters": {"l1": 1.0}}),
+    "negative mass": {"mechanism": {"name": "pendulum", "parameters": {"m": -1.0}}},
+    "coordinate of another mechanism": pendulum(initial={"q": {"q1": 0.1}}),
+    "velocity not a number": pendulum(initial={"qd": {"x": "fast"}}),
+    "load of another mechanism": pendulum(loads={"torque": 1.0}),
+    "load law key": {"mechanism": {"name": "quick_return"}, "loads": {"torque": {"magnitude": 1, "size": 2}}},
+    "load law without magnitude": {"mechanism": {"name": "quick_return"}, "loads": {"torque": {"velocity": "any"}}},
+    "velocity condition": {"mechanism": {"name": "quick_return"},
+                           "loads": {"torque": {"magnitude": 1, "velocity": "up"}}},
+    "link row key": {"mechanism": {"links": [{"link": 0, "joints": ["R"], "weight": 1}], "couplings": [[0, 1, 1, 1]]}},
+    "joint type": {"mechanism": {"links": [{"link": 0, "joints": ["X"]}], "couplings": [[0, 1, 1, 1]]}},
+    "coupling row": {"mechanism": {"links": [{"link": 0, "joints": ["R"]}], "couplings": [[0, 1, 1]]}},
+    "gravity length": {"mechanism": {"links": [{"joints": ["R"]}], "couplings": [[0, 1, 1, 1]], "gravity": [0, 1]}},
+    "backend": pendulum(simulation={"backend": "numba"}),
+    "output dt": pendulum(output={"dt": -0.1}),
+}
+
+
+@pytest.mark.parametrize("name", list(INVALID))
+def test_invalid_cases_are_rejected_by_the_schema_and_by_csim(validator, name):
+    document = INVALID[name]
+    assert errors(validator, document), name
+    from csim.errors import CaseError
+
+    with pytest.raises(CaseError):
+        validate_case(json.loads(json.dumps(document)))
+
+
+def enum_of(schema: dict) -> list:
+    if "enum" in schema:
+        return schema["enum"]
+    return next(s["enum"] for s in schema["anyOf"] if "enum" in s)
+
+
+def test_enums_are_the_registries():
+    props = json_schema()["properties"]
+    assert enum_of(props["mechanism"]["properties"]["name"]) == sorted(MECHANISMS)
+    assert enum_of(props["simulation"]["properties"]["integrator"]) == list(INTEGRATORS)
+    assert enum_of(props["stabilization"]["properties"]["method"]) == list(STABILIZERS)
+    assert enum_of(props["stabilization"]["properties"]["switching"]) == list(SWITCHING_NAMES)
+    assert enum_of(props["formulation"]["properties"]["method"]) == list(FORMULATIONS)
+    row = props["mechanism"]["properties"]["links"]["items"]
+    frame = row["properties"]["joints"]["items"]["anyOf"][0]
+    assert frame["enum"] == list(JOINT_TYPES)
+    assert list(link_row()["properties"]) == list(LINK_KEYS)
+    assert [s["if"]["properties"]["mechanism"]["properties"]["name"]["const"] for s in json_schema()["allOf"]] \
+        == sorted(MECHANISMS)
+
+
+def test_every_key_has_a_description_and_the_validated_default():
+    schema = json_schema()
+    defaults = validate_case({"mechanism": {"name": "pendulum"}}).data
+    for path, spec in field_paths(SCHEMA).items():
+        node = schema
+        for key in path.split("."):
+            node = node["properties"][key]
+        assert node.get("description"), path
+        section, key = path.rsplit(".", 1) if "." in path else ("", path)
+        if spec.default is REQUIRED or section in ("mechanism", "initial") or path == "loads":
+            continue  # filled from the mechanism, not the schema
+        value = defaults
+        for k in path.split("."):
+            value = value[k]
+        assert node["default"] == value, path
+
+
+def test_units_go_into_the_descriptions():
+    props = json_schema()["properties"]
+    assert props["simulation"]["properties"]["t_end"]["description"] == "end time [s]"
+    pendulum_then = json_schema()["allOf"][1]["then"]["properties"]
+    assert pendulum_then["mechanism"]["properties"]["parameters"]["properties"]["L"]["description"] == "rod length [m]"
+    assert pendulum_then["initial"]["properties"]["qd"]["properties"]["x"]["description"] == "velocity of x [m/s]"
+
+
+def test_field_conversion_of_bounds_choices_and_null():
+    spec = Field("number", 1.0, "a gain", "1/s", gt=0.0, le=5.0, nullable=True)
+    assert field_json_schema(spec) == {"type": ["number", "null"], "exclusiveMinimum": 0.0, "maximum": 5.0,
+                                       "description": "a gain [1/s]", "default": 1.0}
+    choice = field_json_schema(Field("string", None, "pick", choices=("a", "b"), nullable=True))
+    assert choice == {"anyOf": [{"type": "string", "enum": ["a", "b"]}, {"type": "null"}], "description": "pick",
+                      "default": None}
+    section = section_json_schema(Section({"x": Field("integer", REQUIRED, ge=1)}))
+    assert section["required"] == ["x"] and section["additionalProperties"] is False
+
+
+def test_csim_schema_prints_or_writes_the_schema(tmp_path):
+    result = invoke("schema")
+    assert result.exit_code == 0, result.output
+    assert json.loads(result.output) == json.loads(json.dumps(json_schema()))
+    out = tmp_path / "sub" / "csim-case.schema.json"
+    result = invoke("schema", "-o", out)
+    assert result.exit_code == 0, result.output
+    assert json.loads(out.read_text()) == json.loads(json.dumps(json_schema()))
+
+
+def test_csim_schema_to_an_unwritable_place_exits_2(tmp_path):
+    (tmp_path / "file").write_text("")
+    result = invoke("schema", "-o", tmp_path / "file" / "schema.json")
+    assert result.exit_code == 2 and "--output" in result.output and "Traceback" not in result.output
