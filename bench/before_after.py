@@ -74,7 +74,7 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--before", type=Path, required=True, help="source tree of the version to compare with")
     parser.add_argument("--after", type=Path, default=AFTER, help="source tree of this version (default: here)")
-    parser.add_argument("--config", default="fourbar.yaml", help="the new mechanism of (a)")
+    parser.add_argument("--config", default="fourbar_gravity.yaml", help="the new mechanism of (a)")
     parser.add_argument("--mechanism", default="fourbar", help="its name in the cache's file names")
     parser.add_argument("--repeat", type=int, default=2, help="first runs per tree in (a)")
     args = parser.parse_args(argv)
@@ -93,8 +93,8 @@ def main(argv=None):
         again = {name: csim_run(tree, caches[name], args.config, out) for name, tree in trees.items()}
         rhs = {name: probe(tree, caches[name], "rhs") for name, tree in trees.items()}
         target = {name: probe(tree, caches[name], "target") for name, tree in trees.items()}
-    print(f"\n{'':<52}{'before':>12}{'after':>12}")
-    row = lambda label, b, a: print(f"{label:<52}{b:>12}{a:>12}")  # noqa: E731
+    print(f"\n{'':<60}{'before':>14}{'after':>14}")
+    row = lambda label, b, a: print(f"{label:<60}{b:>14}{a:>14}")  # noqa: E731
     row(f"(a) first csim run {args.config}, warm install [s]", *(", ".join(f"{v:.2f}" for v in first[n])
                                                                 for n in trees))
     row("    second run (all cached) [s]", *(f"{again[n]:.2f}" for n in trees))
