@@ -7,6 +7,7 @@ result file is left as it was, and the partial result goes beside it (``OUT.inte
 """
 from __future__ import annotations
 
+import copy
 import functools
 import inspect
 import signal
@@ -491,27 +492,29 @@ def sweep(
     -v simulation.step=log:1e-3:2e-2:30 --set stabilization.method=baumgarte
     --set simulation.integrator=RK4 -o results/map.h5
     """
-    from csim.case import load_case
+    from csim.case import read_case_file, validate_case
     from csim.progress import CountProgress, reporting
     from csim.study import make_plan, parse_variation, run_sweep
 
     out = output or default_output(case, "_sweep")
     try:
-        c = load_case(case, set_ or [])
-        problems = []
+        data = read_case_file(case, set_ or [])
+        c = validate_case(copy.deepcopy(data), source=str(case))
+        problems = _sweep_option_problems(jobs, scheduler, reference, resume, out)
         variations = []
         for text in vary or []:
             try:
                 variations.append(parse_variation(text))
             except CaseError as exc:
                 problems += exc.problems
-        if jobs is not None and jobs < 1:
-            problems.append(f"--jobs: got {jobs}; expected a whole number >= 1")
         if problems:
             raise CaseError(problems)
-        plan = make_plan(c, variations, sampling=sample, samples=samples, seed=seed)
-        if resume and not out.is_file():
-            raise CaseError([f"--resume: no sweep file {out} to resume"])
+        if resume and seed is None and sample != "grid":  # the design is the file's: its seed
+            from csim.io.sweep_file import read_sweep
+
+            seed = int(read_sweep(out).attrs.get("seed", -1))
+            seed = None if seed < 0 else seed
+        plan = make_plan(c, variations, sampling=sample, samples=samples, seed=seed, data=data)
         check_writable(out, protect=[case], suffixes=RESULT_SUFFIXES)
         with reporting(not quiet), CountProgress(len(plan), label=f"sweep of {case.name}") as bar:
             result = run_sweep(plan, out, jobs=jobs, scheduler=scheduler, keep=keep, reference=reference,
@@ -524,6 +527,24 @@ def sweep(
         typer.echo(f"csim: sweep interrupted (Ctrl-C): {result.done} of {len(result.rows)} runs in {out}; "
                    f"add --resume to the same command to run the rest", err=True)
         raise typer.Exit(EXIT_INTERRUPTED)
+    if result.lost:
+        typer.echo(f"csim: sweep incomplete: {result.done} of {len(result.rows)} runs in {out}; {result.lost}, and "
+                   f"its runs are pending; add --resume to the same command to run them", err=True)
+        raise typer.Exit(EXIT_FAILED)
+
+
+def _sweep_option_problems(jobs, scheduler, reference, resume: bool, out: Path) -> list[str]:
+    """Options of csim sweep that contradict one another, or a --resume without its file."""
+    problems = []
+    if jobs is not None and jobs < 1:
+        problems.append(f"--jobs: got {jobs}; expected a whole number >= 1")
+    if jobs is not None and scheduler is not None:
+        problems.append("--jobs: the Dask cluster of --scheduler decides how many runs go at once; give one of them")
+    if resume and reference:
+        problems.append("--reference: --resume goes on with the file's own reference run; leave --reference out")
+    if resume and not out.is_file():
+        problems.append(f"--resume: no sweep file {out} to resume")
+    return problems
 
 
 def sweep_summary(result, out: Path) -> str:

@@ -175,6 +175,10 @@ def test_force_elements_take_the_same_steps_on_both_backends():
     assert compiled.backend == "compiled" and python.nfev == compiled.nfev
     np.testing.assert_allclose(compiled.q, python.q, rtol=0, atol=1e-11)
     np.testing.assert_allclose(compiled.work, python.work, rtol=1e-10, atol=1e-10)
+    # the samples, evaluated in one compiled call, carry each sample's time into the laws
+    np.testing.assert_allclose(compiled.loads[:, 1], 1.5 * np.cos(3 * compiled.t), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(compiled.loads, python.loads, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(compiled.qdd, python.qdd, rtol=0, atol=1e-9)
 
 
 def test_quick_return_as_tables_agrees_with_the_registered_mechanism():

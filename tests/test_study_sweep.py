@@ -147,6 +147,134 @@ def test_curves_of_one_key_draw_the_files_data(tmp_path):
     run_sweep(_plan("stabilization.w=5,20,80", base=(*BASE, "simulation.step=2e-3")), path, jobs=1)
     table = read_sweep(path)
     fig = curves_figure(table)
-    line = next(ln for ln in fig.axes[0].lines if ln.get_gid() == "max_phi")
+    line = next(ln for ln in fig.axes[0].lines if ln.get_gid() == "max_phi|")
     np.testing.assert_array_equal(line.get_xdata(), [5, 20, 80])
     np.testing.assert_array_equal(line.get_ydata(), table.columns["max_phi"])
+
+
+def test_a_new_sweep_does_not_inherit_the_signals_of_a_file_it_replaces(tmp_path):
+    from csim.io.sweep_file import read_signals
+
+    path = tmp_path / "s.h5"
+    run_sweep(_plan("stabilization.w=10,20,30", base=(*BASE, "simulation.step=2e-3")), path, jobs=1, keep=True)
+    assert read_signals(path, 2)
+    run_sweep(_plan("stabilization.w=10,20", base=(*BASE, "simulation.step=2e-3")), path, jobs=1)
+    assert read_signals(path, 0) == {} and read_signals(path, 2) == {}
+
+
+def test_runs_of_a_dead_worker_stay_pending_and_the_command_says_so(tmp_path, monkeypatch):
+    import concurrent.futures as cf
+
+    future = cf.Future()
+    future.set_exception(cf.process.BrokenProcessPool("a child process terminated abruptly"))
+    assert execute._chunk_result(future)[0] == [] and "BrokenProcessPool" in execute._chunk_result(future)[1]
+
+    real = execute.run_local
+
+    def one_worker_dies(work, parts, jobs, deliver):  # the first chunk comes back, the rest is lost
+        flat = [run for part in parts for run in part]
+        deliver(execute.run_chunk(work, flat[:1]))
+        return execute.Outcome(lost="a worker failed (BrokenProcessPool: a child process terminated abruptly)")
+
+    out = tmp_path / "lost.h5"
+    args = ["sweep", str(CONFIGS / "quick_return.yaml"), *sum((["--set", b] for b in BASE), []),
+            "-v", "stabilization.w=20,40,80", "--set", "simulation.step=2e-3", "-o", str(out)]
+    monkeypatch.setattr(execute, "run_local", one_worker_dies)
+    res = CliRunner().invoke(app, args)
+    assert res.exit_code == 1 and "pending" in res.stderr and "BrokenProcessPool" in res.stderr
+    assert read_sweep(out).status.count(PENDING) == 2 and not read_sweep(out).attrs["complete"]
+    monkeypatch.setattr(execute, "run_local", real)
+    res = CliRunner().invoke(app, [*args, "--resume", "-j", "1"])
+    assert res.exit_code == 0, res.output
+    assert PENDING not in read_sweep(out).status
+
+
+def test_a_random_design_resumes_with_the_seed_in_its_file(tmp_path, monkeypatch):
+    out = tmp_path / "r.h5"
+    args = ["sweep", str(CONFIGS / "quick_return.yaml"), *sum((["--set", b] for b in BASE), []),
+            "--set", "simulation.step=2e-3", "-v", "stabilization.w=log:5:50", "--sample", "lhs", "-n", "3",
+            "-j", "1", "-o", str(out)]
+    real, calls = execute.run_chunk, []
+
+    def interrupted_after_one(work, chunk):
+        calls.append(1)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return real(work, chunk)
+
+    monkeypatch.setattr(execute, "run_chunk", interrupted_after_one)
+    assert CliRunner().invoke(app, args).exit_code == 130
+    monkeypatch.setattr(execute, "run_chunk", real)
+    res = CliRunner().invoke(app, [*args, "--resume"])
+    assert res.exit_code == 0, res.output
+    table = read_sweep(out)
+    assert PENDING not in table.status and len(set(table.values["stabilization.w"])) == 3
+
+
+def test_a_sweep_may_vary_the_mechanism(tmp_path):
+    case = tmp_path / "min.yaml"
+    case.write_text("mechanism: {name: pendulum}\nsimulation: {t_end: 0.2}\n")
+    out = tmp_path / "m.h5"
+    res = CliRunner().invoke(app, ["sweep", str(case), "-v", "mechanism.name=pendulum,quick_return", "-j", "1",
+                                   "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    table = read_sweep(out)
+    assert table.status == ["success", "success"] and table.values["mechanism.name"] == ["pendulum", "quick_return"]
+
+
+@pytest.mark.parametrize("extra, words", [
+    (["-r", "output.dt=0.01"], "--reference output.dt=0.01: the reference run keeps the sweep's output times"),
+    (["--seed", "3"], "--seed: only with --sample random"),
+    (["--sample", "random", "-n", "2", "--seed", "-5"], "--seed: got -5"),
+    (["-j", "2", "--scheduler", "tcp://127.0.0.1:1"], "--jobs: the Dask cluster"),
+])
+def test_contradictory_options_exit_2_naming_the_option(tmp_path, extra, words):
+    args = ["sweep", str(CONFIGS / "quick_return.yaml"), "-v", "stabilization.w=lin:1:2:2", *extra,
+            "-o", str(tmp_path / "x.h5")]
+    res = CliRunner().invoke(app, args)
+    assert res.exit_code == 2 and words in res.stderr, res.output
+
+
+def test_an_unreachable_scheduler_is_bad_input(tmp_path):
+    pytest.importorskip("distributed")
+    res = CliRunner().invoke(app, ["sweep", str(CONFIGS / "quick_return.yaml"), "-v", "stabilization.w=1,2",
+                                   "--scheduler", "tcp://127.0.0.1:9", "-o", str(tmp_path / "x.h5")])
+    assert res.exit_code == 2 and "--scheduler tcp://127.0.0.1:9: cannot reach" in res.stderr
+
+
+def test_maps_put_each_run_in_its_cell_on_a_grid_that_is_not_square(tmp_path):
+    from csim.plot.sweep_figures import metric_figure
+
+    path = tmp_path / "g.h5"
+    run_sweep(_plan("stabilization.w=10,20,40", "simulation.step=1e-3,2e-3"), path, jobs=1)
+    table = read_sweep(path)
+    fig = metric_figure(table, "max_phi")
+    mesh = next(c for c in fig.axes[0].collections if c.get_gid() == "max_phi")
+    corners = mesh.get_coordinates()  # (ny + 1, nx + 1, 2): x along the columns, y along the rows
+    assert corners.shape == (3, 4, 2)
+    centres_x = np.sqrt(corners[0, :-1, 0] * corners[0, 1:, 0])  # log-spaced w: geometric centres
+    np.testing.assert_allclose(centres_x, [10, 20, 40])
+    drawn = np.ma.filled(np.ma.asarray(mesh.get_array(), dtype=float), np.nan).reshape(2, 3)
+    for i in range(table.n):
+        col = [10, 20, 40].index(table.values["stabilization.w"][i])
+        row = [1e-3, 2e-3].index(table.values["simulation.step"][i])
+        assert drawn[row, col] == table.columns["max_phi"][i]
+
+
+def test_curves_draw_one_line_per_value_of_the_other_key(tmp_path):
+    from csim.plot.sweep_figures import curves_figure
+
+    path = tmp_path / "c.h5"
+    run_sweep(_plan("stabilization.w=5,20,80", "stabilization.method=baumgarte,none",
+                    base=(*BASE, "simulation.step=2e-3")), path, jobs=1)
+    table = read_sweep(path)
+    lines = {ln.get_gid(): ln for ln in curve_lines(curves_figure(table))}
+    for method in ("baumgarte", "none"):
+        line = lines[f"max_phi|stabilization.method = {method}"]
+        rows = [i for i in range(table.n) if table.values["stabilization.method"][i] == method]
+        np.testing.assert_array_equal(line.get_xdata(), [table.values["stabilization.w"][i] for i in rows])
+        np.testing.assert_array_equal(line.get_ydata(), table.columns["max_phi"][rows])
+
+
+def curve_lines(fig):
+    return [ln for ln in fig.axes[0].lines if ln.get_gid()]

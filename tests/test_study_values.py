@@ -30,6 +30,12 @@ def test_ranges_include_both_ends_exactly():
     np.testing.assert_allclose(np.diff(np.log10(log.values)), 0.25)
 
 
+def test_a_range_of_whole_numbers_gives_integers_for_integer_keys():
+    v = parse_variation("simulation.max_steps=lin:100000:200000:3")
+    assert v.values == (100000, 150000, 200000) and all(isinstance(x, int) for x in v.values)
+    assert all(isinstance(x, float) for x in parse_variation("stabilization.w=lin:1.0:3:3").values)
+
+
 def test_a_range_without_n_is_a_distribution():
     v = parse_variation("simulation.step=log:1e-4:1e-2")
     assert v.values == () and v.bounds == (1e-4, 1e-2)
@@ -49,7 +55,8 @@ def test_values_from_a_file(tmp_path):
     ("=1,2", "key is empty"),
     ("stabilization.w=lin:1:x:3", "STOP 'x' is not a number"),
     ("stabilization.w=log:0:1:3", "positive START and STOP"),
-    ("stabilization.w=lin:0:1:0", "N must be at least 1"),
+    ("stabilization.w=lin:0:1:0", "N must be from 1"),
+    ("stabilization.w=lin:0:1:100000000000", "N must be from 1"),
     ("stabilization.w=lin:0:1:2.5", "not a whole number"),
     ("stabilization.w=1,,2", "empty one"),
     ("stabilization.w=@missing.txt", "cannot read the values file"),

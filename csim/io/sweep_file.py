@@ -84,7 +84,7 @@ def _value_dataset(values: list) -> tuple[np.ndarray, bool]:
 
 
 def write_sweep(path: str | Path, table: SweepTable, signals: dict[int, dict[str, np.ndarray]],
-                keep_from: str | Path | None = None) -> None:
+                keep_from: str | Path | None = None, n_runs: int | None = None) -> None:
     """Write ``table`` (and the runs' ``signals``) to ``path`` atomically.
 
     Parameters
@@ -92,7 +92,8 @@ def write_sweep(path: str | Path, table: SweepTable, signals: dict[int, dict[str
     signals : dict
         Run index -> name -> array, for the runs whose signals are not in ``keep_from`` yet.
     keep_from : path, optional
-        A previous version of this file whose ``/signals`` groups are copied over.
+        A previous version of this file whose ``/signals`` groups are copied over (those of
+        runs below ``n_runs``).
     """
     with atomic_h5(path) as fh:
         fh.attrs["kind"] = SWEEP_KIND
@@ -116,17 +117,17 @@ def write_sweep(path: str | Path, table: SweepTable, signals: dict[int, dict[str
             ref = fh.create_group("reference")
             ref.create_dataset("t", data=table.reference[0]).attrs["units"] = "s"
             ref.create_dataset("q", data=table.reference[1])
-        _write_signals(fh, signals, keep_from)
+        _write_signals(fh, signals, keep_from, table.n if n_runs is None else n_runs)
 
 
-def _write_signals(fh: h5py.File, signals: dict, keep_from) -> None:
+def _write_signals(fh: h5py.File, signals: dict, keep_from, n_runs: int) -> None:
     if not signals and keep_from is None:
         return
     group = fh.require_group("signals")
     if keep_from is not None and Path(keep_from).is_file():
         with h5py.File(keep_from, "r") as old:
             for name in old.get("signals", {}):
-                if name not in signals:
+                if name.isdigit() and int(name) < n_runs and int(name) not in signals:
                     old.copy(old["signals"][name], group, name=name)
     for i, arrays in signals.items():
         run = group.create_group(str(i))

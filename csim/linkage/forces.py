@@ -280,19 +280,25 @@ def _point_named(geo: Geometry, name: str) -> sp.Matrix | None:
     return (moving or found or [None])[0]
 
 
+def two_points(geo: Geometry, path: str, ends: Any, problems: list[str]) -> tuple | None:
+    """Two points on links, ``[[LINK, POINT], [LINK, POINT]]`` at ``path``, as :func:`point_of`
+    gives each (None, with the problem listed, when either is not one)."""
+    if not isinstance(ends, list) or len(ends) != 2:
+        problems.append(f"{path}: got {describe(ends)}; expected two points [[LINK, POINT], [LINK, POINT]]")
+        return None
+    a, b = (point_of(geo, f"{path}[{n}]", e, problems) for n, e in enumerate(ends))
+    return None if a is None or b is None else (a, b)
+
+
 def switch_coordinate(geo: Geometry, path: str, raw: Any, problems: list[str]) -> tuple[sp.Expr, str] | None:
     """The coordinate a switching law watches (``on``): a joint (as :func:`joint_of`), a
     named point's global coordinate ``POINT_x`` / ``_y`` / ``_z``, or ``{distance: [A, B]}``
     between two points on links. Returns (s(q), unit)."""
     if isinstance(raw, dict) and set(raw) == {"distance"}:
-        ends = raw["distance"]
-        if not isinstance(ends, list) or len(ends) != 2:
-            problems.append(f"{path}.distance: got {describe(ends)}; expected two points [[LINK, POINT], [LINK, "
-                            f"POINT]]")
+        ends = two_points(geo, f"{path}.distance", raw["distance"], problems)
+        if ends is None:
             return None
-        a, b = (point_of(geo, f"{path}.distance[{n}]", e, problems) for n, e in enumerate(ends))
-        if a is None or b is None:
-            return None
+        a, b = ends
         d = a[0] - b[0]
         return sp.sqrt(simplify_entry((d.T * d)[0])), "m"
     if isinstance(raw, str) and raw[-2:] in ("_x", "_y", "_z"):
@@ -437,14 +443,10 @@ def build_spring(element: Element, geo: Geometry, problems: list[str]) -> Contri
     f(l, ldot, t) as a load (``force``). Either way Q = -(dl/dq) f (a tension pulls the
     points together).
     """
-    ends = element.row.get("between")
-    if not isinstance(ends, list) or len(ends) != 2:
-        problems.append(f"{element.key('between')}: got {describe(ends)}; expected two points [[LINK, POINT], "
-                        f"[LINK, POINT]]")
+    ends = two_points(geo, element.key("between"), element.row.get("between"), problems)
+    if ends is None:
         return None
-    a, b = (point_of(geo, f"{element.key('between')}[{n}]", e, problems) for n, e in enumerate(ends))
-    if a is None or b is None:
-        return None
+    a, b = ends
     d = b[0] - a[0]
     length = sp.sqrt(simplify_entry((d.T * d)[0]))
     rate = geo.rate(length)

@@ -188,12 +188,12 @@ def select(kinds: dict[str, FigureKind], data, only: Sequence[str] | None, what:
 
 
 def _not_two_keys(table) -> str | None:
-    keys = sf.numeric_keys(table)
-    return None if len(keys) >= 2 else f"a map needs two numeric varied keys (this sweep: {', '.join(table.keys)})"
+    keys = sf.map_keys(table)
+    return None if len(keys) >= 2 else f"a map needs two varied keys (this sweep varies: {', '.join(table.keys)})"
 
 
 def _not_one_key(table) -> str | None:
-    return None if len(sf.numeric_keys(table)) == 1 else "curves need exactly one numeric varied key"
+    return None if sf.numeric_keys(table) else "curves need a numeric varied key"
 
 
 def _no_values(column: str):
@@ -202,7 +202,8 @@ def _no_values(column: str):
             return _not_two_keys(table)
         ok = [i for i in range(table.n) if table.status[i] == "success"]
         if not any(np.isfinite(table.columns[column][i]) for i in ok):
-            return f"no successful run has a value of {column}" + (" (no --reference run)" if column == "error" else "")
+            no_reference = column == "error" and table.reference is None
+            return f"no successful run has a value of {column}" + (" (no --reference run)" if no_reference else "")
         return None
     return missing
 

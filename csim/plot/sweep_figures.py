@@ -9,6 +9,7 @@ a colour bar; failed runs grey, marked with their reason's marker). Scattered de
 """
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 
 import numpy as np
@@ -59,9 +60,28 @@ def numeric_keys(table: SweepTable) -> list[str]:
     return [k for k in table.keys if table.numeric[k]]
 
 
+def axis_values(table: SweepTable, key: str) -> tuple[np.ndarray, list[str] | None]:
+    """Each run's position along ``key``'s axis, and the tick labels of a key whose values are
+    not numbers (names, lists: one category each, in the order first met)."""
+    if table.numeric[key]:
+        return np.asarray(table.values[key], dtype=float), None
+    labels = list(dict.fromkeys(json.dumps(v) for v in table.values[key]))
+    index = {text: i for i, text in enumerate(labels)}
+    return np.array([index[json.dumps(v)] for v in table.values[key]], dtype=float), [
+        str(json.loads(text)) for text in labels]
+
+
+def _label_axes(ax, table: SweepTable, kx: str, ky: str) -> None:
+    for key, axis, setter in ((kx, ax.xaxis, ax.set_xlabel), (ky, ax.yaxis, ax.set_ylabel)):
+        _, labels = axis_values(table, key)
+        if labels is not None:
+            axis.set_ticks(range(len(labels)), labels)
+        setter(key)
+
+
 def grid_of(table: SweepTable, kx: str, ky: str) -> Grid | None:
-    """The map's grid, or None when the runs do not fill one (a random design)."""
-    xs, ys = np.asarray(table.values[kx]), np.asarray(table.values[ky])
+    """The map's grid, or None when the runs do not fill one (a random design, or other keys varied too)."""
+    xs, ys = axis_values(table, kx)[0], axis_values(table, ky)[0]
     x, y = np.unique(xs), np.unique(ys)
     if x.size * y.size != table.n or x.size < 2 or y.size < 2:
         return None
@@ -72,7 +92,7 @@ def grid_of(table: SweepTable, kx: str, ky: str) -> Grid | None:
 
 
 def _edges(v: np.ndarray) -> tuple[np.ndarray, str]:
-    """Cell edges around the values ``v`` (geometric midpoints for log-spaced values) and the axis scale."""
+    """Cell edges around the values ``v`` (n >= 2; geometric midpoints for log-spaced values) and the axis scale."""
     log = v.size > 2 and np.all(v > 0) and np.allclose(np.diff(np.log(v)), np.log(v[1] / v[0]), rtol=1e-6)
     w = np.log(v) if log else v
     mid = (w[1:] + w[:-1]) / 2
@@ -80,10 +100,16 @@ def _edges(v: np.ndarray) -> tuple[np.ndarray, str]:
     return (np.exp(edges), "log") if log else (edges, "linear")
 
 
+def map_keys(table: SweepTable) -> list[str]:
+    """The keys a map can draw: those with at least two values, numeric ones first."""
+    varied = [k for k in table.keys if len({json.dumps(v) for v in table.values[k]}) > 1]
+    return sorted(varied, key=lambda k: not table.numeric[k])
+
+
 def _axes_keys(table: SweepTable) -> tuple[str, str]:
-    keys = numeric_keys(table)
+    keys = map_keys(table)
     if len(keys) < 2:
-        raise PlotError(f"a map needs two numeric varied keys; this sweep varies {', '.join(table.keys)}")
+        raise PlotError(f"a map needs two varied keys; this sweep varies {', '.join(table.keys)}")
     return keys[0], keys[1]
 
 
@@ -110,14 +136,14 @@ def outcome_figure(table: SweepTable) -> Figure:
                                                                                   len(present)), gid="outcome")
         ax.set_xscale(sx)
         ax.set_yscale(sy)
+    xs, ys = axis_values(table, kx)[0], axis_values(table, ky)[0]
     for j, k in enumerate(present):
         pick = codes == j
-        ax.scatter(np.asarray(table.values[kx])[pick], np.asarray(table.values[ky])[pick], s=14 if grid else 22,
+        ax.scatter(xs[pick], ys[pick], s=14 if grid else 22,
                    color="none" if grid else OUTCOMES[k][0], marker=OUTCOMES[k][1],
                    edgecolors="black" if grid else None, linewidths=0.5, label=f"{k} ({int(pick.sum())})",
                    **({} if grid is None or k != "success" else {"alpha": 0.0}))
-    ax.set_xlabel(kx)
-    ax.set_ylabel(ky)
+    _label_axes(ax, table, kx, ky)
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small", title="outcome")
     title(fig, "Stability map: outcome of each run", _subtitle(table))
     return fig
@@ -141,37 +167,44 @@ def metric_figure(table: SweepTable, column: str) -> Figure:
         mesh = ax.pcolormesh(ex, ey, grid.fill(shown), norm=norm, cmap="viridis", gid=column)
         ax.set_xscale(sx)
         ax.set_yscale(sy)
-    else:
-        mesh = ax.scatter(np.asarray(table.values[kx])[ok], np.asarray(table.values[ky])[ok], c=shown[ok], norm=norm,
-                          cmap="viridis", s=22, gid=column)
+    xs, ys = axis_values(table, kx)[0], axis_values(table, ky)[0]
+    if grid is None:
+        mesh = ax.scatter(xs[ok], ys[ok], c=shown[ok], norm=norm, cmap="viridis", s=22, gid=column)
     fig.colorbar(mesh, ax=ax, label=label_with_unit(column, table.units.get(column, "")))
     for k in OUTCOMES:
         pick = np.array([outcome(table, i) == k for i in range(table.n)]) & ~ok
         if pick.any():
-            ax.scatter(np.asarray(table.values[kx])[pick], np.asarray(table.values[ky])[pick], marker=OUTCOMES[k][1],
+            ax.scatter(xs[pick], ys[pick], marker=OUTCOMES[k][1],
                        color=OUTCOMES[k][0], edgecolors="black", linewidths=0.4, s=20,
                        label=f"failed: {k} ({int(pick.sum())})")
     if (~ok).any():
         fig.legend(loc="outside lower center", ncols=4, fontsize="small")
-    ax.set_xlabel(kx)
-    ax.set_ylabel(ky)
+    _label_axes(ax, table, kx, ky)
     title(fig, f"Stability map: {METRICS.get(column, column)}", _subtitle(table))
     return fig
 
 
 @styled
 def curves_figure(table: SweepTable) -> Figure:
-    """Each figure of merit against the one varied numeric key; failed runs marked at the bottom."""
+    """Each figure of merit against the first numeric key, one line per combination of the
+    other keys' values; failed runs marked at the bottom of each panel."""
     key = numeric_keys(table)[0]
+    others = [k for k in table.keys if k != key]
     x = np.asarray(table.values[key], dtype=float)
-    order = np.argsort(x, kind="stable")
+    groups: dict[str, list[int]] = {}
+    for i in range(table.n):
+        label = ", ".join(f"{k} = {_short(table.values[k][i])}" for k in others)
+        groups.setdefault(label, []).append(i)
     columns = [c for c in ("max_phi", "error", "energy_error", "nfev") if np.isfinite(table.columns[c]).any()]
     fig, axes = new_figure(len(columns), 1, sharex=True)
     ok = np.array([s == "success" for s in table.status])
-    log_x = np.all(x > 0) and x.max() / x.min() > 100
     for ax, column in zip(axes[:, 0], columns):
         y = np.asarray(table.columns[column], dtype=float)
-        ax.plot(x[order][ok[order]], y[order][ok[order]], "o-", ms=3, color="tab:blue", gid=column)
+        for label, rows in groups.items():
+            rows = np.array(rows)
+            rows = rows[np.argsort(x[rows], kind="stable")]
+            good = rows[ok[rows]]
+            ax.plot(x[good], y[good], "o-", ms=3, gid=f"{column}|{label}", label=label or None)
         ax.set_yscale("log" if np.all(y[ok & np.isfinite(y)] > 0) else "linear")
         ax.set_ylabel(label_with_unit(column, table.units.get(column, "")))
         for k in OUTCOMES:
@@ -179,10 +212,14 @@ def curves_figure(table: SweepTable) -> Figure:
             if pick.any():
                 ax.plot(x[pick], np.full(pick.sum(), 0.02), OUTCOMES[k][1], color=OUTCOMES[k][0],
                         transform=ax.get_xaxis_transform(), label=f"failed: {k}")
-        if (~ok).any() and ax is axes[0, 0]:
-            ax.legend(fontsize="small")
+    if others or (~ok).any():
+        axes[0, 0].legend(fontsize="small")
     axes[-1, 0].set_xlabel(key)
-    if log_x:
+    if np.all(x > 0) and x.max() / x.min() > 100:
         axes[-1, 0].set_xscale("log")
     title(fig, f"Sweep of {key}", _subtitle(table))
     return fig
+
+
+def _short(value) -> str:
+    return f"{value:g}" if isinstance(value, float) else str(value)

@@ -8,7 +8,8 @@ kernels loaded from one chunk to the next (:func:`csim.pipeline.numeric_model` a
 integration and its post-processing, not a process start or a model derivation.
 
 Every executor calls ``deliver(done)`` with the finished runs of each chunk, as they
-finish, and returns whether Ctrl-C stopped it (the runs not delivered then did not finish).
+finish, and returns an :class:`Outcome`: whether Ctrl-C stopped it, and whether runs were
+lost with a worker that died (the runs not delivered stay pending).
 """
 from __future__ import annotations
 
@@ -16,7 +17,6 @@ import concurrent.futures as cf
 import contextlib
 import copy
 import math
-import multiprocessing
 import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -24,8 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from csim.case import apply_overrides, validate_case
-from csim.compare.pool import _InterruptFlag, _worker_environment, _worker_init
-from csim.errors import CaseError
+from csim.errors import CaseError, CsimError
+from csim.parallel import InterruptFlag, process_pool, stop_processes, worker_environment
 from csim.study.metrics import failed_row, run_row
 from csim.study.plan import override
 
@@ -40,7 +40,7 @@ SIGNALS = ("t", "q", "qd", "phi", "phi_dot", "energy_error")
 class Work:
     """What every chunk needs besides its runs (sent once per chunk; small)."""
 
-    data: dict  # the base case's validated data
+    data: dict  # the base case's data as read (with --set applied), before validation
     source: str
     keys: tuple[str, ...]
     reference: tuple[np.ndarray, np.ndarray] | None = None  # (t, q) of the reference run
@@ -86,75 +86,103 @@ def chunks(todo: Sequence[int], rows: Sequence[tuple], workers: int) -> list[lis
     return [[(i, rows[i]) for i in todo[s:s + size]] for s in range(0, len(todo), size)]
 
 
-def run_serial(work: Work, parts: list, deliver: Callable[[list[Done]], None]) -> bool:
-    """Every chunk in this process, in order; True when Ctrl-C stopped it."""
-    with _InterruptFlag() as flag:
-        for part in parts:
+@dataclass
+class Outcome:
+    """How an executor stopped: every run delivered, Ctrl-C, or runs lost with their workers.
+
+    Runs not delivered stay pending in the sweep (``--resume`` runs them).
+    """
+
+    interrupted: bool = False
+    lost: str = ""  # why some runs came back from no worker ("" when none was lost)
+
+
+def run_serial(work: Work, todo: list[tuple[int, tuple]], deliver: Callable[[list[Done]], None]) -> Outcome:
+    """Every run in this process, one at a time (Ctrl-C keeps every run finished before it)."""
+    with InterruptFlag() as flag:
+        for run in todo:
             try:
-                done = run_chunk(work, part)
+                done = run_chunk(work, [run])
             except KeyboardInterrupt:
-                return True
+                return Outcome(interrupted=True)
             if flag.set:  # the driver turned Ctrl-C into a failed run: that run did not finish
-                return True
+                return Outcome(interrupted=True)
             deliver(done)
-    return False
+    return Outcome()
 
 
-def run_local(work: Work, parts: list, jobs: int, deliver: Callable[[list[Done]], None]) -> bool:
-    """The chunks in ``jobs`` worker processes ("spawn", one BLAS thread each); True when Ctrl-C stopped it."""
+def run_local(work: Work, parts: list, jobs: int, deliver: Callable[[list[Done]], None]) -> Outcome:
+    """The chunks in ``jobs`` worker processes ("spawn", one BLAS thread each)."""
     if jobs == 1:
-        return run_serial(work, parts, deliver)
-    context = multiprocessing.get_context("spawn")
-    executor = cf.ProcessPoolExecutor(max_workers=jobs, mp_context=context, initializer=_worker_init)
+        return run_serial(work, [run for part in parts for run in part], deliver)
+    executor = process_pool(jobs)
     pending: dict[cf.Future, list] = {}
+    lost = ""
     try:
-        with _worker_environment():
+        with worker_environment():
             pending = {executor.submit(run_chunk, work, part): part for part in parts}
         for future in cf.as_completed(list(pending)):
-            deliver(_chunk_result(future, pending.pop(future)))
+            pending.pop(future)
+            done, why = _chunk_result(future)
+            deliver(done)
+            lost = lost or why
     except KeyboardInterrupt:
-        _stop_processes(executor)
+        stop_processes(executor)
         for future in pending:  # chunks that finished before Ctrl-C
             if future.done() and not future.cancelled() and future.exception() is None:
                 deliver(future.result())
-        return True
+        return Outcome(interrupted=True, lost=lost)
     finally:
         executor.shutdown(wait=True, cancel_futures=True)
-    return False
+    return Outcome(lost=lost)
 
 
-def _chunk_result(future, part) -> list[Done]:
+def _chunk_result(future) -> tuple[list[Done], str]:
+    """A chunk's rows, or none and why (the worker died, or its result could not come back)."""
     try:
-        return future.result()
-    except Exception as exc:  # the worker died, or its result could not come back
-        message = f"worker failed: {type(exc).__name__}: {exc}"
-        return [(i, failed_row(message, "other"), None) for i, _ in part]
+        return future.result(), ""
+    except Exception as exc:
+        return [], f"a worker failed ({type(exc).__name__}: {exc})"
 
 
-def _stop_processes(executor: cf.ProcessPoolExecutor) -> None:
-    processes = list((getattr(executor, "_processes", None) or {}).values())
-    executor.shutdown(wait=False, cancel_futures=True)
-    for process in processes:
-        process.terminate()
-    for process in processes:
-        process.join(5)
+def connect(address: str):
+    """A Dask client of the scheduler at ``address`` (``--scheduler``).
+
+    Raises
+    ------
+    CsimError
+        When dask's distributed package is missing or the scheduler cannot be reached.
+    """
+    try:
+        from distributed import Client
+    except ImportError:
+        raise CsimError("--scheduler: Dask's distributed package is not installed; "
+                        "pip install 'csim[dask]'") from None
+    try:
+        return Client(address, set_as_default=False, timeout="10s")
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise CsimError(f"--scheduler {address}: cannot reach a Dask scheduler there ({type(exc).__name__}: "
+                        f"{exc}); expected an address such as tcp://HOST:8786") from None
 
 
-def run_dask(work: Work, parts: list, address: str, deliver: Callable[[list[Done]], None]) -> bool:
-    """The chunks on the Dask cluster at ``address`` (``csim[dask]``); True when Ctrl-C stopped it."""
-    from distributed import Client, as_completed
+def run_dask(work: Work, parts: list, client, deliver: Callable[[list[Done]], None]) -> Outcome:
+    """The chunks on the Dask cluster of ``client`` (from :func:`connect`)."""
+    from distributed import as_completed
 
-    with Client(address, set_as_default=False) as client:
-        scattered = client.scatter(work, broadcast=True)  # sent once, not with every chunk
-        pending = {client.submit(run_chunk, scattered, part, pure=False): part for part in parts}
-        try:
-            for future in as_completed(list(pending), loop=client.loop):
-                deliver(_chunk_result(future, pending.pop(future)))
-        except KeyboardInterrupt:
-            with contextlib.suppress(Exception):
-                client.cancel(list(pending))
-            return True
-    return False
+    scattered = client.scatter(work, broadcast=True)  # sent once, not with every chunk
+    pending = {client.submit(run_chunk, scattered, part, pure=False): part for part in parts}
+    lost = ""
+    try:
+        for future in as_completed(list(pending), loop=client.loop):
+            pending.pop(future)
+            done, why = _chunk_result(future)
+            deliver(done)
+            lost = lost or why
+    except KeyboardInterrupt:
+        with contextlib.suppress(Exception):
+            client.cancel(list(pending))
+        return Outcome(interrupted=True, lost=lost)
+    return Outcome(lost=lost)
 
 
 def default_jobs(n_runs: int) -> int:

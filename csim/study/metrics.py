@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from csim.compare.metrics import constraint_errors, motion_error
+from csim.linkage.kinematics import KINEMATIC_RUN
 from csim.result import Result
 
 NAN = float("nan")
@@ -36,25 +37,28 @@ COLUMNS = (
     Column("error", "rad or m", "max |q - q_ref| against the reference run, over the samples both reached"),
     Column("final_error", "rad or m", "max |q(t_end) - q_ref(t_end)| (NaN when either run stopped early)"),
     Column("t_reached", "s", "the last sample's time"),
-    Column("wall_time", "s", "integration and post-processing"),
+    Column("wall_time", "s", "the integration's wall time (the run's own; not its post-processing)"),
     Column("nfev", "1", "right-hand-side evaluations", "i8"),
     Column("nsteps", "1", "integration steps", "i8"),
     Column("events", "1", "located switching events", "i8"),
 )
 
-#: why a run failed, from the first words of its message (csim.physics.status and the drivers)
+#: why a run failed: the first reason whose phrases the message starts with, in this order
+#: (the messages of csim.physics.status, the drivers and the kinematic analysis)
 REASONS = (
     ("invalid", ("case: ",)),
-    ("assembly", ("initial conditions",)),
+    ("assembly", ("initial conditions", "the mechanism cannot be assembled")),
     ("interrupted", ("interrupted",)),
     ("blow-up", ("blow-up",)),
     ("drift", ("constraint violation",)),
-    ("step collapse", ("step-size collapse", "Required step size")),
+    ("step", ("integrator rk4 failed",)),
+    ("step collapse", ("step-size collapse", "integrator ")),
     ("max steps", ("more than simulation.max_steps",)),
-    ("chatter", ("more than simulation.max_events", "chatter")),
-    ("singular", ("singular", "projection: singular", "numerical error")),
-    ("projection", ("projection:",)),
-    ("step", ("integrator RK4 failed",)),
+    ("chatter", ("more than simulation.max_events", "chattering load law")),
+    ("projection", ("projection: gauss-newton",)),
+    ("singular", ("singular", "projection: singular", "numerical error after t = {t}: linalgerror")),
+    ("event location", ("numerical error",)),
+    ("drive", ("mechanism.drive",)),
 )
 
 
@@ -64,9 +68,9 @@ def failure_reason(status: str, message: str, failure: str = "") -> str:
         return ""
     if failure in ("assembly", "interrupted"):
         return failure
-    text = message.lower()
+    text = message.lower().strip().removeprefix(f"{KINEMATIC_RUN}: ")
     for reason, starts in REASONS:
-        if any(s.lower() in text for s in starts):
+        if any(text.startswith(s.split("{t}")[0]) and s.split("{t}")[-1] in text for s in starts):
             return reason
     return "other"
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 import copy
 import itertools
 import json
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -29,9 +30,20 @@ from csim.study.values import Variation
 SAMPLINGS = ("grid", "random", "lhs")
 
 
+#: most runs a sweep may plan (a typo such as lin:0:1:1e9 is caught before memory runs out)
+MAX_RUNS = 10_000_000
+
+
+def value_text(value: Any) -> str:
+    """A value as YAML flow text (JSON, but for non-finite floats, which YAML writes .inf, .nan)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return ".nan" if math.isnan(value) else (".inf" if value > 0 else "-.inf")
+    return json.dumps(value)
+
+
 def override(key: str, value: Any) -> str:
-    """The ``--set`` text that gives ``key`` the value ``value`` (JSON is YAML flow style)."""
-    return f"{key}={json.dumps(value)}"
+    """The ``--set`` text that gives ``key`` the value ``value``."""
+    return f"{key}={value_text(value)}"
 
 
 @dataclass
@@ -41,7 +53,11 @@ class SweepPlan:
     Attributes
     ----------
     case : Case
-        The validated base case (every run is it with its row's values set).
+        The validated base case.
+    data : dict
+        The base case as read (``--set`` applied), before validation: each run is this with
+        its row's values set, then validated, so that a run may change what the defaults
+        depend on (``mechanism.name``).
     variations : list of Variation
         The varied keys, in the order given.
     rows : list of tuple
@@ -51,6 +67,7 @@ class SweepPlan:
     """
 
     case: Case
+    data: dict
     variations: list[Variation]
     rows: list[tuple]
     sampling: str = "grid"
@@ -69,7 +86,7 @@ class SweepPlan:
 
     def run_case(self, i: int) -> Case:
         """The validated case of run ``i`` (raises CaseError for a combination the case check rejects)."""
-        data = apply_overrides(copy.deepcopy(self.case.data), self.overrides(i))
+        data = apply_overrides(copy.deepcopy(self.data), self.overrides(i))
         return validate_case(data, source=f"{self.case.source} (sweep run {i})")
 
     def column(self, key: str) -> list:
@@ -91,8 +108,11 @@ def _rows(variations: list[Variation], sampling: str, samples: int | None, seed:
     return list(zip(*columns))
 
 
-def _check_options(variations: list[Variation], sampling: str, samples: int | None) -> list[str]:
+def _check_options(variations: list[Variation], sampling: str, samples: int | None,
+                   seed: int | None) -> list[str]:
     problems = []
+    if seed is not None and not 0 <= seed < 2**63:
+        problems.append(f"--seed: got {seed}; expected a whole number from 0 to 2**63 - 1")
     if not variations:
         problems.append("--vary: nothing to vary; give at least one --vary KEY=VALUES")
     keys = [v.key for v in variations]
@@ -103,21 +123,26 @@ def _check_options(variations: list[Variation], sampling: str, samples: int | No
     elif sampling == "grid":
         if samples is not None:
             problems.append("--samples: only with --sample random or --sample lhs (a grid runs every combination)")
+        if seed is not None:
+            problems.append("--seed: only with --sample random or --sample lhs (a grid has nothing to draw)")
+        if math.prod(len(v.values) for v in variations if v.values) > MAX_RUNS:
+            problems.append(f"--vary: the grid has more than {MAX_RUNS:,} runs; vary fewer values")
         problems += [f"--vary {v.text!r}: a grid needs N values; write {v.kind}:START:STOP:N"
                      for v in variations if not v.values]
-    elif samples is None or samples < 1:
-        problems.append(f"--samples: --sample {sampling} needs the number of runs, a whole number >= 1")
+    elif samples is None or not 1 <= samples <= MAX_RUNS:
+        problems.append(f"--samples: --sample {sampling} needs the number of runs, a whole number from 1 to "
+                        f"{MAX_RUNS:,}; got {samples}")
     return problems
 
 
-def _check_values(case: Case, variations: list[Variation]) -> list[str]:
+def _check_values(case: Case, data: dict, variations: list[Variation]) -> list[str]:
     """Each value of each key, set alone on the base case, must pass the case check."""
     problems = []
     for v in variations:
         probe = v.values or tuple(v.sample(np.array([0.0, 1.0])))
-        for value in dict.fromkeys(json.dumps(x) for x in probe):  # each distinct value once
+        for value in dict.fromkeys(value_text(x) for x in probe):  # each distinct value once
             try:
-                validate_case(apply_overrides(copy.deepcopy(case.data), [f"{v.key}={value}"]), source=case.source)
+                validate_case(apply_overrides(copy.deepcopy(data), [f"{v.key}={value}"]), source=case.source)
             except CaseError as exc:
                 problems += [f"--vary {v.key}={value}: {p.removeprefix('--set ')}" for p in exc.problems]
                 break
@@ -125,8 +150,11 @@ def _check_values(case: Case, variations: list[Variation]) -> list[str]:
 
 
 def make_plan(case: Case, variations: list[Variation], sampling: str = "grid", samples: int | None = None,
-              seed: int | None = None) -> SweepPlan:
+              seed: int | None = None, data: dict | None = None) -> SweepPlan:
     """Check the options and every key's values against the base case; list the runs.
+
+    ``data`` is the base case as read, before validation (default: the validated data,
+    whose filled-in defaults belong to the base case's mechanism).
 
     Raises
     ------
@@ -134,11 +162,13 @@ def make_plan(case: Case, variations: list[Variation], sampling: str = "grid", s
         Listing every problem: a key varied twice, a grid range without N, a value the
         case check rejects (naming the key, the value and what was expected).
     """
-    problems = _check_options(variations, sampling, samples)
-    problems += _check_values(case, [v for v in variations if v.values or v.bounds])
+    data = copy.deepcopy(case.data if data is None else data)
+    problems = _check_options(variations, sampling, samples, seed)
+    if not problems:
+        problems = _check_values(case, data, [v for v in variations if v.values or v.bounds])
     if problems:
         raise CaseError(problems)
     if sampling != "grid" and seed is None:
         seed = int(np.random.default_rng().integers(2**31))  # recorded, so the design can be made again
-    return SweepPlan(case=case, variations=list(variations), rows=_rows(variations, sampling, samples, seed),
+    return SweepPlan(case=case, data=data, variations=list(variations), rows=_rows(variations, sampling, samples, seed),
                      sampling=sampling, seed=seed)

@@ -18,12 +18,15 @@ from pathlib import Path
 import numpy as np
 
 from csim.case import apply_overrides, validate_case
-from csim.errors import CaseError, SimulationFailure
+from csim.errors import CaseError, ResultFileError, SimulationFailure
 from csim.io.sweep_file import PENDING, SweepTable, read_sweep, write_sweep
 from csim.result import Result
 from csim.study import execute
 from csim.study.metrics import COLUMNS
 from csim.study.plan import SweepPlan
+
+#: keys a reference run may not change: the motion error compares samples at the same times
+REFERENCE_FIXED = ("output.dt", "simulation.t_end")
 
 #: called as ``progress(done, total)`` as runs finish
 Progress = Callable[[int, int], None]
@@ -42,6 +45,8 @@ class Sweep:
         The reference run's samples, with ``reference_overrides``.
     interrupted : bool
         Ctrl-C stopped the sweep before every run finished.
+    lost : str
+        Why runs came back from no worker (a worker process died; they stay pending).
     """
 
     plan: SweepPlan
@@ -49,7 +54,11 @@ class Sweep:
     reference: tuple[np.ndarray, np.ndarray] | None = None
     reference_overrides: list[str] = field(default_factory=list)
     interrupted: bool = False
+    lost: str = ""
     new_signals: dict[int, dict] = field(default_factory=dict)
+    out: Path | None = None
+    resumed: bool = False
+    written: bool = False
 
     @property
     def done(self) -> int:
@@ -83,10 +92,22 @@ class Sweep:
                           **{name: [r[name] for r in rows] for name in ("status", "reason", "message")})
 
     def write(self, path: str | Path) -> None:
-        """Write the sweep file (atomically), with the signals kept so far."""
-        previous = Path(path) if Path(path).is_file() else None
-        write_sweep(path, self.table(), self.new_signals, keep_from=previous)
+        """Write the sweep file (atomically), with the signals kept so far: those of this
+        process's earlier checkpoints, and on ``--resume`` the file's own (never those of an
+        unrelated file that happened to be at ``path``).
+
+        Raises
+        ------
+        ResultFileError
+            When the file cannot be written (the disk is full, the folder went away).
+        """
+        previous = Path(path) if (self.written or self.resumed) and Path(path).is_file() else None
+        try:
+            write_sweep(path, self.table(), self.new_signals, keep_from=previous, n_runs=len(self.rows))
+        except (OSError, ValueError, TypeError) as exc:
+            raise ResultFileError(f"{path}: cannot write the sweep file ({type(exc).__name__}: {exc})") from None
         self.new_signals = {}
+        self.written = True
 
 
 def _pending_row() -> dict:
@@ -104,8 +125,13 @@ def reference_run(plan: SweepPlan, overrides: list[str]) -> Result:
     """
     from csim.pipeline import run_case
 
+    fixed = [o for o in overrides if o.split("=", 1)[0].strip() in REFERENCE_FIXED]
+    if fixed:
+        raise CaseError([f"--reference {o}: the reference run keeps the sweep's output times "
+                         f"({', '.join(REFERENCE_FIXED)}), so that each run is compared at the same instants"
+                         for o in fixed])
     try:
-        data = apply_overrides(copy.deepcopy(plan.case.data), overrides)
+        data = apply_overrides(copy.deepcopy(plan.data), overrides)
         case = validate_case(data, source=f"{plan.case.source} (reference)")
     except CaseError as exc:
         raise CaseError([f"--reference: {p.removeprefix('--set ')}" for p in exc.problems]) from None
@@ -167,6 +193,36 @@ def _warm_up(plan: SweepPlan) -> None:
         pass
 
 
+def _run(sweep: Sweep, out, jobs, client, keep: bool, progress, checkpoint: float) -> execute.Outcome:
+    """Run the pending rows of ``sweep``, writing the file every ``checkpoint`` seconds."""
+    plan = sweep.plan
+    todo = [i for i, row in enumerate(sweep.rows) if row is None]
+    work = execute.Work(data=plan.data, source=plan.case.source, keys=tuple(plan.keys),
+                        reference=sweep.reference, keep=keep)
+    last = time.monotonic()
+
+    def deliver(done: list) -> None:
+        nonlocal last
+        for i, row, signals in done:
+            sweep.rows[i] = row
+            if signals is not None:
+                sweep.new_signals[i] = signals
+        if progress is not None:
+            progress(sweep.done, len(sweep.rows))
+        if time.monotonic() - last > checkpoint:
+            sweep.write(out)
+            last = time.monotonic()
+
+    if not todo:
+        return execute.Outcome()
+    if client is not None:
+        return execute.run_dask(work, execute.chunks(todo, plan.rows, 16), client, deliver)
+    n_jobs = jobs or execute.default_jobs(len(todo))
+    if n_jobs > 1:
+        _warm_up(plan)
+    return execute.run_local(work, execute.chunks(todo, plan.rows, n_jobs), n_jobs, deliver)
+
+
 def run_sweep(plan: SweepPlan, out: str | Path, *, jobs: int | None = None, scheduler: str | None = None,
               keep: bool = False, reference: list[str] | None = None, resume: bool = False,
               progress: Progress | None = None, checkpoint: float = 10.0) -> Sweep:
@@ -193,39 +249,24 @@ def run_sweep(plan: SweepPlan, out: str | Path, *, jobs: int | None = None, sche
     checkpoint : float
         Seconds between writes of the file while the sweep runs [s].
     """
-    sweep = Sweep(plan=plan, rows=[None] * len(plan), reference_overrides=list(reference or []))
-    if resume:
-        stored = read_sweep(out)
-        sweep.rows = resumed_rows(plan, stored)
-        sweep.reference, sweep.reference_overrides = stored.reference, json.loads(stored.attrs.get("reference", "[]"))
-    elif reference is not None:
-        ref = reference_run(plan, reference)
-        sweep.reference = (ref.t, ref.q)
-    todo = [i for i, row in enumerate(sweep.rows) if row is None]
-    work = execute.Work(data=plan.case.data, source=plan.case.source, keys=tuple(plan.keys),
-                        reference=sweep.reference, keep=keep)
-    last = time.monotonic()
-
-    def deliver(done: list) -> None:
-        nonlocal last
-        for i, row, signals in done:
-            sweep.rows[i] = row
-            if signals is not None:
-                sweep.new_signals[i] = signals
+    sweep = Sweep(plan=plan, rows=[None] * len(plan), reference_overrides=list(reference or []), out=Path(out),
+                  resumed=resume)
+    client = execute.connect(scheduler) if scheduler is not None else None  # fail before any run
+    try:
+        if resume:
+            stored = read_sweep(out)
+            sweep.rows = resumed_rows(plan, stored)
+            sweep.reference = stored.reference
+            sweep.reference_overrides = json.loads(stored.attrs.get("reference", "[]"))
+        elif reference is not None:
+            ref = reference_run(plan, reference)
+            sweep.reference = (ref.t, ref.q)
         if progress is not None:
             progress(sweep.done, len(sweep.rows))
-        if time.monotonic() - last > checkpoint:
-            sweep.write(out)
-            last = time.monotonic()
-
-    if todo:
-        if scheduler is not None:
-            sweep.interrupted = execute.run_dask(work, execute.chunks(todo, plan.rows, 16), scheduler, deliver)
-        else:
-            n_jobs = jobs or execute.default_jobs(len(todo))
-            if n_jobs > 1:
-                _warm_up(plan)
-            parts = execute.chunks(todo, plan.rows, n_jobs)
-            sweep.interrupted = execute.run_local(work, parts, n_jobs, deliver)
+        outcome = _run(sweep, out, jobs, client, keep, progress, checkpoint)
+    finally:
+        if client is not None:
+            client.close()
+    sweep.interrupted, sweep.lost = outcome.interrupted, outcome.lost
     sweep.write(out)
     return sweep

@@ -6,7 +6,8 @@ VALUES is one of
     a list (each item parsed as a case-file value: numbers, names, ``[20, 30]`` lists when
     the whole list is written in YAML flow style, e.g. ``[[20, 30], [40, 60]]``);
 ``lin:START:STOP:N``
-    N values evenly spaced from START to STOP (both included);
+    N values evenly spaced from START to STOP (both included; whole numbers when START and
+    STOP are written as whole numbers and every value is one, for integer keys);
 ``log:START:STOP:N``
     N values evenly spaced in log10 from START to STOP (both positive, both included);
 ``@FILE``
@@ -29,8 +30,10 @@ import yaml
 from csim.case import CaseLoader
 from csim.errors import CaseError
 
-#: range kinds: name -> (evenly spaced values, sample from unit-interval numbers)
+#: range kinds
 RANGES = ("lin", "log")
+#: most values one range may give
+MAX_VALUES = 10_000_000
 
 
 @dataclass(frozen=True)
@@ -109,12 +112,19 @@ def _range(option: str, kind: str, parts: list[str]) -> tuple[tuple, tuple[float
         n = int(parts[2])
     except ValueError:
         raise CaseError([f"{option}: N {parts[2]!r} is not a whole number"]) from None
-    if n < 1:
-        raise CaseError([f"{option}: N must be at least 1; got {n}"])
+    if not 1 <= n <= MAX_VALUES:
+        raise CaseError([f"{option}: N must be from 1 to {MAX_VALUES:,}; got {n}"])
     grid = np.linspace(a, b, n) if kind == "lin" else np.logspace(math.log10(a), math.log10(b), n)
     if n > 1:  # the ends exactly as written, not as exp(log(x)) gives them back
         grid[0], grid[-1] = a, b
+    if _whole(parts[0]) and _whole(parts[1]) and np.all(grid == np.round(grid)):  # an integer key's range
+        return tuple(int(x) for x in grid), (a, b)
     return tuple(float(x) for x in grid), (a, b)
+
+
+def _whole(text: str) -> bool:
+    """Whether a range end is written as a whole number (``100000``, not ``1e5`` or ``1.0``)."""
+    return text.strip().lstrip("+-").isdigit()
 
 
 def _from_file(option: str, name: str, base: Path) -> tuple:
