@@ -267,6 +267,7 @@ class Result:
             lines.append(f"python backend:    not compiled because {self.backend_reason}")
         if self.backend == "compiled" and self.kernel_load_time > COMPILE_NOTICE:
             lines.append(f"compilation:       {self.kernel_load_time:.1f} s before the run (the first run of this "
-                         f"mechanism; later runs load the kernels from the cache)")
+                         f"mechanism, or of this csim installation: the kernels are compiled once; later runs "
+                         f"load them from the cache)")
         lines.append(f"RHS evaluations:   {self.nfev} ({self.nsteps} steps)")
         return "\n".join(lines)

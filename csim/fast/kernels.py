@@ -1,13 +1,14 @@
-# ruff: noqa: F821
 """Compiled kernels: the step loops of DOP853 and RK4 with event location, over the shared core.
 
-This file is not imported as it is. :mod:`csim.fast.module` pastes its text after the
-generated model functions of one mechanism (:mod:`csim.fast.codegen`: ``terms``, ``phi_``,
-``jac``, ``mass``, ``loads_``, ``kinetic``, ``potential``, ``observe`` and the sizes ``NQ``,
-``NC``, ``NL``, ``NO``) and the
-generated dispatch ``method_gamma_star`` over the registered stabilization methods, into
-one module that numba compiles and caches on disk. The names used here without a
-definition are those.
+One module for every mechanism, compiled once per installation: :mod:`csim.fast.module`
+loads it (through a copy named by the hash of everything it depends on, so that numba's
+on-disk cache is never stale) and numba compiles it on first use, then loads the machine
+code from its cache in every later process. Nothing about a mechanism is a compile-time
+constant here: the sizes, the workspace offsets and the addresses of the mechanism's
+model functions are entries of ``pi`` (:mod:`csim.fast.layout`), and the model functions
+(C compiled by ``cc``, :mod:`csim.fast.ccodegen`, or numba cfuncs,
+:mod:`csim.fast.codegen`) are called through their addresses (:func:`_call_model`).
+A new mechanism costs only its own model functions.
 
 The physics is not here: the KKT solve, gamma* of each method, the switching functions,
 the load laws, the projection, the step checks and the status codes are the functions of
@@ -20,21 +21,76 @@ the model into the workspace.
 The problem is passed as three flat arrays, ``par`` (the parameters), ``pf`` and ``pi``
 (:func:`csim.fast.runner.pack_problem`), because numba counts a reference to every array
 argument at every call of a function it does not inline: few arguments keep the
-evaluation as fast as plain C. ``pi`` starts with a header (offsets PI_* below), then the
-switching functions' loads and kinds (:mod:`csim.physics.loads`) and the method's integer
-settings; ``pf`` holds the load magnitudes, the switching bounds, the method's float
-settings and its gains (:meth:`csim.solver.methods.base.Method.pack`). The workspace w holds
-the model terms (offsets W_M ... from the generated part), then the scratch of the
-right-hand side and of the projection (offsets below); matrices are flat and row-major,
-and the core functions get 1-D slices of w (a slice costs nothing, a 2-D view a reshape).
+evaluation as fast as plain C. ``pi`` starts with a header (:mod:`csim.fast.layout`: the
+method's code and settings' offsets, the sizes, the function addresses, the workspace
+offsets), then the switching functions' loads and kinds (:mod:`csim.physics.loads`) and
+the method's integer settings; ``pf`` holds the load magnitudes, the switching bounds, the
+method's float settings and its gains (:meth:`csim.solver.methods.base.Method.pack`). The
+workspace w holds the model terms, then the scratch of the right-hand side and of the
+projection; matrices are flat and row-major, and the core functions get 1-D slices of w
+(a slice costs nothing, a 2-D view a reshape).
 """
 import importlib.util
 import math
 import os
 
 import numpy as np
-from numba import njit
+from llvmlite import ir
+from numba import njit, types
+from numba.extending import intrinsic
 
+from csim.fast.layout import (
+    F_JAC,
+    F_KINETIC,
+    F_LOADS,
+    F_MASS,
+    F_OBSERVE,
+    F_PHI,
+    F_POTENTIAL,
+    F_TERMS,
+    PI_FN,
+    PI_FPAR,
+    PI_GAINS,
+    PI_GAMMA_FN,
+    PI_HEAD,
+    PI_IPAR,
+    PI_MK,
+    PI_NC,
+    PI_NFPAR,
+    PI_NGAINS,
+    PI_NIPAR,
+    PI_NL,
+    PI_NO,
+    PI_NQ,
+    PI_NSW,
+    W_A,
+    W_B,
+    W_COL,
+    W_CQD,
+    W_DQ,
+    W_E,
+    W_END,
+    W_G,
+    W_GAM,
+    W_GS,
+    W_H,
+    W_J,
+    W_L,
+    W_M,
+    W_M2,
+    W_P,
+    W_PD,
+    W_PHI,
+    W_S,
+    W_S2,
+    W_SD,
+    W_SQ,
+    W_U,
+    W_WINV,
+    W_WJT,
+    W_X,
+    W_Z,
+)
 from csim.physics.events import check_chatter
 from csim.physics.jit import NJIT_OPTIONS
 from csim.physics.kkt import constraint_rates, generalized_forces, kkt_solve
@@ -54,11 +110,18 @@ from csim.physics.status import (
     STEP_TOO_SMALL,
 )
 from csim.physics.steps import all_finite, check_step
+from csim.solver.methods.baumgarte import baumgarte_gamma_star
+from csim.solver.methods.sliding_mode import sliding_mode_gamma_star
 
 #: the decorator of every loop function that allocates nothing: compiled without numba's
 #: reference counting of arrays (NRT), which would cost two atomic operations per array
 #: argument and per slice at every call; the arrays live as long as ``integrate`` holds them
 hot = njit(**NJIT_OPTIONS)
+#: the same, inlined into its callers in numba's IR (constant arguments become constants of the copy)
+sized = njit(inline="always", **NJIT_OPTIONS)
+#: the (m, r) whose right-hand side has a copy with constant sizes: the planar one-loop linkages
+#: (quick-return, four-bar, slider-crank) and the Cartesian pendulum
+SIZED = ((3, 2), (2, 1))
 
 
 def _dop853_coefficients():
@@ -98,29 +161,6 @@ DOP853 = 0
 RK4 = 1
 CONSTANT = 2
 
-# ---------------------------------------------------------------------------------------
-# workspace layout after the model terms (the model part defines W_M ... W_MODEL)
-# ---------------------------------------------------------------------------------------
-NK = NQ + NC  # size of the KKT system
-W_A = W_MODEL  # KKT matrix (NK, NK)
-W_X = W_A + NK * NK  # [qdd, lambda] (NK)
-W_P = W_X + NK  # p = B u - C qd - h (NQ)
-W_U = W_P + NQ  # load values (NL)
-W_SD = W_U + NL  # load rates ds/dt (NL)
-W_PD = W_SD + NL  # Phi_q qd (NC)
-W_GS = W_PD + NC  # gamma* (NC)
-W_WINV = W_GS + NC  # projection: W^-1 (NQ, NQ)
-W_M2 = W_WINV + NQ * NQ  # projection: LU of M (NQ, NQ)
-W_WJT = W_M2 + NQ * NQ  # projection: W^-1 Phi_q^T (NQ, NC)
-W_S2 = W_WJT + NQ * NC  # projection: Phi_q W^-1 Phi_q^T (NC, NC)
-W_Z = W_S2 + NC * NC  # projection: (NC)
-W_DQ = W_Z + NC  # projection: correction (NQ)
-W_COL = W_DQ + NQ  # projection: a column of the identity (NQ)
-W_G = W_COL + NQ  # switching functions (n_sw), last
-
-# the header of pi: method code, n_sw, and where the method's settings are in pi and pf
-PI_MK, PI_NSW, PI_IPAR, PI_NIPAR, PI_FPAR, PI_NFPAR, PI_GAINS, PI_NGAINS = range(8)
-PI_HEAD = 8  # then sw_load (n_sw), sw_kind (n_sw), ipar
 # scalars of the loop, in one float array ts_ and one int array cs_
 T, T_OLD, H_ABS, HSTEP, T_STOP, SEG_START = range(6)
 NFEV, NSTEPS, N_REC, I_OUT, N_EV, SEG_STEPS = range(6)
@@ -142,23 +182,173 @@ def copy_row(src, dst, row):
 
 
 # ---------------------------------------------------------------------------------------
+# calls through a function's address (a C function, or a numba cfunc)
+# ---------------------------------------------------------------------------------------
+def _lower_call(context, builder, argtys, args):
+    """Call the C function at the address args[0] with args[1:]: arrays as pointers to their
+    data (no reference counting), integers and floats by value. Returns nothing."""
+    llargs, lltys = [], []
+    for ty, value in zip(argtys[1:], args[1:]):
+        if isinstance(ty, types.Array):
+            llargs.append(context.make_array(ty)(context, builder, value).data)
+            lltys.append(context.get_data_type(ty.dtype).as_pointer())
+        else:
+            llargs.append(value)
+            lltys.append(context.get_value_type(ty))
+    fnty = ir.FunctionType(ir.VoidType(), lltys)
+    builder.call(builder.inttoptr(args[0], fnty.as_pointer()), llargs)
+    return context.get_dummy_value()
+
+
+@intrinsic
+def _call_model(typingctx, addr, t, y, par, out):
+    """``void f(double t, const double *y, const double *par, double *out)`` at address ``addr``."""
+    if not (isinstance(addr, types.Integer) and isinstance(t, types.Float)):
+        return None
+    sig = types.void(addr, t, y, par, out)
+
+    def codegen(context, builder, signature, args):
+        return _lower_call(context, builder, signature.args, args)
+    return sig, codegen
+
+
+@intrinsic
+def _call_gamma(typingctx, addr, r, gamma, phi, phi_dot, gains, n_gains, fpar, n_fpar, ipar, n_ipar, out):
+    """``void g(int64 r, const double *gamma, const double *phi, const double *phi_dot, const double *gains,
+    int64 n_gains, const double *fpar, int64 n_fpar, const int64 *ipar, int64 n_ipar, double *out)``."""
+    sig = types.void(addr, r, gamma, phi, phi_dot, gains, n_gains, fpar, n_fpar, ipar, n_ipar, out)
+
+    def codegen(context, builder, signature, args):
+        return _lower_call(context, builder, signature.args, args)
+    return sig, codegen
+
+
+# the model functions of the mechanism in pi (csim.fast.layout: one C interface for all)
+@hot
+def terms(t, y, par, pi, w):
+    """Every term of the right-hand side at (t, y) into w."""
+    _call_model(pi[PI_FN + F_TERMS], t, y, par, w)
+
+
+@hot
+def phi_(y, par, pi, w):
+    _call_model(pi[PI_FN + F_PHI], 0.0, y, par, w)
+
+
+@hot
+def jac(y, par, pi, w):
+    _call_model(pi[PI_FN + F_JAC], 0.0, y, par, w)
+
+
+@hot
+def mass(y, par, pi, w):
+    _call_model(pi[PI_FN + F_MASS], 0.0, y, par, w)
+
+
+@hot
+def loads_(y, par, pi, w):
+    """Load coordinates s and their Jacobian into w, for the switching functions."""
+    _call_model(pi[PI_FN + F_LOADS], 0.0, y, par, w)
+
+
+@hot
+def kinetic(y, par, pi, w):
+    """Kinetic energy [J] (w[W_E] is its scratch)."""
+    _call_model(pi[PI_FN + F_KINETIC], 0.0, y, par, w[pi[W_E]:])
+    return w[pi[W_E]]
+
+
+@hot
+def potential(y, par, pi, w):
+    """Potential energy [J] (w[W_E] is its scratch)."""
+    _call_model(pi[PI_FN + F_POTENTIAL], 0.0, y, par, w[pi[W_E]:])
+    return w[pi[W_E]]
+
+
+@hot
+def observe(y, par, pi, out):
+    """The observables and their rates into out (2 o,)."""
+    _call_model(pi[PI_FN + F_OBSERVE], 0.0, y, par, out)
+
+
+# the stabilization methods' gamma*: the built-in ones by code, any other through its address
+#: method code -> gamma* kernel (csim.fast.module.method_code reads this)
+BUILTIN_GAMMA = (baumgarte_gamma_star, sliding_mode_gamma_star)
+#: the code of a method whose gamma* is called through pi[PI_GAMMA_FN]
+EXTERNAL = -1
+
+
+@hot
+def method_gamma_star(mk, r, gamma, phi, phi_dot, gains, fpar, ipar, out, pi):
+    """gamma* (r,) into out by the method's code; 0 is gamma* = gamma."""
+    if mk == 1:
+        baumgarte_gamma_star(r, gamma, phi, phi_dot, gains, fpar, ipar, out)
+    elif mk == 2:
+        sliding_mode_gamma_star(r, gamma, phi, phi_dot, gains, fpar, ipar, out)
+    elif mk == EXTERNAL:
+        _call_gamma(pi[PI_GAMMA_FN], r, gamma, phi, phi_dot, gains, gains.size, fpar, fpar.size, ipar, ipar.size, out)
+    else:
+        for i in range(r):
+            out[i] = gamma[i]
+
+
+# ---------------------------------------------------------------------------------------
 # the model at a state: switching functions, right-hand side
 # ---------------------------------------------------------------------------------------
 @hot
 def switching_from(y, pf, pi, w):
     """Switching functions into w[W_G:] from s and S = ds/dq^T in w (loads_ or terms evaluated) and qd in y."""
-    n_sw = pi[PI_NSW]
-    load_rates(w[W_SQ:W_SQ + NQ * NL], y[NQ:2 * NQ], w[W_SD:W_SD + NL], NQ, NL)
-    switching_functions(w[W_S:W_S + NL], w[W_SD:W_SD + NL], pi[PI_HEAD:PI_HEAD + n_sw],
-                        pi[PI_HEAD + n_sw:PI_HEAD + 2 * n_sw], pf[NL:NL + n_sw], w[W_G:W_G + n_sw])
+    n_sw, nq, nl = pi[PI_NSW], pi[PI_NQ], pi[PI_NL]
+    w_sd, w_g = pi[W_SD], pi[W_G]
+    load_rates(w[pi[W_SQ]:pi[W_SQ] + nq * nl], y[nq:2 * nq], w[w_sd:w_sd + nl], nq, nl)
+    switching_functions(w[pi[W_S]:pi[W_S] + nl], w[w_sd:w_sd + nl], pi[PI_HEAD:PI_HEAD + n_sw],
+                        pi[PI_HEAD + n_sw:PI_HEAD + 2 * n_sw], pf[nl:nl + n_sw], w[w_g:w_g + n_sw])
 
 
 @hot
 def mode_at(y, par, pf, pi, w, mode):
     """The load-law conditions that hold at state y (switching functions left in w[W_G:])."""
-    loads_(y, par, w)
+    loads_(y, par, pi, w)
     switching_from(y, pf, pi, w)
-    mode_of(w[W_G:W_G + pi[PI_NSW]], mode)
+    mode_of(w[pi[W_G]:pi[W_G] + pi[PI_NSW]], mode)
+
+
+@sized
+def _rhs_sized(t, y, mode, located, par, pf, pi, w, piv, f, nq, nc):
+    """:func:`rhs` for nq coordinates and nc constraints (inlined where called: constants there fix the loops)."""
+    nl = pi[PI_NL]
+    nk = nq + nc
+    terms(t, y, par, pi, w)
+    qd = y[nq:2 * nq]
+    B = w[pi[W_B]:pi[W_B] + nq * nl]
+    J = w[pi[W_J]:pi[W_J] + nc * nq]
+    if not located:
+        switching_from(y, pf, pi, w)
+        mode_of(w[pi[W_G]:pi[W_G] + pi[PI_NSW]], mode)
+    u = w[pi[W_U]:pi[W_U] + nl]
+    load_values(pf[:nl], mode, pi[PI_HEAD:PI_HEAD + pi[PI_NSW]], w[pi[W_L]:pi[W_L] + nl], u)
+    p = w[pi[W_P]:pi[W_P] + nq]
+    generalized_forces(B, u, w[pi[W_CQD]:pi[W_CQD] + nq], w[pi[W_H]:pi[W_H] + nq], p, nq, nl)
+    phi_dot = w[pi[W_PD]:pi[W_PD] + nc]
+    constraint_rates(J, qd, phi_dot, nc, nq)
+    gstar = w[pi[W_GS]:pi[W_GS] + nc]
+    gains = pf[pi[PI_GAINS]:pi[PI_GAINS] + pi[PI_NGAINS]]
+    fpar = pf[pi[PI_FPAR]:pi[PI_FPAR] + pi[PI_NFPAR]]
+    ipar = pi[pi[PI_IPAR]:pi[PI_IPAR] + pi[PI_NIPAR]]
+    method_gamma_star(pi[PI_MK], nc, w[pi[W_GAM]:pi[W_GAM] + nc], w[pi[W_PHI]:pi[W_PHI] + nc], phi_dot, gains, fpar,
+                      ipar, gstar, pi)
+    x = w[pi[W_X]:pi[W_X] + nk]
+    A = w[pi[W_A]:pi[W_A] + nk * nk]
+    if not kkt_solve(w[pi[W_M]:pi[W_M] + nq * nq], J, p, gstar, A, x, piv, nq, nc):
+        return SINGULAR_KKT
+    sdot = w[pi[W_SD]:pi[W_SD] + nl]
+    load_rates(B, qd, sdot, nq, nl)
+    for i in range(nq):
+        f[i] = qd[i]
+        f[nq + i] = x[i]
+    for kk in range(nl):  # dW/dt = u * (B^T qd), the power of each load
+        f[2 * nq + kk] = u[kk] * sdot[kk]
+    return OK
 
 
 @hot
@@ -166,37 +356,16 @@ def rhs(t, y, mode, located, par, pf, pi, w, piv, f):
     """dy/dt = [qd, qdd, u * B^T qd] at time t into f; [qdd, lambda] left in w[W_X:]. Returns OK or SINGULAR_KKT.
 
     The load laws are held in ``mode``; with ``located`` False they are evaluated at y
-    itself (``mode`` is then overwritten: pass a scratch array).
+    itself (``mode`` is then overwritten: pass a scratch array). For the commonest sizes
+    (:data:`SIZED`) the sizes are constants of a copy of the code each (loops of known length,
+    as plain C has them); other ones run with the sizes read from pi.
     """
-    terms(t, y, par, w)
-    qd = y[NQ:2 * NQ]
-    B = w[W_B:W_B + NQ * NL]
-    J = w[W_J:W_J + NC * NQ]
-    if not located:
-        switching_from(y, pf, pi, w)
-        mode_of(w[W_G:W_G + pi[PI_NSW]], mode)
-    u = w[W_U:W_U + NL]
-    load_values(pf[:NL], mode, pi[PI_HEAD:PI_HEAD + pi[PI_NSW]], w[W_L:W_L + NL], u)
-    p = w[W_P:W_P + NQ]
-    generalized_forces(B, u, w[W_CQD:W_CQD + NQ], w[W_H:W_H + NQ], p, NQ, NL)
-    phi_dot = w[W_PD:W_PD + NC]
-    constraint_rates(J, qd, phi_dot, NC, NQ)
-    gstar = w[W_GS:W_GS + NC]
-    gains = pf[pi[PI_GAINS]:pi[PI_GAINS] + pi[PI_NGAINS]]
-    fpar = pf[pi[PI_FPAR]:pi[PI_FPAR] + pi[PI_NFPAR]]
-    ipar = pi[pi[PI_IPAR]:pi[PI_IPAR] + pi[PI_NIPAR]]
-    method_gamma_star(pi[PI_MK], NC, w[W_GAM:W_GAM + NC], w[W_PHI:W_PHI + NC], phi_dot, gains, fpar, ipar, gstar)
-    x = w[W_X:W_X + NK]
-    if not kkt_solve(w[W_M:W_M + NQ * NQ], J, p, gstar, w[W_A:W_A + NK * NK], x, piv, NQ, NC):
-        return SINGULAR_KKT
-    sdot = w[W_SD:W_SD + NL]
-    load_rates(B, qd, sdot, NQ, NL)
-    for i in range(NQ):
-        f[i] = qd[i]
-        f[NQ + i] = x[i]
-    for kk in range(NL):  # dW/dt = u * (B^T qd), the power of each load
-        f[2 * NQ + kk] = u[kk] * sdot[kk]
-    return OK
+    nq, nc = pi[PI_NQ], pi[PI_NC]
+    if nq == 3 and nc == 2:
+        return _rhs_sized(t, y, mode, located, par, pf, pi, w, piv, f, 3, 2)
+    if nq == 2 and nc == 1:
+        return _rhs_sized(t, y, mode, located, par, pf, pi, w, piv, f, 2, 1)
+    return _rhs_sized(t, y, mode, located, par, pf, pi, w, piv, f, nq, nc)
 
 
 @hot
@@ -228,39 +397,42 @@ def project(y, out, t, par, pf, pi, w, piv, info):
     tol, mass_metric, max_iter = fpar[0], ipar[0] == 1, ipar[1]
     for i in range(y.size):
         out[i] = y[i]
-    Winv, J = w[W_WINV:W_WINV + NQ * NQ], w[W_J:W_J + NC * NQ]
-    WJt, S, z, dq = w[W_WJT:W_WJT + NQ * NC], w[W_S2:W_S2 + NC * NC], w[W_Z:W_Z + NC], w[W_DQ:W_DQ + NQ]
+    nq, nc = pi[PI_NQ], pi[PI_NC]
+    Winv, J = w[pi[W_WINV]:pi[W_WINV] + nq * nq], w[pi[W_J]:pi[W_J] + nc * nq]
+    WJt, S = w[pi[W_WJT]:pi[W_WJT] + nq * nc], w[pi[W_S2]:pi[W_S2] + nc * nc]
+    z, dq = w[pi[W_Z]:pi[W_Z] + nc], w[pi[W_DQ]:pi[W_DQ] + nq]
     if mass_metric:  # W^-1 = M^-1
-        mass(out, par, w)
-        if not invert(w[W_M:W_M + NQ * NQ], w[W_M2:W_M2 + NQ * NQ], piv, w[W_COL:W_COL + NQ], Winv, NQ):
+        mass(out, par, pi, w)
+        if not invert(w[pi[W_M]:pi[W_M] + nq * nq], w[pi[W_M2]:pi[W_M2] + nq * nq], piv, w[pi[W_COL]:pi[W_COL] + nq],
+                      Winv, nq):
             return _project_failed(SINGULAR_MASS, 0.0, t, info)
-    q = out[:NQ]
-    phi = w[W_PHI:W_PHI + NC]
+    q = out[:nq]
+    phi = w[pi[W_PHI]:pi[W_PHI] + nc]
     converged = False
     mx = 0.0
     for _ in range(max_iter + 1):
-        phi_(out, par, w)
+        phi_(out, par, pi, w)
         mx = max_abs(phi)
         if mx <= tol:
             converged = True
             break
-        jac(out, par, w)
-        if not correction(J, Winv, mass_metric, phi, WJt, S, z, piv, dq, NC, NQ):
+        jac(out, par, pi, w)
+        if not correction(J, Winv, mass_metric, phi, WJt, S, z, piv, dq, nc, nq):
             return _project_failed(PROJ_SINGULAR, mx, t, info)
-        for i in range(NQ):
+        for i in range(nq):
             q[i] -= dq[i]
         if at_round_off(dq, q):  # |Phi| cannot go lower: its round-off grows with |q|
             converged = True
             break
     if not converged:
         return _project_failed(PROJ_NO_CONVERGENCE, mx, t, info)
-    jac(out, par, w)
-    phi_dot = w[W_PD:W_PD + NC]
-    constraint_rates(J, out[NQ:2 * NQ], phi_dot, NC, NQ)
-    if not correction(J, Winv, mass_metric, phi_dot, WJt, S, z, piv, dq, NC, NQ):
+    jac(out, par, pi, w)
+    phi_dot = w[pi[W_PD]:pi[W_PD] + nc]
+    constraint_rates(J, out[nq:2 * nq], phi_dot, nc, nq)
+    if not correction(J, Winv, mass_metric, phi_dot, WJt, S, z, piv, dq, nc, nq):
         return _project_failed(PROJ_SINGULAR, mx, t, info)
-    for i in range(NQ):
-        out[NQ + i] -= dq[i]
+    for i in range(nq):
+        out[nq + i] -= dq[i]
     return OK
 
 
@@ -309,9 +481,9 @@ def dense_eval(kind, tau, t_old, h, y_old, F, out):
 def _g_at(j, tau, kind, t_old, h, y_old, F, par, pf, pi, w, ytmp):
     """Switching function j on the dense output at tau."""
     dense_eval(kind, tau, t_old, h, y_old, F, ytmp)
-    loads_(ytmp, par, w)
+    loads_(ytmp, par, pi, w)
     switching_from(ytmp, pf, pi, w)
-    return w[W_G + j]
+    return w[pi[W_G] + j]
 
 
 @hot
@@ -766,9 +938,9 @@ def _start_segment(method, ts_, y, f, t_end, rtol, atol, max_step, first_step, t
                    ytmp, f1, scl, cs, info):
     """Start the integrator at (t, y): tolerances, f(t, y), and DOP853's first step. Returns the status."""
     n = y.size
-    scale_w = max(1.0, abs(kinetic(y, par)))  # the work states are in J: atol scaled to the energy
+    scale_w = max(1.0, abs(kinetic(y, par, pi, w)))  # the work states are in J: atol scaled to the energy
     for i in range(n):
-        tolv[i] = atol * scale_w if i >= 2 * NQ else atol
+        tolv[i] = atol * scale_w if i >= 2 * pi[PI_NQ] else atol
     cs[NFEV] += 1
     status = feval(ts_[T], y, rmode, locate, par, pf, pi, w, piv, f,
                    info)
@@ -838,8 +1010,8 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset):
     t_end, rtol, atol, fixed_h, max_step, first_step, max_phi, min_step = fset[0], fset[1], fset[2], fset[3], \
         fset[4], fset[5], fset[6], fset[7]
     n, n_sw = y0.size, pi[PI_NSW]
-    w = np.zeros(W_G + n_sw)
-    piv = np.zeros(NK, np.int64)
+    w = np.zeros(pi[W_END])
+    piv = np.zeros(pi[PI_NQ] + pi[PI_NC], np.int64)
     tr, ys, modes = np.empty(t_out.size), np.empty((t_out.size, n)), np.zeros((t_out.size, n_sw), np.bool_)
     ev_t, ev_sw = np.empty(16), np.zeros((16, n_sw), np.bool_)
     info, ts_, cs = np.zeros(2), np.zeros(6), np.zeros(6, np.int64)
@@ -878,9 +1050,9 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset):
                 y_old[i] = y[i]
                 y[i] = y_new[i]
             ts_[T] = t_new
-            phi_(y, par, w)
-            status = check_step(y, max_abs(w[W_PHI:W_PHI + NC]), ts_[HSTEP], t_new, t_end, method == DOP853,
-                                max_phi, min_step, info)
+            phi_(y, par, pi, w)
+            status = check_step(y, max_abs(w[pi[W_PHI]:pi[W_PHI] + pi[PI_NC]]), ts_[HSTEP], t_new, t_end,
+                                method == DOP853, max_phi, min_step, info)
             if status != OK:
                 break
             if dense_kind == RK4:  # the cubic Hermite interpolant's data
@@ -961,33 +1133,36 @@ def evaluate_samples(ts, ys, modes, par, pf, pi):
         The observables and their rates (evaluated at every sample, singular or not).
     """
     N = ys.shape[0]
-    w = np.zeros(W_G + pi[PI_NSW])
-    piv = np.zeros(NK, np.int64)
+    nq, nc, nl, no = pi[PI_NQ], pi[PI_NC], pi[PI_NL], pi[PI_NO]
+    nk = nq + nc
+    w = np.zeros(pi[W_END])
+    piv = np.zeros(nk, np.int64)
     f = np.empty(ys.shape[1])
     mode = np.empty(pi[PI_NSW], np.bool_)
     ok = np.ones(N, np.bool_)
-    x, Q = np.full((N, NK), np.nan), np.full((N, NQ), np.nan)
-    phi, phi_dot = np.full((N, NC), np.nan), np.full((N, NC), np.nan)
-    u, energy = np.full((N, NL), np.nan), np.full((N, 2), np.nan)
-    obs = np.empty((N, 2 * NO))
+    x, Q = np.full((N, nk), np.nan), np.full((N, nq), np.nan)
+    phi, phi_dot = np.full((N, nc), np.nan), np.full((N, nc), np.nan)
+    u, energy = np.full((N, nl), np.nan), np.full((N, 2), np.nan)
+    obs = np.empty((N, 2 * no))
     for i in range(N):
         y = ys[i]
-        observe(y, par, obs[i])
+        if no > 0:
+            observe(y, par, pi, obs[i])
         mode[:] = modes[i]
         if rhs(ts[i], y, mode, True, par, pf, pi, w, piv, f) != OK:
             ok[i] = False
             continue
-        x[i] = w[W_X:W_X + NK]
-        phi[i] = w[W_PHI:W_PHI + NC]
-        phi_dot[i] = w[W_PD:W_PD + NC]
-        u[i] = w[W_U:W_U + NL]
-        for a in range(NQ):  # Q = B u, B (m, k) row-major
+        x[i] = w[pi[W_X]:pi[W_X] + nk]
+        phi[i] = w[pi[W_PHI]:pi[W_PHI] + nc]
+        phi_dot[i] = w[pi[W_PD]:pi[W_PD] + nc]
+        u[i] = w[pi[W_U]:pi[W_U] + nl]
+        for a in range(nq):  # Q = B u, B (m, k) row-major
             acc = 0.0
-            for kk in range(NL):
-                acc += w[W_B + a * NL + kk] * w[W_U + kk]
+            for kk in range(nl):
+                acc += w[pi[W_B] + a * nl + kk] * w[pi[W_U] + kk]
             Q[i, a] = acc
-        energy[i, 0] = kinetic(y, par)
-        energy[i, 1] = potential(y, par)
+        energy[i, 0] = kinetic(y, par, pi, w)
+        energy[i, 1] = potential(y, par, pi, w)
     return ok, x, phi, phi_dot, u, Q, energy, obs
 
 
@@ -997,30 +1172,30 @@ def evaluate_samples(ts, ys, modes, par, pf, pi):
 @njit(cache=True, error_model="numpy")
 def rhs_entry(t, y, mode, par, pf, pi):
     """dy/dt and [qdd, lambda] at time t and one state (mode held), for comparison with the Python path."""
-    w = np.zeros(W_G + pi[PI_NSW])
-    piv = np.zeros(NK, np.int64)
+    w = np.zeros(pi[W_END])
+    piv = np.zeros(pi[PI_NQ] + pi[PI_NC], np.int64)
     f = np.empty(y.size)
     code = rhs(t, y, mode.copy(), True, par, pf, pi, w, piv, f)
-    return code, f, w[W_X:W_X + NK].copy()
+    return code, f, w[pi[W_X]:pi[W_X] + pi[PI_NQ] + pi[PI_NC]].copy()
 
 
 @njit(cache=True, error_model="numpy")
 def rhs_repeat(y, mode, par, pf, pi, n_eval):
     """n_eval evaluations of the right-hand side (a timing loop for the benchmark)."""
-    w = np.zeros(W_G + pi[PI_NSW])
-    piv = np.zeros(NK, np.int64)
+    w = np.zeros(pi[W_END])
+    piv = np.zeros(pi[PI_NQ] + pi[PI_NC], np.int64)
     f = np.empty(y.size)
     acc = 0.0
     for _ in range(n_eval):
         rhs(0.0, y, mode, True, par, pf, pi, w, piv, f)
-        acc += f[NQ]
+        acc += f[pi[PI_NQ]]
     return acc
 
 
 @njit(cache=True, error_model="numpy")
 def project_entry(y, par, pf, pi):
-    w = np.zeros(W_G + pi[PI_NSW])
-    piv = np.zeros(NK, np.int64)
+    w = np.zeros(pi[W_END])
+    piv = np.zeros(pi[PI_NQ] + pi[PI_NC], np.int64)
     out = np.empty(y.size)
     info = np.zeros(2)
     code = project(y, out, 0.0, par, pf, pi, w, piv, info)

@@ -1,45 +1,67 @@
-"""Build, cache and load the compiled module of one mechanism.
+"""Load the compiled kernels (once per installation) and a mechanism's model functions.
 
-The module is one Python file: the imports of :mod:`csim.fast.kernels` (the core functions
-of :mod:`csim.physics`), the model functions generated from the symbolic derivation
-(:mod:`csim.fast.codegen`), the dispatch ``method_gamma_star`` over the registered
-stabilization methods that have a compiled path (:func:`method_dispatch_source`), and the
-rest of the kernels' text. It is written to ``<cache>/fast/<mechanism>_<key>.py``, where
-``<cache>`` is csim's model cache (``$CSIM_CACHE_DIR``, default ``~/.cache/csim``) and
-``<key>`` hashes everything the compiled code depends on: the symbolic definition, the
-sources of the kernels, of the core, of the methods' gamma* functions, of this module, of
-the generator and of the derivation, and the numba, numpy and scipy versions.
-Where the cache cannot be written, the module goes to a temporary folder of this process.
-numba compiles its functions on first use and, with
-``cache=True``, stores the machine code next to the file (``__pycache__``), so only the
-first run of a mechanism pays for the sympy derivation and the compilation.
+The kernels (:mod:`csim.fast.kernels`) are the same for every mechanism. They are imported
+from a copy, ``<cache>/fast/kernels_<key>.py``, where ``<cache>`` is csim's cache
+(``$CSIM_CACHE_DIR``, default ``~/.cache/csim``) and ``<key>`` hashes everything their
+machine code depends on: the kernels, the layout, the core (:mod:`csim.physics`), the
+built-in methods' files, and the numba, numpy, scipy and Python versions. numba compiles
+them on first use and keeps the machine code next to the copy (``__pycache__``); every
+later process, for any mechanism, loads it from there. (numba's own cache check looks at
+one file's time stamp only; the key in the name makes an edit of any dependency a new
+module instead of stale machine code.)
+
+A mechanism's model functions (:mod:`csim.fast.codegen`) are built into
+``<cache>/fast/<mechanism>_<key>.so`` by the system's C compiler (:mod:`csim.fast.ccodegen`,
+``cc -O2``, a fraction of a second), or, where no C compiler works, into numba cfuncs in
+``<mechanism>_<key>_cfunc.py`` (seconds; numba caches them too). ``<key>`` hashes the
+symbolic definition and the generators. The kernels call them through their addresses,
+which :func:`csim.fast.runner.pack_problem` puts into ``pi``. ``CSIM_MODEL_BACKEND``
+chooses: ``auto`` (default: C, else numba), ``c`` or ``numba``.
+
+A stabilization method whose gamma* is not in the kernels' own dispatch
+(:data:`csim.fast.kernels.BUILTIN_GAMMA`, e.g. one registered by a test or a user) runs
+compiled too: its kernel is wrapped in a cfunc in this process and called through its
+address.
+
+Where the cache cannot be written, the files go to a temporary folder of this process.
 """
 from __future__ import annotations
 
+import ctypes
 import hashlib
 import importlib.util
-import inspect
 import os
+import shutil
+import subprocess
 import sys
 import tempfile
+from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
 
+import numpy as np
+
+from csim.fast.layout import MODEL_FUNCTIONS
 from csim.model.cache import cache_dir, definition_key
 from csim.model.definition import MechanismDefinition
 from csim.solver.methods import STABILIZERS
 
-#: bump when the generated module changes shape
-FAST_VERSION = "2"
+#: bump when the generated files change shape
+FAST_VERSION = "3"
 
-KERNELS = Path(__file__).with_name("kernels.py")
-PHYSICS = Path(__file__).parents[1] / "physics"
-#: where the kernels' own imports end and their body starts
-_BODY_MARK = "# ---- the loop's constants"
+HERE = Path(__file__).parent
+KERNELS = HERE / "kernels.py"
+PHYSICS = HERE.parent / "physics"
+METHODS = HERE.parent / "solver" / "methods"
+#: model backends (CSIM_MODEL_BACKEND)
+MODEL_BACKENDS = ("auto", "c", "numba")
 
-_LOADED: dict[str, ModuleType] = {}
-#: (id(definition), compiled methods) -> (definition, module): hashing a definition takes milliseconds
-_BY_DEFINITION: dict[tuple, tuple[MechanismDefinition, ModuleType]] = {}
+_KERNELS: ModuleType | None = None
+#: id(definition) -> (definition, model): hashing a definition takes milliseconds
+_BY_DEFINITION: dict[int, tuple[MechanismDefinition, CompiledModel]] = {}
+_MODELS: dict[str, CompiledModel] = {}
+#: gamma* kernel -> its cfunc (kept alive: the kernels hold its address)
+_GAMMA_CFUNCS: dict = {}
 
 
 def _versions() -> str:
@@ -47,75 +69,238 @@ def _versions() -> str:
     import numpy
     import scipy
 
-    return f"numba {numba.__version__}, numpy {numpy.__version__}, scipy {scipy.__version__}"
+    return f"numba {numba.__version__}, numpy {numpy.__version__}, scipy {scipy.__version__}, python {sys.version}"
 
 
+def _hash(parts) -> str:
+    return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:24]
+
+
+# ---------------------------------------------------------------------------------------
+# the kernels: one module per installation
+# ---------------------------------------------------------------------------------------
+def kernels_key() -> str:
+    """Hash of everything the kernels' machine code depends on."""
+    sources = [KERNELS, HERE / "layout.py", *sorted(PHYSICS.glob("*.py")), *sorted(METHODS.glob("*.py"))]
+    return _hash([FAST_VERSION, *(p.read_text() for p in sources), _versions()])
+
+
+def kernels_path() -> Path:
+    return cache_dir() / "fast" / f"kernels_{kernels_key()}.py"
+
+
+def kernels_compiled(module: ModuleType) -> bool:
+    """Whether numba's cache holds the machine code of the kernels' loop (else the first call compiles it)."""
+    path = Path(module.__file__)
+    return any((path.parent / "__pycache__").glob(f"{path.stem}.integrate-*.nbi"))
+
+
+def load_kernels() -> ModuleType:
+    """The kernels module (imported once per process; compiled on first use once per installation)."""
+    global _KERNELS
+    if _KERNELS is not None:
+        return _KERNELS
+    path = kernels_path()
+    if not path.is_file():
+        path = _writable(path)
+        if not path.is_file():
+            _write_atomic(path, KERNELS.read_text())
+    name = f"csim_fast_{path.stem}"
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module  # numba's cache locates functions through their module
+    spec.loader.exec_module(module)
+    _KERNELS = module
+    return module
+
+
+# ---------------------------------------------------------------------------------------
+# the stabilization methods
+# ---------------------------------------------------------------------------------------
 def compiled_methods() -> list:
-    """The registered methods whose gamma* the kernels call, in dispatch order (code = index + 1).
+    """The registered methods the compiled kernels run (gamma* by code, or through an address)."""
+    return [cls for cls in STABILIZERS.values() if cls.compiled]
 
-    Code 0 is gamma* = gamma (a method with a compiled path and no gamma_star_kernel).
-    """
-    return [cls for cls in STABILIZERS.values() if cls.compiled and cls.gamma_star_kernel is not None]
+
+def _py(fn):
+    return getattr(fn, "py_func", fn)
+
+
+def method_dispatch(method) -> tuple[int, int]:
+    """(code, address) of a method's gamma* for the kernels: code 0 is gamma* = gamma, 1.. the
+    kernels' built-in dispatch, EXTERNAL a cfunc at ``address``."""
+    fn = type(method).gamma_star_kernel
+    if fn is None:
+        return 0, 0
+    kernels = load_kernels()
+    for code, builtin in enumerate(kernels.BUILTIN_GAMMA, start=1):
+        if _py(builtin) is _py(fn):
+            return code, 0
+    if fn not in _GAMMA_CFUNCS:
+        _GAMMA_CFUNCS[fn] = _gamma_cfunc(fn)
+    return kernels.EXTERNAL, _GAMMA_CFUNCS[fn].address
 
 
 def method_code(method) -> int:
     """The dispatch code of a method instance (0: gamma* = gamma)."""
-    dispatched = compiled_methods()
-    return dispatched.index(type(method)) + 1 if type(method) in dispatched else 0
+    return method_dispatch(method)[0]
 
 
-def _kernel_function(cls):
-    """The plain Python function behind a method's gamma* kernel (a numba dispatcher or not)."""
-    fn = cls.gamma_star_kernel
-    return getattr(fn, "py_func", fn)
+def _gamma_cfunc(kernel):
+    """A cfunc with the kernels' gamma* interface (csim.fast.kernels._call_gamma) around ``kernel``."""
+    from numba import carray, cfunc, njit, types
+
+    f8p, i8p, i8 = types.CPointer(types.float64), types.CPointer(types.int64), types.int64
+    signature = types.void(i8, f8p, f8p, f8p, f8p, i8, f8p, i8, i8p, i8, f8p)
+    inner = kernel if hasattr(kernel, "py_func") else njit(kernel)
+
+    def gamma_star(r, gamma, phi, phi_dot, gains, n_gains, fpar, n_fpar, ipar, n_ipar, out):
+        inner(r, carray(gamma, r), carray(phi, r), carray(phi_dot, r), carray(gains, n_gains),
+              carray(fpar, n_fpar), carray(ipar, n_ipar), carray(out, r))
+
+    return cfunc(signature, error_model="numpy")(gamma_star)
 
 
-def method_dispatch_source() -> str:
-    """``method_gamma_star(mk, r, gamma, phi, phi_dot, gains, fpar, ipar, out)``: gamma* by method code."""
-    lines = ["# ---- gamma* of the stabilization methods with a compiled path (csim.solver.methods), by code ----"]
-    for code, cls in enumerate(compiled_methods(), start=1):
-        fn = _kernel_function(cls)
-        lines.append(f"from {fn.__module__} import {fn.__name__} as _gamma_star_{code}  # {cls.name}")
-    lines += ["", "", "@hot",
-              "def method_gamma_star(mk, r, gamma, phi, phi_dot, gains, fpar, ipar, out):",
-              '    """gamma* (r,) into out by the method\'s code; 0 is gamma* = gamma."""']
-    for code, _ in enumerate(compiled_methods(), start=1):
-        lines += [f"    {'if' if code == 1 else 'elif'} mk == {code}:",
-                  f"        _gamma_star_{code}(r, gamma, phi, phi_dot, gains, fpar, ipar, out)", "        return"]
-    lines += ["    for i in range(r):", "        out[i] = gamma[i]"]
-    return "\n".join(lines) + "\n"
+# ---------------------------------------------------------------------------------------
+# a mechanism's model functions
+# ---------------------------------------------------------------------------------------
+@dataclass
+class CompiledModel:
+    """A mechanism's model functions, loaded: their addresses in the order of MODEL_FUNCTIONS."""
+
+    name: str
+    #: "c" (the system's C compiler) or "numba" (cfuncs)
+    backend: str
+    #: (m, r, k, o)
+    dims: tuple[int, int, int, int]
+    addresses: np.ndarray
+    #: the CDLL or the cfunc module (kept alive: the kernels hold the addresses)
+    handle: object = field(repr=False, default=None)
+    #: why the C path was not taken ("" when it was)
+    reason: str = ""
 
 
-def module_key(definition: MechanismDefinition) -> str:
-    """Hash of everything the compiled module of ``definition`` depends on."""
-    model_dir = Path(__file__).parents[1] / "model"  # read, not imported: importing derive imports sympy
-    sources = [KERNELS, Path(__file__), Path(__file__).with_name("codegen.py"), model_dir / "derive.py",
-               *sorted(PHYSICS.glob("*.py"))]
-    methods = [inspect.getsource(_kernel_function(cls)) for cls in compiled_methods()]
-    parts = [FAST_VERSION, definition_key(definition), *(p.read_text() for p in sources), *methods,
-             method_dispatch_source(), _versions(), sys.version]
-    return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:24]
+def model_key(definition: MechanismDefinition) -> str:
+    """Hash of everything a mechanism's model functions depend on."""
+    model_dir = HERE.parent / "model"  # read, not imported: importing derive imports sympy
+    sources = [HERE / "codegen.py", HERE / "ccodegen.py", HERE / "layout.py", model_dir / "derive.py"]
+    return _hash([FAST_VERSION, definition_key(definition), *(p.read_text() for p in sources)])
 
 
-def module_path(definition: MechanismDefinition) -> Path:
-    return cache_dir() / "fast" / f"{definition.name}_{module_key(definition)}.py"
+def model_backend() -> str:
+    value = os.environ.get("CSIM_MODEL_BACKEND", "auto").strip().lower() or "auto"
+    if value not in MODEL_BACKENDS:
+        raise ValueError(f"CSIM_MODEL_BACKEND: got {value!r}, expected one of {', '.join(MODEL_BACKENDS)}")
+    return value
 
 
-def generate_module_source(definition: MechanismDefinition) -> str:
-    """The full source of the compiled module (derives the model: seconds)."""
-    from csim.fast.codegen import model_source
-    from csim.model.derive import derive
-
-    kernels = KERNELS.read_text()
-    header = (f'"""csim compiled module of {definition.name!r}, generated by csim.fast.module. '
-              f'Do not edit."""\n')
-    # the kernels' own imports come first; the model functions use math, numpy and njit
-    body = kernels.split('"""', 2)[2]  # drop the kernels' docstring
-    imports, _, rest = body.partition(_BODY_MARK)
-    return (header + imports + model_source(derive(definition)) + "\n\n" + method_dispatch_source() + "\n\n"
-            + _BODY_MARK + rest)
+def c_compiler() -> str | None:
+    """The C compiler: $CC, else cc or gcc on the PATH (None: none)."""
+    cc = os.environ.get("CC")
+    return shutil.which(cc) if cc else (shutil.which("cc") or shutil.which("gcc"))
 
 
+class _Derived:
+    """The derivation of a definition, made on first use only (sympy: seconds)."""
+
+    def __init__(self, definition):
+        self.definition, self._derived = definition, None
+
+    def get(self):
+        if self._derived is None:
+            from csim.model.derive import derive
+            from csim.progress import status
+
+            with status(f"generating the model functions of {self.definition.name!r} (sympy; first run of this "
+                        f"mechanism)"):
+                self._derived = derive(self.definition)
+        return self._derived
+
+
+def _load_c(definition, key: str, derived: _Derived) -> CompiledModel:
+    path = cache_dir() / "fast" / f"{definition.name}_{key}.so"
+    if not path.is_file():
+        path = _writable(path)
+    if not path.is_file():
+        cc = c_compiler()
+        if cc is None:
+            raise RuntimeError("no C compiler (cc, gcc or $CC) found")
+        from csim.fast.ccodegen import CFLAGS, c_source
+        from csim.progress import status
+
+        source = c_source(derived.get())
+        with status(f"compiling the model functions of {definition.name!r} (cc)"), \
+                tempfile.TemporaryDirectory(dir=path.parent) as tmp:
+            src, out = Path(tmp) / "model.c", Path(tmp) / "model.so"
+            src.write_text(source)
+            done = subprocess.run([cc, *CFLAGS, "-o", str(out), str(src), "-lm"], capture_output=True, text=True)
+            if done.returncode != 0:
+                raise RuntimeError(f"{Path(cc).name} failed: {' '.join(done.stderr.split())[:300]}")
+            os.chmod(out, 0o755)
+            os.replace(out, path)
+    from csim.fast.ccodegen import c_symbol
+
+    lib = ctypes.CDLL(str(path))
+    addresses = [ctypes.cast(getattr(lib, c_symbol(name)), ctypes.c_void_p).value for name in MODEL_FUNCTIONS]
+    dims = tuple(int(v) for v in (ctypes.c_long * 4).in_dll(lib, "csim_dims"))
+    return CompiledModel(definition.name, "c", dims, np.array(addresses, dtype=np.int64), lib)
+
+
+def _load_numba(definition, key: str, derived: _Derived, reason: str) -> CompiledModel:
+    path = cache_dir() / "fast" / f"{definition.name}_{key}_cfunc.py"
+    if not path.is_file():
+        path = _writable(path)
+    if not path.is_file():
+        from csim.fast.codegen import cfunc_source
+
+        _write_atomic(path, cfunc_source(derived.get()))
+    from csim.progress import status
+
+    name = f"csim_model_{path.stem}"
+    with status(f"compiling the model functions of {definition.name!r} with numba (no C compiler: seconds)"):
+        spec = importlib.util.spec_from_file_location(name, path)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module
+        spec.loader.exec_module(module)
+    addresses = [getattr(module, fn).address for fn in MODEL_FUNCTIONS]
+    return CompiledModel(definition.name, "numba", tuple(module.DIMS), np.array(addresses, dtype=np.int64), module,
+                         reason)
+
+
+def load_model(definition: MechanismDefinition) -> CompiledModel:
+    """The model functions of ``definition`` (generated and built on the first call for this key)."""
+    known = _BY_DEFINITION.get(id(definition))
+    if known is not None and known[0] is definition:
+        return known[1]
+    key = model_key(definition)
+    backend = model_backend()
+    memo = f"{key}:{backend}"
+    if memo not in _MODELS:
+        derived = _Derived(definition)
+        reason = "CSIM_MODEL_BACKEND=numba"
+        model = None
+        if backend != "numba":
+            try:
+                model = _load_c(definition, key, derived)
+            except Exception as exc:
+                if backend == "c":
+                    raise
+                reason = f"{type(exc).__name__}: {exc}"
+        _MODELS[memo] = model or _load_numba(definition, key, derived, reason)
+    _BY_DEFINITION[id(definition)] = (definition, _MODELS[memo])
+    return _MODELS[memo]
+
+
+def load_module(definition: MechanismDefinition) -> ModuleType:
+    """The kernels, with the model functions of ``definition`` built (the arrays of
+    :func:`csim.fast.runner.pack_problem` carry their addresses)."""
+    load_model(definition)
+    return load_kernels()
+
+
+# ---------------------------------------------------------------------------------------
+# files in the cache
+# ---------------------------------------------------------------------------------------
 def _write_atomic(path: Path, text: str) -> None:
     """Write ``path`` whole or not at all (workers of ``csim compare`` may race for it)."""
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -146,31 +331,3 @@ def _writable(path: Path) -> Path:
     if _FALLBACK_DIR is None:
         _FALLBACK_DIR = Path(tempfile.mkdtemp(prefix="csim-fast-"))
     return _FALLBACK_DIR / path.name
-
-
-def load_module(definition: MechanismDefinition) -> ModuleType:
-    """The compiled module of ``definition`` (generated on the first call for this key)."""
-    memo = (id(definition), tuple(compiled_methods()))  # a method registered later makes a new module
-    known = _BY_DEFINITION.get(memo)
-    if known is not None and known[0] is definition:
-        return known[1]
-    path = module_path(definition)
-    if not path.is_file():
-        path = _writable(path)
-    key = str(path)
-    if key in _LOADED:
-        _BY_DEFINITION[memo] = (definition, _LOADED[key])
-        return _LOADED[key]
-    if not path.is_file():
-        from csim.progress import status
-
-        with status(f"generating the compiled module of {definition.name!r} (sympy)"):
-            _write_atomic(path, generate_module_source(definition))
-    name = f"csim_fast_{path.stem}"
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module  # numba's cache locates functions through their module
-    spec.loader.exec_module(module)
-    _LOADED[key] = module
-    _BY_DEFINITION[memo] = (definition, module)
-    return module

@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from csim.fast.module import load_module, method_code
+from csim.fast.layout import PI_HEAD, workspace
+from csim.fast.module import kernels_compiled, load_kernels, load_model, method_dispatch
 from csim.physics.events import chattering_switches
 from csim.physics.status import OK, failure_message
 from csim.solver.settings import IntegrationSettings, Trajectory, output_times
@@ -18,24 +19,29 @@ from csim.solver.system import ConstrainedSystem
 INTEGRATOR_CODES = {"DOP853": 0, "RK4": 1}
 
 
-#: entries of the header of ``pi`` (csim.fast.kernels: PI_MK ... PI_NGAINS), then sw_load, sw_kind, ipar
-PI_HEAD = 8
-
-
 def pack_problem(system: ConstrainedSystem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(par, pf, pi)``: the problem as the flat arrays of :mod:`csim.fast.kernels`.
 
     pf = [magnitudes (k), sw_value (n_sw), fpar (F), gains (G * r)];
-    pi = [mk, n_sw, at(ipar), I, at(fpar), F, at(gains), G * r, sw_load (n_sw), sw_kind (n_sw), ipar (I)],
+    pi = [mk, n_sw, at(ipar), I, at(fpar), F, at(gains), G * r, m, r, k, o, gamma* address, model function
+    addresses, workspace offsets, sw_load (n_sw), sw_kind (n_sw), ipar (I)] (:mod:`csim.fast.layout`),
     where mk is the method's dispatch code and ``at(x)`` where x starts in pi or pf. The load
     laws are :class:`csim.loads.LoadSet`'s packing, the method's settings
-    :meth:`csim.solver.methods.base.Method.pack`'s.
+    :meth:`csim.solver.methods.base.Method.pack`'s. Builds the model functions on the first
+    call for a mechanism (:func:`csim.fast.module.load_model`).
     """
     loads, method = system.loads, system.stabilizer
+    model = load_model(system.model.definition)
+    m, r, k, o = model.dims
+    if (m, r, k) != (system.m, system.r, loads.magnitudes.size):
+        raise RuntimeError(f"the compiled model of {model.name!r} has sizes {(m, r, k)}, the system "
+                           f"{(system.m, system.r, loads.magnitudes.size)}")
     gains, fpar, ipar = method.pack(system.r)
-    n_sw, k = loads.n_switches, loads.magnitudes.size
+    n_sw = loads.n_switches
     at_ipar, at_fpar = PI_HEAD + 2 * n_sw, k + n_sw
-    header = [method_code(method), n_sw, at_ipar, ipar.size, at_fpar, fpar.size, at_fpar + fpar.size, gains.size]
+    code, gamma_fn = method_dispatch(method)
+    header = [code, n_sw, at_ipar, ipar.size, at_fpar, fpar.size, at_fpar + fpar.size, gains.size, m, r, k, o,
+              gamma_fn, *model.addresses, *workspace(m, r, k, n_sw)]
     pf = np.concatenate((loads.magnitudes, loads.sw_value, fpar, gains)).astype(float)
     pi = np.concatenate((header, loads.sw_load, loads.sw_kind, ipar)).astype(np.int64)
     return np.ascontiguousarray(system.par, dtype=float), pf, pi
@@ -62,17 +68,20 @@ def _chattering_labels(ev_sw: np.ndarray, n_ev: int, n_chatter: int, labels: lis
 
 
 def prepare(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSettings) -> None:
-    """Load the compiled module and its machine code (compiling it on a cold cache).
+    """Build the model functions (on the first run of a mechanism) and load the kernels' machine
+    code (compiling it on the first run of an installation).
 
     numba loads or compiles a function on its first call; a call that stops after zero
     steps does that without integrating, so that a run's wall time is the run's alone.
     """
     from csim.progress import status
 
-    mod = load_module(system.model.definition)
-    with status(f"loading the compiled kernels of {system.model.definition.name!r} (on the first run of a "
-                f"mechanism: compiling them, 20-60 s)"), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        mod.integrate(*_arguments(system, y0, settings, max_steps=0))
+    args = _arguments(system, y0, settings, max_steps=0)  # builds the model functions
+    mod = load_kernels()
+    text = ("loading the compiled kernels" if kernels_compiled(mod) else
+            "compiling the kernels (once per csim installation, 1-2 min)")
+    with status(text), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        mod.integrate(*args)
 
 
 def integrate_compiled(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSettings) -> Trajectory:
@@ -80,10 +89,10 @@ def integrate_compiled(system: ConstrainedSystem, y0: np.ndarray, settings: Inte
 
     The caller has checked the combination with :func:`csim.fast.support.unsupported`.
     """
-    mod = load_module(system.model.definition)
+    args = _arguments(system, y0, settings, settings.max_steps)
+    mod = load_kernels()
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        n_rec, ts, ys, modes, n_ev, ev_t, ev_sw, nfev, nsteps, code, info = mod.integrate(
-            *_arguments(system, y0, settings, settings.max_steps))
+        n_rec, ts, ys, modes, n_ev, ev_t, ev_sw, nfev, nsteps, code, info = mod.integrate(*args)
     labels = system.loads.switch_labels
     status, message = "success", f"reached t_end = {settings.t_end:g} s"
     if code != OK:
@@ -128,8 +137,8 @@ def evaluate_compiled(system: ConstrainedSystem, t: np.ndarray, y: np.ndarray,
         :meth:`csim.solver.system.ConstrainedSystem.evaluate` gives them one at a time, and
         ``observables`` (N, o) and ``observable_rates`` (N, o).
     """
-    mod = load_module(system.model.definition)
     par, pf, pi = pack_problem(system)
+    mod = load_kernels()
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         ok, x, phi, phi_dot, u, Q, energy, obs = mod.evaluate_samples(
             np.ascontiguousarray(t, dtype=float), np.ascontiguousarray(y, dtype=float),

@@ -1,0 +1,81 @@
+"""The layout the compiled kernels read at run time: the header of ``pi``, the model's function
+pointers, and the offsets of the workspace ``w`` (no numba import).
+
+The kernels (:mod:`csim.fast.kernels`) are compiled once per installation, for every
+mechanism, so nothing about a mechanism is a compile-time constant there: its sizes, the
+addresses of its model functions and where each term lies in the workspace are entries of
+the integer array ``pi`` (:func:`csim.fast.runner.pack_problem`), read where they are used.
+The indices below are the kernels' compile-time constants; changing them changes the
+kernels' source hash and so recompiles them once.
+
+Model functions (:mod:`csim.fast.ccodegen`, :mod:`csim.fast.codegen`) all have one C
+interface, ``void f(double t, const double *y, const double *par, double *out)``: ``out``
+is the workspace for the functions that write model terms (absolute offsets), the energy
+(``out[0]``) for ``kinetic`` and ``potential``, the observables and their rates for
+``observe``.
+"""
+from __future__ import annotations
+
+#: the model functions, in the order of their addresses in pi[PI_FN:]
+MODEL_FUNCTIONS = ("terms", "phi_", "jac", "mass", "loads_", "kinetic", "potential", "observe")
+F_TERMS, F_PHI, F_JAC, F_MASS, F_LOADS, F_KINETIC, F_POTENTIAL, F_OBSERVE = range(len(MODEL_FUNCTIONS))
+
+#: the model terms in the workspace, in their order there (csim.fast.codegen.TERMS) -> their pi index name
+MODEL_TERMS = ("W_M", "W_CQD", "W_H", "W_PHI", "W_J", "W_GAM", "W_S", "W_B", "W_SQ", "W_L")
+#: the kernels' scratch after the model terms: name -> size from (m, r, k, n_sw)
+SCRATCH = (
+    ("W_A", lambda m, r, k, n: (m + r) ** 2),  # KKT matrix
+    ("W_X", lambda m, r, k, n: m + r),  # [qdd, lambda]
+    ("W_P", lambda m, r, k, n: m),  # p = B u - C qd - h
+    ("W_U", lambda m, r, k, n: k),  # load values
+    ("W_SD", lambda m, r, k, n: k),  # load rates ds/dt
+    ("W_PD", lambda m, r, k, n: r),  # Phi_q qd
+    ("W_GS", lambda m, r, k, n: r),  # gamma*
+    ("W_WINV", lambda m, r, k, n: m * m),  # projection: W^-1
+    ("W_M2", lambda m, r, k, n: m * m),  # projection: LU of M
+    ("W_WJT", lambda m, r, k, n: m * r),  # projection: W^-1 Phi_q^T
+    ("W_S2", lambda m, r, k, n: r * r),  # projection: Phi_q W^-1 Phi_q^T
+    ("W_Z", lambda m, r, k, n: r),  # projection
+    ("W_DQ", lambda m, r, k, n: m),  # projection: correction
+    ("W_COL", lambda m, r, k, n: m),  # projection: a column of the identity
+    ("W_E", lambda m, r, k, n: 1),  # kinetic or potential energy
+    ("W_G", lambda m, r, k, n: n),  # switching functions
+    ("W_END", lambda m, r, k, n: 0),  # the size of w
+)
+
+# ---- the header of pi ----
+#: the method's dispatch code, the number of switching functions, where the method's settings are
+PI_MK, PI_NSW, PI_IPAR, PI_NIPAR, PI_FPAR, PI_NFPAR, PI_GAINS, PI_NGAINS = range(8)
+#: sizes: coordinates, constraints, loads, observables
+PI_NQ, PI_NC, PI_NL, PI_NO = range(8, 12)
+#: the address of the gamma* of a method outside the kernels' own dispatch (0: none)
+PI_GAMMA_FN = 12
+#: the addresses of the model functions (MODEL_FUNCTIONS)
+PI_FN = 13
+#: the workspace offsets (MODEL_TERMS, then SCRATCH)
+PI_W = PI_FN + len(MODEL_FUNCTIONS)
+_W_NAMES = MODEL_TERMS + tuple(name for name, _ in SCRATCH)
+(W_M, W_CQD, W_H, W_PHI, W_J, W_GAM, W_S, W_B, W_SQ, W_L, W_A, W_X, W_P, W_U, W_SD, W_PD, W_GS, W_WINV, W_M2,
+ W_WJT, W_S2, W_Z, W_DQ, W_COL, W_E, W_G, W_END) = range(PI_W, PI_W + len(_W_NAMES))
+#: the header's length; then sw_load (n_sw), sw_kind (n_sw), ipar (I)
+PI_HEAD = PI_W + len(_W_NAMES)
+
+
+def model_offsets(m: int, r: int, k: int) -> tuple[dict[str, int], int]:
+    """The offsets of the model terms in w (the generated functions write there), and their end."""
+    sizes = dict(W_M=m * m, W_CQD=m, W_H=m, W_PHI=r, W_J=r * m, W_GAM=r, W_S=k, W_B=m * k, W_SQ=m * k, W_L=k)
+    offsets, at = {}, 0
+    for name in MODEL_TERMS:
+        offsets[name] = at
+        at += sizes[name]
+    return offsets, at
+
+
+def workspace(m: int, r: int, k: int, n_sw: int) -> list[int]:
+    """Every offset of w, in the order of pi[PI_W:PI_HEAD] (the last one is w's size)."""
+    offsets, at = model_offsets(m, r, k)
+    out = [offsets[name] for name in MODEL_TERMS]
+    for _, size in SCRATCH:
+        out.append(at)
+        at += size(m, r, k, n_sw)
+    return out

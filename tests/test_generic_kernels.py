@@ -1,0 +1,115 @@
+"""The kernels compiled once per installation, a mechanism's model functions built apart (issue 12).
+
+A second mechanism, in a fresh process, loads the kernels' machine code from numba's cache
+without compiling anything of them; the numba cfunc fallback (no C compiler) gives the
+results of the C path; a mechanism whose sizes have no copy with constant sizes in the
+kernels runs the same steps as the Python path.
+"""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import CONFIGS, qr_case
+
+from csim.case import load_case
+from csim.pipeline import run_case
+
+pytest.importorskip("numba")
+
+ROOT = Path(__file__).resolve().parents[1]
+
+PROBE = """
+import json, sys
+from csim.case import load_case
+from csim.fast import module
+from csim.pipeline import run_case
+res = run_case(load_case(sys.argv[1], ["simulation.t_end=0.2", "simulation.backend=compiled"]))
+kernels = module.load_kernels()
+stats = {name: getattr(kernels, name).stats for name in ("integrate", "evaluate_samples")}
+print(json.dumps(dict(backend=res.backend, ok=res.ok,
+                      hits={k: sum(s.cache_hits.values()) for k, s in stats.items()},
+                      misses={k: sum(s.cache_misses.values()) for k, s in stats.items()},
+                      models=sorted(p.name for p in (module.cache_dir() / "fast").iterdir()))))
+"""
+
+
+def _fresh_process(config: str) -> dict:
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    out = subprocess.run([sys.executable, "-c", PROBE, str(CONFIGS / config)], env=env, cwd=ROOT, check=True,
+                         capture_output=True, text=True).stdout
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def test_a_second_mechanism_in_a_fresh_process_loads_the_kernels_from_the_cache():
+    # this session's cache holds the kernels once the quick-return has run compiled (in this process)
+    assert run_case(qr_case("simulation.t_end=0.1", "simulation.backend=compiled")).backend == "compiled"
+    probe = _fresh_process("pendulum.yaml")  # another mechanism, another process
+    assert probe["backend"] == "compiled" and probe["ok"]
+    assert probe["misses"] == {"integrate": 0, "evaluate_samples": 0}, probe
+    assert probe["hits"]["integrate"] >= 1 and probe["hits"]["evaluate_samples"] >= 1, probe
+    assert sum(name.startswith("kernels_") and name.endswith(".py") for name in probe["models"]) == 1
+    if any(name.startswith("pendulum_") and name.endswith(".so") for name in probe["models"]):
+        return  # built by the C compiler
+    assert any(name.startswith("pendulum_") and name.endswith("_cfunc.py") for name in probe["models"])
+
+
+@pytest.fixture
+def fresh_models(monkeypatch):
+    """Model functions loaded anew in this test (the process keeps loaded ones by key)."""
+    from csim.fast import module
+
+    monkeypatch.setattr(module, "_MODELS", {})
+    monkeypatch.setattr(module, "_BY_DEFINITION", {})
+    return module
+
+
+@pytest.mark.parametrize("force", ["CSIM_MODEL_BACKEND=numba", "CC=false"])
+def test_the_numba_fallback_gives_the_results_of_the_c_path(fresh_models, monkeypatch, force):
+    """The same steps, events and recorded quantities to round-off, with and without a C compiler."""
+    module = fresh_models
+    if module.c_compiler() is None:
+        pytest.skip("no C compiler: every run here is the fallback")
+    sets = ["simulation.t_end=1", "stabilization.method=projection", "simulation.backend=compiled"]
+    with_c = run_case(qr_case(*sets))
+    model = module.load_model(module._BY_DEFINITION[next(iter(module._BY_DEFINITION))][0])
+    assert model.backend == "c" and model.reason == ""
+    monkeypatch.setattr(module, "_MODELS", {})
+    monkeypatch.setattr(module, "_BY_DEFINITION", {})
+    name, value = force.split("=")
+    monkeypatch.setenv(name, value)
+    if name == "CC":  # a cache where no model is built yet: the compiler must run, and fails
+        monkeypatch.setenv("CSIM_CACHE_DIR", str(Path(os.environ["CSIM_CACHE_DIR"]) / "no-cc"))
+    without = run_case(qr_case(*sets))
+    fallback = module._BY_DEFINITION[next(iter(module._BY_DEFINITION))][1]
+    assert fallback.backend == "numba"
+    assert ("CSIM_MODEL_BACKEND" in fallback.reason) if name == "CSIM_MODEL_BACKEND" else ("false" in fallback.reason)
+    assert with_c.ok and without.ok and with_c.backend == without.backend == "compiled"
+    assert (with_c.nfev, with_c.nsteps) == (without.nfev, without.nsteps)
+    np.testing.assert_allclose(without.event_times, with_c.event_times, rtol=0, atol=1e-12)
+    for field in ("q", "qd", "lam", "phi", "kinetic", "observables"):
+        a, b = getattr(with_c, field), getattr(without, field)
+        np.testing.assert_allclose(b, a, rtol=1e-12, atol=1e-12 * max(1.0, float(np.max(np.abs(a)))), err_msg=field)
+
+
+def test_a_c_compiler_error_under_model_backend_c_is_reported(fresh_models, monkeypatch):
+    monkeypatch.setenv("CSIM_MODEL_BACKEND", "c")
+    monkeypatch.setenv("CC", "false")
+    monkeypatch.setenv("CSIM_CACHE_DIR", str(Path(os.environ["CSIM_CACHE_DIR"]) / "c-fails"))  # nothing built yet
+    res = run_case(qr_case("simulation.t_end=0.1", "simulation.backend=compiled"))
+    assert res.status == "failed" and "false failed" in res.message
+
+
+def test_sizes_without_a_constant_copy_run_the_steps_of_the_python_path():
+    """Andrews' mechanism (m = 7, r = 6) runs the right-hand side with the sizes read at run time."""
+    sets = ["simulation.t_end=0.01", "simulation.rtol=1e-8", "simulation.atol=1e-8"]
+    fast = run_case(load_case(CONFIGS / "andrews.yaml", [*sets, "simulation.backend=compiled"]))
+    slow = run_case(load_case(CONFIGS / "andrews.yaml", [*sets, "simulation.backend=python"]))
+    assert fast.ok and slow.ok, (fast.message, slow.message)
+    assert (fast.nfev, fast.nsteps) == (slow.nfev, slow.nsteps)
+    np.testing.assert_allclose(fast.q, slow.q, rtol=0, atol=1e-10)
