@@ -49,3 +49,18 @@ def test_a_warm_run_imports_no_sympy():
     outs = [subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True, text=True,
                            check=True).stdout.split()[-1] for _ in range(2)]
     assert outs[1] == "False", outs
+
+
+def test_no_snapshot_is_written_from_sources_changed_after_the_process_loaded_them(tmp_path, monkeypatch):
+    """An upgrade or an edit while a process runs: what the old code built must not be filed
+    under the new sources' key (later processes would read a stale model)."""
+    import csim.model.light as light
+
+    monkeypatch.setenv("CSIM_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(light, "_LOADED_AT", 0.0)  # every source is newer than this process
+    definition = light_definition("pendulum", MODULES["pendulum"], MECHANISMS["pendulum"])
+    assert definition.key == definition_key(get_mechanism("pendulum"))
+    assert not list(tmp_path.rglob("*.json"))
+    monkeypatch.setattr(light, "_LOADED_AT", float("inf"))
+    light_definition("pendulum", MODULES["pendulum"], MECHANISMS["pendulum"])
+    assert len(list(tmp_path.rglob("*.json"))) == 1

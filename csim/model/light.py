@@ -15,6 +15,7 @@ import importlib.util
 import json
 import os
 import tempfile
+import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -133,14 +134,33 @@ def snapshot(definition: MechanismDefinition) -> dict:
     }
 
 
+#: when this process loaded the model layer [s since the epoch]: a source file changed after
+#: it may differ from the code this process runs, and its snapshot is not written
+_LOADED_AT = time.time()
+
+
+def _source_files(module: str) -> list[Path]:
+    """The mechanism's module file and the model layer's sources."""
+    here = Path(__file__).parent
+    return [Path(importlib.util.find_spec(module).origin), *(here / name for name in MODEL_SOURCES)]
+
+
 def _source_key(module: str) -> str:
     """Hash of the mechanism's module file and of the model layer's sources."""
-    here = Path(__file__).parent
-    files = [Path(importlib.util.find_spec(module).origin), *(here / name for name in MODEL_SOURCES)]
     digest = hashlib.sha256(SNAPSHOT_VERSION.encode())
-    for path in files:
+    for path in _source_files(module):
         digest.update(path.read_bytes())
     return digest.hexdigest()[:24]
+
+
+def _sources_changed_since_loaded(module: str) -> bool:
+    """Whether a source file was written after this process loaded csim (an upgrade or an
+    edit while it runs): the snapshot it would write, filed under the new sources' key,
+    would hold what the old code derived."""
+    try:
+        return any(path.stat().st_mtime > _LOADED_AT for path in _source_files(module))
+    except OSError:
+        return True
 
 
 def light_definition(name: str, module: str, factory: Callable[[], MechanismDefinition]) -> LightDefinition:
@@ -160,6 +180,8 @@ def light_definition(name: str, module: str, factory: Callable[[], MechanismDefi
         pass
     full = factory()
     data = snapshot(full)
+    if _sources_changed_since_loaded(module):
+        return LightDefinition(data, factory, full)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
