@@ -55,3 +55,13 @@ def test_bad_plans_are_rejected_naming_the_option(case, vary, options, words):
     with pytest.raises(CaseError) as info:
         make_plan(case, [parse_variation(v) for v in vary], **options)
     assert words in str(info.value)
+
+
+def test_integer_keys_take_whole_numbers_in_ranges_and_random_draws(case):
+    grid = make_plan(case, [parse_variation("simulation.max_steps=log:1000:100000:3")])
+    assert grid.column("simulation.max_steps") == [1000, 10000, 100000]
+    drawn = make_plan(case, [parse_variation("simulation.event_samples=lin:0:8")], sampling="random",
+                      samples=20, seed=1).column("simulation.event_samples")
+    assert all(isinstance(x, int) and 0 <= x <= 8 for x in drawn) and len(set(drawn)) > 3
+    make_plan(case, [parse_variation("simulation.event_samples=lin:0:8")], sampling="random", samples=3, seed=1
+              ).run_case(2)

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from csim.case import Case, apply_overrides, validate_case
+from csim.case import SETTABLE, Case, apply_overrides, validate_case
 from csim.errors import CaseError
 from csim.study.values import Variation
 
@@ -95,16 +95,29 @@ class SweepPlan:
         return [row[j] for row in self.rows]
 
 
+def _integer_key(key: str) -> bool:
+    """Whether the case schema declares ``key`` an integer (``simulation.max_steps``)."""
+    field = SETTABLE.get(key)
+    return field is not None and field.type == "integer"
+
+
+def _whole_numbers(variation: Variation, values: list) -> list:
+    """A range's values, as whole numbers for an integer key (numbers drawn or spaced between whole ends)."""
+    if variation.kind == "list" or not _integer_key(variation.key):
+        return list(values)
+    return [int(round(x)) for x in values]
+
+
 def _rows(variations: list[Variation], sampling: str, samples: int | None, seed: int | None) -> list[tuple]:
     if sampling == "grid":
-        return list(itertools.product(*(v.values for v in variations)))
+        return list(itertools.product(*(_whole_numbers(v, v.values) for v in variations)))
     rng = np.random.default_rng(seed)
     n, d = samples, len(variations)
     if sampling == "random":
         u = rng.random((n, d))
     else:  # Latin hypercube: one point in each of n equal strata per key, strata paired at random
         u = (np.argsort(rng.random((n, d)), axis=0) + rng.random((n, d))) / n
-    columns = [v.sample(u[:, j]) for j, v in enumerate(variations)]
+    columns = [_whole_numbers(v, v.sample(u[:, j])) for j, v in enumerate(variations)]
     return list(zip(*columns))
 
 
@@ -139,7 +152,7 @@ def _check_values(case: Case, data: dict, variations: list[Variation]) -> list[s
     """Each value of each key, set alone on the base case, must pass the case check."""
     problems = []
     for v in variations:
-        probe = v.values or tuple(v.sample(np.array([0.0, 1.0])))
+        probe = _whole_numbers(v, v.values or v.sample(np.array([0.0, 1.0])))
         for value in dict.fromkeys(value_text(x) for x in probe):  # each distinct value once
             try:
                 validate_case(apply_overrides(copy.deepcopy(data), [f"{v.key}={value}"]), source=case.source)
