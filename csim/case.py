@@ -15,6 +15,7 @@ Units are SI throughout (m, kg, s, rad, N, N m, J); see ``csim.io.units``.
 """
 from __future__ import annotations
 
+import functools
 import math
 import re
 from collections.abc import Hashable
@@ -41,6 +42,7 @@ from csim.schema import (
     field_paths,
     finite_number,
     section_json_schema,
+    typed_section,
     unknown_key,
     validate_section,
 )
@@ -213,6 +215,32 @@ class Case:
     linkage: Linkage | None = None
     warnings: list[str] = field(default_factory=list)
 
+    # ---- the validated sections as typed, frozen objects (attributes from the case schema)
+    @functools.cached_property
+    def simulation(self):
+        """``simulation``: t_end [s], integrator, rtol, atol, step [s], ..., backend."""
+        return typed_section("simulation", SCHEMA.fields["simulation"], self.data["simulation"])
+
+    @functools.cached_property
+    def output(self):
+        """``output``: dt [s]."""
+        return typed_section("output", SCHEMA.fields["output"], self.data["output"])
+
+    @functools.cached_property
+    def initial(self):
+        """``initial``: q, qd, guess, tol, max_iter, q_offset, qd_offset."""
+        return typed_section("initial", SCHEMA.fields["initial"], self.data["initial"])
+
+    @functools.cached_property
+    def formulation(self):
+        """``formulation``: method, independent, max_condition."""
+        return typed_section("formulation", SCHEMA.fields["formulation"], self.data["formulation"])
+
+    @functools.cached_property
+    def stabilization(self):
+        """``stabilization``: method, and every registered method's settings."""
+        return typed_section("stabilization", SCHEMA.fields["stabilization"], self.data["stabilization"])
+
     @property
     def kinematic(self) -> bool:
         """True for a link-coupling case with prescribed drives and ``drive_mode: kinematic`` (a
@@ -246,14 +274,13 @@ class Case:
         return LoadSet(laws)
 
     def integration_settings(self) -> IntegrationSettings:
-        s = self.data["simulation"]
+        s = self.simulation
         return IntegrationSettings(
-            integrator=s["integrator"], t_end=s["t_end"], rtol=s["rtol"], atol=s["atol"], step=s["step"],
-            max_step=np.inf if s["max_step"] is None else s["max_step"], first_step=s["first_step"],
-            events=s["events"], max_events=s["max_events"], max_steps=s["max_steps"],
-            event_samples=s["event_samples"], max_phi=s["max_phi"], min_step=s["min_step"],
-            chatter_events=s["chatter_events"],
-            output_dt=self.data["output"]["dt"],
+            integrator=s.integrator, t_end=s.t_end, rtol=s.rtol, atol=s.atol, step=s.step,
+            max_step=np.inf if s.max_step is None else s.max_step, first_step=s.first_step,
+            events=s.events, max_events=s.max_events, max_steps=s.max_steps,
+            event_samples=s.event_samples, max_phi=s.max_phi, min_step=s.min_step,
+            chatter_events=s.chatter_events, output_dt=self.output.dt,
         )
 
     def to_yaml(self) -> str:

@@ -262,8 +262,8 @@ def run(
     result = None
     with reporting(not quiet), _watch_ctrl_c() as ctrl_c:
         try:
-            with status(f"simulating {case.name} to t = {c.data['simulation']['t_end']:g} s"), \
-                    RunProgress(c.data["simulation"]["t_end"]) as bar:
+            with status(f"simulating {case.name} to t = {c.simulation.t_end:g} s"), \
+                    RunProgress(c.simulation.t_end) as bar:
                 result = run_case(c, progress=bar)
         except KeyboardInterrupt:
             pass  # no result came back (interrupted before the integration, or in compiled code)

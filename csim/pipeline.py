@@ -36,28 +36,27 @@ def numeric_model(case: Case) -> NumericModel:
 def build_system(case: Case) -> ConstrainedSystem:
     """The ODE system of a case: model, parameters, loads, formulation and stabilizer."""
     model = numeric_model(case)
-    form = case.data["formulation"]
+    form = case.formulation
     settings = {}
-    if form["method"] == "elimination":
+    if form.method == "elimination":
         names = case.mechanism.coordinate_names
-        independent = form["independent"]
         settings = dict(
-            independent=None if independent is None else [names.index(n) for n in independent],
-            max_condition=form["max_condition"],
+            independent=None if form.independent is None else [names.index(n) for n in form.independent],
+            max_condition=form.max_condition,
         )
-    stab = {k: v for k, v in case.data["stabilization"].items() if k != "method"}
-    stabilizer = make_stabilizer(case.data["stabilization"]["method"], stab)
+    stab = {k: v for k, v in case.data["stabilization"].items() if k != "method"}  # every method's settings
+    stabilizer = make_stabilizer(case.stabilization.method, stab)
     if case.driven:  # drives as rheonomic constraints (csim.solver.driven)
         from csim.solver.driven import DrivenSystem
 
         return DrivenSystem(model, model.parameter_vector(case.parameters), case.load_set(),
-                            make_formulation(form["method"], **settings), stabilizer,
+                            make_formulation(form.method, **settings), stabilizer,
                             case.linkage.driven_indices, case.linkage.drive_function(case.parameters))
     return stabilizer.system_class()(
         model=model,
         par=model.parameter_vector(case.parameters),
         loads=case.load_set(),
-        formulation=make_formulation(form["method"], **settings),
+        formulation=make_formulation(form.method, **settings),
         stabilizer=stabilizer,
     )
 
@@ -68,15 +67,14 @@ def initial_state(case: Case, system: ConstrainedSystem) -> np.ndarray:
     Consistent, plus the case's ``initial.q_offset`` and ``initial.qd_offset`` (zero unless a
     perturbed start is asked for).
     """
-    ini = case.data["initial"]
-    state = consistent_initial_state(
-        system.model, system.par, ini["q"], ini["qd"], ini["guess"], tol=ini["tol"], max_iter=ini["max_iter"]
-    )
+    ini = case.initial
+    state = consistent_initial_state(system.model, system.par, ini.q, ini.qd, ini.guess, tol=ini.tol,
+                                     max_iter=ini.max_iter)
     names = case.mechanism.coordinate_names
     q0, qd0 = state.q.copy(), state.qd.copy()
-    for name, dq in ini["q_offset"].items():
+    for name, dq in ini.q_offset.items():
         q0[names.index(name)] += dq
-    for name, dqd in ini["qd_offset"].items():
+    for name, dqd in ini.qd_offset.items():
         qd0[names.index(name)] += dqd
     # W = 0: the work of the loads, and of the drives of driven dynamics (csim.solver.driven)
     return np.concatenate((q0, qd0, np.zeros(system.k + getattr(system, "d", 0))))
@@ -129,7 +127,7 @@ def run_case(case: Case, progress: Callable[[float], None] | None = None) -> Res
 
         linkage_outputs(case, system, trajectory, result)
     result.kernel_load_time = load_time
-    if backend == "python" and case.data["simulation"]["backend"] == "auto":  # why auto fell back (run summary)
+    if backend == "python" and case.simulation.backend == "auto":  # why auto fell back (run summary)
         from csim.fast.support import numba_available, unsupported
 
         result.backend_reason = why or "; ".join(unsupported(case.data)) or (
@@ -146,7 +144,7 @@ def _load_compiled(case: Case, system: ConstrainedSystem, y0: np.ndarray, settin
         return "compiled", ""
     except Exception as exc:  # numba's errors have no common base class
         why = f"{type(exc).__name__}: {' '.join(str(exc).split())[:300]}"
-        if case.data["simulation"]["backend"] == "compiled":
+        if case.simulation.backend == "compiled":
             return "failed", f"simulation.backend 'compiled': the compiled kernels could not be loaded ({why})"
         return "python", f"the compiled kernels could not be loaded, {why}"
 

@@ -8,9 +8,11 @@ The same declarations give the JSON Schema that editors validate case files with
 from __future__ import annotations
 
 import difflib
+import functools
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, make_dataclass
+from dataclasses import field as dataclass_field
 from typing import Any
 
 REQUIRED = object()
@@ -205,6 +207,29 @@ def validate_section(path: str, data: Any, section: Section, problems: list[str]
         else:
             out[key] = spec.default
     return out
+
+
+#: field type -> the Python type of its validated value (a typed section's annotations)
+PY_TYPES = {"number": float, "integer": int, "string": str, "boolean": bool, "mapping": dict, "list": list,
+            "any": Any}
+
+
+@functools.cache
+def _section_class(name: str, fields: tuple[tuple[str, str, bool, str], ...]) -> type:
+    """A frozen dataclass named ``name`` with one attribute per (key, type, nullable, doc)."""
+    annotations = [(key, PY_TYPES[kind] | None if nullable else PY_TYPES[kind], dataclass_field(metadata={"doc": doc}))
+                   for key, kind, nullable, doc in fields]
+    cls = make_dataclass(name, annotations, frozen=True)
+    cls.__doc__ = f"The validated ``{name.lower()}`` section of a case (attributes typed from the case schema)."
+    return cls
+
+
+def typed_section(name: str, section: Section, data: dict) -> Any:
+    """``data``, a validated section of ``section``, as a frozen dataclass with one typed
+    attribute per leaf key (``case.simulation.t_end`` instead of ``data["simulation"]["t_end"]``)."""
+    leaves = tuple((key, spec.type, spec.nullable, spec.doc) for key, spec in section.fields.items()
+                   if isinstance(spec, Field))
+    return _section_class(name.capitalize(), leaves)(**{key: data[key] for key, *_ in leaves})
 
 
 def field_paths(section: Section, prefix: str = "") -> dict[str, Field]:

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from csim.case import CaseLoader, apply_overrides, load_case, parse_yaml, validate_case
+from csim.case import SCHEMA, CaseLoader, apply_overrides, load_case, parse_yaml, validate_case
 from csim.errors import CaseError
 from csim.mechanisms import MECHANISMS
 from csim.solver.integrators import INTEGRATORS
@@ -476,3 +476,21 @@ def test_too_many_samples_names_t_end_as_well():
         load_case(CONFIG, ["simulation.t_end=1e300"])
     msg = only_problem(excinfo)
     assert msg.startswith("output.dt: ") and "simulation.t_end = 1e+300 s" in msg
+
+
+def test_the_validated_sections_are_typed_frozen_objects_generated_from_the_schema():
+    import dataclasses
+
+    from csim.schema import field_paths
+
+    c = load_case(CONFIG, ["simulation.t_end=7", "stabilization.method=baumgarte", "stabilization.w=[20, 30]"])
+    assert (c.simulation.t_end, c.stabilization.method, c.stabilization.w) == (7.0, "baumgarte", [20, 30])
+    assert c.output.dt == c.data["output"]["dt"] and c.initial.guess == c.data["initial"]["guess"]
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        c.simulation.t_end = 1.0
+    # one attribute per leaf of the schema section, typed from the field's type
+    for section in ("simulation", "output", "initial", "formulation", "stabilization"):
+        names = {path.split(".", 1)[1] for path in field_paths(SCHEMA) if path.startswith(section + ".")}
+        assert {f.name for f in dataclasses.fields(getattr(c, section))} == names
+    hints = {f.name: f.type for f in dataclasses.fields(c.simulation)}
+    assert hints["t_end"] is float and hints["max_steps"] is int and hints["max_step"] == (float | None)

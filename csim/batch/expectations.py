@@ -307,7 +307,7 @@ class Bounded(Expectation):
 
     @staticmethod
     def _window(path: str, window: Any, case: Case, problems: list[str]) -> tuple[float, float] | None:
-        t_end = case.data["simulation"]["t_end"]
+        t_end = case.simulation.t_end
         if not (isinstance(window, list) and len(window) == 2 and all(map(_number, window))
                 and 0 <= window[0] < window[1] and window[0] <= t_end):
             problems.append(f"{path}: got {describe(window)}; expected [t0, t1] in s with 0 <= t0 < t1 and "
@@ -449,7 +449,7 @@ class Value(Expectation):
                 problems.append(f"{path}.{key}: unknown key{extra}; valid keys here: {', '.join(cls._KEYS)}")
         names = [*case.mechanism.coordinate_names, *(ob.name for ob in case.mechanism.observables)]
         name, t, expected, tol = (spec.get(k) for k in ("name", "t", "expected", "tol"))
-        t_end = case.data["simulation"]["t_end"]
+        t_end = case.simulation.t_end
         checks = [("name", name in names, f"a coordinate or observable of {case.mechanism.name}: {', '.join(names)}"),
                   ("t", _number(t) and 0 <= t <= t_end, f"a time in s with 0 <= t <= t_end = {t_end:g}"),
                   ("expected", _number(expected), "a number"),

@@ -133,7 +133,7 @@ def plan_comparison(case: CaseInput, methods: Sequence[str] | None, tolerances: 
     overrides = list(overrides)
     chosen, tols = _check_options(methods, tolerances, reference, jobs)
     base = make_case(case, overrides)
-    integrator = base.data["simulation"]["integrator"]
+    integrator = base.simulation.integrator
     chosen = chosen if chosen is not None else default_methods(integrator)
     skipped: dict[str, str] = {}
     if tols is not None:
@@ -290,17 +290,17 @@ def make_case(case: CaseInput, sets: list[str]) -> Case:
 
 def own_tolerance(case: Case) -> tuple[float, str]:
     """A case's own (tolerance, tolerance kind): its rtol, or its step [s] for a fixed-step integrator."""
-    sim = case.data["simulation"]
-    if not INTEGRATORS[sim["integrator"]].adaptive:
-        return float(sim["step"]), "step"
-    return float(sim["rtol"]), "rtol=atol" if sim["rtol"] == sim["atol"] else "rtol"
+    sim = case.simulation
+    if not INTEGRATORS[sim.integrator].adaptive:
+        return float(sim.step), "step"
+    return float(sim.rtol), "rtol=atol" if sim.rtol == sim.atol else "rtol"
 
 
 def setting_text(case: Case) -> str:
     """The tolerances (or step) of a case, e.g. ``"rtol = atol = 1e-08"``."""
-    sim = case.data["simulation"]
-    if not INTEGRATORS[sim["integrator"]].adaptive:
-        return f"step = {sim['step']:.2e} s"
-    if sim["rtol"] == sim["atol"]:
-        return f"rtol = atol = {tol_text(sim['rtol'])}"
-    return f"rtol = {tol_text(sim['rtol'])}, atol = {tol_text(sim['atol'])}"
+    sim = case.simulation
+    if not INTEGRATORS[sim.integrator].adaptive:
+        return f"step = {sim.step:.2e} s"
+    if sim.rtol == sim.atol:
+        return f"rtol = atol = {tol_text(sim.rtol)}"
+    return f"rtol = {tol_text(sim.rtol)}, atol = {tol_text(sim.atol)}"

@@ -237,18 +237,18 @@ def run_kinematics(case, model=None, progress: Callable[[float], None] | None = 
     linkage = case.linkage
     model = model if model is not None else KinematicModel(case.mechanism)
     par = model.parameter_vector(case.parameters)
-    t_end, dt = case.data["simulation"]["t_end"], case.data["output"]["dt"]
+    t_end, dt = case.simulation.t_end, case.output.dt
     count = int(np.floor(t_end / dt + 1e-9)) + 1
     times = np.linspace(0.0, (count - 1) * dt, count)
     if times[-1] < t_end - 1e-12:
         times = np.append(times, t_end)
     names = case.mechanism.coordinate_names
-    ini = case.data["initial"]
+    ini = case.initial
     q_guess = np.array([linkage.start.get(n, 0.0) for n in names])
-    for name, value in ini["guess"].items():
+    for name, value in ini.guess.items():
         q_guess[names.index(name)] = value
     out = analyse_motion(model, par, linkage.drive_function(case.parameters), linkage.driven_indices,
-                         times, q_guess, linkage.equation_labels, tol=ini["tol"], max_iter=ini["max_iter"],
+                         times, q_guess, linkage.equation_labels, tol=ini.tol, max_iter=ini.max_iter,
                          progress=progress)
     t, q, qd, qdd = out["t"], out["q"], out["qd"], out["qdd"]
     M, r, k, o = t.size, model.n_constraints, model.n_loads, len(case.mechanism.observables)
