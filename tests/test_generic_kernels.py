@@ -113,3 +113,15 @@ def test_sizes_without_a_constant_copy_run_the_steps_of_the_python_path():
     assert fast.ok and slow.ok, (fast.message, slow.message)
     assert (fast.nfev, fast.nsteps) == (slow.nfev, slow.nsteps)
     np.testing.assert_allclose(fast.q, slow.q, rtol=0, atol=1e-10)
+
+
+def test_integers_beyond_64_bits_are_printed_as_doubles_in_c():
+    """sympy keeps exact integers (10^19 from a rationalized float inertia): as C integer
+    literals they overflow, and the compiled kinetic energy of such a model came out wrong."""
+    import sympy as sp
+
+    from csim.fast.ccodegen import _Printer
+
+    x = sp.Symbol("x")
+    assert _Printer().doprint(10**19 * x) == "1e+19*s_x"
+    assert _Printer().doprint(12 * x) == "12*s_x"

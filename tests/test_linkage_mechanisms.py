@@ -137,3 +137,53 @@ def test_spatial_mechanisms_are_drawn_in_3d_planar_ones_in_2d():
             point, axis = name.split("_")
             j = res.observable_names.index(name)
             assert pts[names.index(point), "xyz".index(axis)] == pytest.approx(res.observables[k, j], abs=1e-12)
+
+
+def _six_bar_with_a_ternary_pin(shared: bool) -> dict:
+    """The four-bar of fourbar_gravity.yaml with a bar hanging from the coupler-rocker pin C:
+    one joint shared by three links, declared once (``shared``) or as two binary couplings
+    with a second, coincident frame on the coupler."""
+    import copy
+
+    data = copy.deepcopy(yaml.safe_load((CONFIGS / "fourbar_gravity.yaml").read_text()))
+    mech = data["mechanism"]
+    mech["links"].append({"link": 4, "name": "bar", "joints": [["R", 0, "C"], ["R", [0.2, 0, 0], "E"]],
+                          "mass": 0.4, "com": [0.1, 0, 0], "inertia": 0.4 * 0.04 / 12})
+    if shared:
+        mech["couplings"][3] = {"name": "C", "couple": [["coupler", "C"], ["rocker", "C"], ["bar", "C"]]}
+    else:
+        mech["links"][2]["joints"].append(["R", ["b", 0, 0], "C2"])
+        mech["couplings"].append({"name": "C_2", "couple": ["coupler", "C2", "bar", "C"]})
+    data["initial"]["q"]["q_C_2"], data["initial"]["qd"]["q_C_2"] = -1.0, 0.0
+    data["simulation"]["t_end"] = 1.0
+    return data
+
+
+def test_a_joint_shared_by_three_links_is_declared_once():
+    from csim.case import validate_case
+
+    once = run_case(validate_case(_six_bar_with_a_ternary_pin(True)))
+    twice = run_case(validate_case(_six_bar_with_a_ternary_pin(False)))
+    assert once.ok and twice.ok and once.coordinate_names == twice.coordinate_names
+    np.testing.assert_allclose(once.q, twice.q, rtol=0, atol=1e-12)
+    # the bar stays pinned at C with its length, and gravity alone does no net work: T + V conserved
+    obs = {name: once.observables[:, i] for i, name in enumerate(once.observable_names)}
+    length = np.hypot(obs["E_x"] - obs["C_x"], obs["E_y"] - obs["C_y"])
+    np.testing.assert_allclose(length, 0.2, rtol=0, atol=1e-9)
+    assert once.backend == "compiled" and once.energy_error_relative < 1e-8 and np.ptp(obs["E_x"]) > 0.01
+
+
+@pytest.mark.parametrize("couple, words", [
+    ([["coupler", "C"], ["rocker", "C"], ["coupler", "B"]], "couples link 2 with itself"),
+    ([["coupler", "C"], ["rocker", "C"], ["bar", "X"]], "has no joint 'X'"),
+    ([["coupler", "C"], ["rocker", "C"], ["crank", "A"]], "already coupled"),
+])
+def test_bad_shared_joints_name_the_row(couple, words):
+    from csim.case import validate_case
+    from csim.errors import CaseError
+
+    data = _six_bar_with_a_ternary_pin(True)
+    data["mechanism"]["couplings"][3]["couple"] = couple
+    with pytest.raises(CaseError) as info:
+        validate_case(data)
+    assert "mechanism.couplings[3]" in str(info.value) and words in str(info.value)

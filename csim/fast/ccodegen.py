@@ -24,6 +24,12 @@ class _Printer(C99CodePrinter):
     def _print_Symbol(self, expr):
         return f"s_{expr.name}"
 
+    def _print_Integer(self, expr):
+        # an integer literal beyond 64 bits overflows in C (sympy keeps exact integers, e.g. the
+        # 10^19 that rationalizing an inertia given as a float produces): print it as a double
+        n = int(expr)
+        return super()._print_Integer(expr) if abs(n) < 2**53 else repr(float(n))
+
 
 def c_symbol(name: str) -> str:
     """The exported name of a model function."""

@@ -417,6 +417,14 @@ def _coupling_ends(path: str, spec: list, rows: LinkRows, by_name: dict, problem
     return ends
 
 
+def _pin_pairs(spec: Any) -> list[list] | None:
+    """The [link, joint] pairs of a joint shared by three or more links, ``[[i, k], [j, m], [l, n], ...]``
+    (None for any other form)."""
+    if isinstance(spec, list) and len(spec) >= 3 and all(isinstance(p, list) and len(p) == 2 for p in spec):
+        return spec
+    return None
+
+
 def _couplings(table: Any, rows: LinkRows, problems: list[str]) -> list[Coupling]:
     out: list[Coupling] = []
     if not isinstance(table, list) or not table:
@@ -427,38 +435,66 @@ def _couplings(table: Any, rows: LinkRows, problems: list[str]) -> list[Coupling
     by_name = {link.name: number for number, link in links.items() if link.name}
     used: dict[tuple[int, int], str] = {}
     names: dict[str, str] = {}
+    extra = len(table)  # the couplings of a shared joint beyond its first are numbered after the table
     for n, row in enumerate(table):
         path = f"mechanism.couplings[{n}] (coupling {n + 1})"
         ok, name, spec = _coupling_name(path, row, names, problems)
         if not ok:
             continue
-        if not isinstance(spec, list) or len(spec) != 4:
+        pairs = _pin_pairs(spec)
+        if pairs is None and (not isinstance(spec, list) or len(spec) != 4):
             problems.append(f"{path}: got {describe(spec)}; expected [i, k, j, m] (link i, its joint k; link j, its "
-                            f"joint m) or {{name: NAME, couple: [i, k, j, m]}}")
+                            f"joint m), {{name: NAME, couple: [i, k, j, m]}}, or a joint shared by three or more "
+                            f"links, [[i, k], [j, m], [l, n], ...]")
             continue
-        ends = _coupling_ends(path, spec, rows, by_name, problems)
-        if ends is None:
-            continue
-        (i, k), (j, m) = ends
-        if i == j:
-            problems.append(f"{path}: couples link {i} with itself; expected two different links")
-            continue
-        clash = False
-        for end in ends:
-            if end in used:
-                problems.append(f"{path}: joint {end[1]} of link {end[0]} is already coupled by {used[end]}; "
-                                f"expected each joint frame in one coupling only")
-                clash = True
-        if clash:
-            continue
-        a, b = links[i].joints[k - 1], links[j].joints[m - 1]
-        if a.type != b.type:
-            problems.append(f"{path}: couples a {a.type} joint (link {i}, joint {k}) with a {b.type} joint "
-                            f"(link {j}, joint {m}); expected two joint frames of the same type")
-            continue
-        used[(i, k)] = used[(j, m)] = path
-        out.append(Coupling(n + 1, name, i, k, j, m, a.type, path))
+        # a shared joint (ternary, quaternary pin): its first link's frame coupled with each other link's
+        specs = [spec] if pairs is None else [[*pairs[0], *other] for other in pairs[1:]]
+        first_end = None
+        for t, one in enumerate(specs):
+            number = n + 1 if t == 0 else (extra := extra + 1)
+            sub_name = name if t == 0 or name is None else f"{name}_{t + 1}"
+            if t > 0 and sub_name is not None:
+                if sub_name in names:
+                    problems.append(f"{path}.name: {name!r} names the shared joint's couplings {name}, {name}_2, ...; "
+                                    f"{sub_name!r} is already the name of {names[sub_name]}")
+                    break
+                names[sub_name] = path
+            coupling = _one_coupling(path, number, sub_name, one, rows, by_name, used, problems, shared=first_end)
+            if coupling is None:
+                break
+            first_end = (coupling.i, coupling.k)
+            out.append(coupling)
     return out
+
+
+def _one_coupling(path: str, number: int, name: str | None, spec: list, rows: LinkRows, by_name: dict,
+                  used: dict, problems: list[str], shared: tuple[int, int] | None = None) -> Coupling | None:
+    """One binary coupling [i, k, j, m], checked; ``shared`` is the end a shared joint's couplings
+    have in common (it may be coupled more than once)."""
+    links = rows.links
+    ends = _coupling_ends(path, spec, rows, by_name, problems)
+    if ends is None:
+        return None
+    (i, k), (j, m) = ends
+    if i == j:
+        problems.append(f"{path}: couples link {i} with itself; expected two different links")
+        return None
+    clash = False
+    for end in ends:
+        if end in used and end != shared:
+            problems.append(f"{path}: joint {end[1]} of link {end[0]} is already coupled by {used[end]}; "
+                            f"expected each joint frame in one coupling only (a joint shared by three or more "
+                            f"links is one row: [[i, k], [j, m], [l, n]])")
+            clash = True
+    if clash:
+        return None
+    a, b = links[i].joints[k - 1], links[j].joints[m - 1]
+    if a.type != b.type:
+        problems.append(f"{path}: couples a {a.type} joint (link {i}, joint {k}) with a {b.type} joint "
+                        f"(link {j}, joint {m}); expected two joint frames of the same type")
+        return None
+    used[(i, k)] = used[(j, m)] = path
+    return Coupling(number, name, i, k, j, m, a.type, path)
 
 
 def parse_tables(mechanism: dict, problems: list[str]) -> Tables | None:
