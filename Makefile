@@ -4,7 +4,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: install run test test-all batch bench lint clean
+.PHONY: install run test test-all batch bench bench-scaling lint clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -26,8 +26,12 @@ test-all: $(STAMP)  ## every test, the slow ones included
 batch: $(STAMP)  ## the README's accuracy claims, run and checked (configs/batch/accuracy.yaml); JUnit report in results/
 	$(BIN)/csim batch configs/batch/accuracy.yaml --junit results/batch_junit.xml
 
-bench: $(STAMP)  ## speed and accuracy benchmark, side by side in one run
+bench: $(STAMP)  ## speed and accuracy benchmark, side by side in one run, then the scaling table
 	$(BIN)/python bench/run.py
+	$(BIN)/python bench/scaling.py
+
+bench-scaling: $(STAMP)  ## the scaling table alone: derive, cc, first run and per-RHS time against mechanism size
+	$(BIN)/python bench/scaling.py
 
 lint: $(STAMP)
 	$(BIN)/python -m pip install --quiet ruff

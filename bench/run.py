@@ -14,6 +14,10 @@ Run with ``make bench`` (``python bench/run.py --help`` for options). Prints:
    cache directory: derivation plus compilation);
 5. sweep throughput: runs of the 10 s quick-return per minute, ``csim sweep`` on every core
    against a shell loop of ``csim run --set ...`` (target >= 1,000 per minute on 2 cores).
+
+How the cost grows with mechanism size (derivation, cc, first run and per-RHS time of a
+chain of N four-bar loops and of a closed N-bar loop, with fitted exponents) is the
+scaling table of bench/scaling.py: ``make bench-scaling`` (``make bench`` runs it after this).
 """
 from __future__ import annotations
 
