@@ -70,14 +70,29 @@ def _simplify(expr: sp.Expr) -> sp.Expr:
     return sp.trigsimp(sp.expand(expr))
 
 
+#: derivations made in this process, by definition key: the Python model source and the
+#: compiled model functions are generated from one derivation, not two
+_DERIVED: dict[str, DerivedModel] = {}
+
+
 def derive(definition: MechanismDefinition) -> DerivedModel:
-    """Derive all terms of the equations of motion of ``definition``.
+    """Derive all terms of the equations of motion of ``definition`` (once per process and definition).
 
     Raises
     ------
     ValueError
         If T is not a quadratic form in the velocities (the mass matrix depends on qd).
     """
+    from csim.model.cache import definition_key
+
+    key = definition_key(definition)
+    if key not in _DERIVED:
+        _DERIVED[key] = _derive(definition)
+    return _DERIVED[key]
+
+
+def _derive(definition: MechanismDefinition) -> DerivedModel:
+    """:func:`derive`, every time."""
     definition = full_definition(definition)
     q = sp.Matrix(definition.coordinates)
     qd = sp.Matrix(definition.velocities)
