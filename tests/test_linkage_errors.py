@@ -57,9 +57,13 @@ def test_joint_used_twice():
     msg = problems(changed(couplings=[[0, 1, 1, 1], [1, 2, 2, 1], [0, 2, 3, 1], [2, 2, 3, 2], [0, 1, 2, 1]]))
     assert msg == [
         "mechanism.couplings[4] (coupling 5): joint 1 of link 0 is already coupled by mechanism.couplings[0] "
-        "(coupling 1); expected each joint frame in one coupling only",
+        "(coupling 1); expected each joint frame in one coupling only" + SHARED,
         "mechanism.couplings[4] (coupling 5): joint 1 of link 2 is already coupled by mechanism.couplings[1] "
-        "(coupling 2); expected each joint frame in one coupling only"]
+        "(coupling 2); expected each joint frame in one coupling only" + SHARED]
+
+
+#: how the message says to declare a joint shared by three or more links
+SHARED = " (a joint shared by three or more links is one row: [[i, k], [j, m], [l, n]])"
 
 
 def test_coupled_joints_of_different_types():
