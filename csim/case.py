@@ -358,6 +358,17 @@ def load_case(path: str | Path, overrides: list[str] | None = None) -> Case:
     return validate_case(read_case_file(path, overrides), source=str(Path(path)))
 
 
+def read_text(path: Path, what: str, error: type[CaseError]) -> str:
+    """The text of the file at ``path``; ``error`` (a CaseError class) saying which ``what``
+    (``"case file"``) is missing or unreadable."""
+    try:
+        return path.read_text()
+    except FileNotFoundError:
+        raise error([f"{path}: no such {what}"]) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise error([f"{path}: cannot read the {what} ({exc})"]) from None
+
+
 def read_case_file(path: str | Path, overrides: list[str] | None = None) -> dict:
     """The case file at ``path`` as a dict, with the ``--set`` overrides applied (not validated).
 
@@ -367,13 +378,7 @@ def read_case_file(path: str | Path, overrides: list[str] | None = None) -> dict
         A missing or unreadable file, bad YAML, or not a mapping at the top level.
     """
     path = Path(path)
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise CaseError([f"{path}: no such case file"]) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise CaseError([f"{path}: cannot read the case file ({exc})"]) from None
-    data = parse_yaml(text, str(path))
+    data = parse_yaml(read_text(path, "case file", CaseError), str(path))
     if data is None:
         data = {}
     if not isinstance(data, dict):

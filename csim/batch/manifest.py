@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from csim.batch.expectations import Expectation, StatusExpectation, parse_expectations
-from csim.case import Case, load_case, parse_yaml
+from csim.case import Case, load_case, parse_yaml, read_text
 from csim.errors import CaseError, ManifestError
 from csim.schema import describe, unknown_key
 
@@ -92,12 +92,7 @@ def load_manifest(path: str | Path, only: list[str] | None = None) -> Manifest:
         Listing every problem found.
     """
     path = Path(path)
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise ManifestError([f"{path}: no such manifest file"]) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ManifestError([f"{path}: cannot read the manifest ({exc})"]) from None
+    text = read_text(path, "manifest file", ManifestError)
     try:
         data = parse_yaml(text, str(path))
     except CaseError as exc:
