@@ -89,17 +89,23 @@ def measure(method, integrator, tol, t_end, backend, repeat, q1_ref):
     return dict(wall=wall, nfev=traj.nfev, err=err, max_phi=max_phi, status=traj.status)
 
 
-def rhs_costs(n_eval):
-    """ns per KKT right-hand-side evaluation: compiled, C, Python (stabilization none)."""
-    import c_rhs
-
-    case = load_case(CASE, [])
+def compiled_rhs(case):
+    """(system, y0, mode, kernels, (par, pf, pi)) of a case, its compiled right-hand side loaded
+    and called once: what a timing loop of ``kernels.rhs_repeat(y0, mode, par, pf, pi, n)`` needs."""
     system = build_system(case)
     y = initial_state(case, system)
     mode = system.mode_at(y)
     mod = load_module(system.model.definition)
-    par, pf, pi = pack_problem(system)
-    mod.rhs_repeat(y, mode, par, pf, pi, 10)
+    packed = pack_problem(system)
+    mod.rhs_repeat(y, mode, *packed, 10)
+    return system, y, mode, mod, packed
+
+
+def rhs_costs(n_eval):
+    """ns per KKT right-hand-side evaluation: compiled, C, Python (stabilization none)."""
+    import c_rhs
+
+    system, y, mode, mod, (par, pf, pi) = compiled_rhs(load_case(CASE, []))
     numba_ns = statistics.median(timed(lambda: mod.rhs_repeat(y, mode, par, pf, pi, n_eval), 1)[0] / n_eval * 1e9
                                  for _ in range(5))
     exe, tmp = c_rhs.build(system.model.definition, y, system.par, system.loads.values(mode), n_eval)

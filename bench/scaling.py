@@ -82,18 +82,11 @@ def worker_derive(case_path: str) -> dict:
 
 def worker_rhs(case_path: str) -> dict:
     """(d): ns per compiled right-hand-side evaluation, and the sizes."""
-    from csim.case import load_case
-    from csim.fast.module import load_module
-    from csim.fast.runner import pack_problem
-    from csim.pipeline import build_system, initial_state
+    from run import compiled_rhs  # bench/run.py (this folder)
 
-    case = load_case(case_path)
-    system = build_system(case)
-    y = initial_state(case, system)
-    mode = system.mode_at(y)
-    mod = load_module(system.model.definition)
-    par, pf, pi = pack_problem(system)
-    mod.rhs_repeat(y, mode, par, pf, pi, 10)
+    from csim.case import load_case
+
+    system, y, mode, mod, (par, pf, pi) = compiled_rhs(load_case(case_path))
     n = 100
     while True:  # aim at about 0.2 s per timing loop
         start = time.perf_counter()
