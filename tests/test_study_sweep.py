@@ -164,9 +164,10 @@ def test_a_new_sweep_does_not_inherit_the_signals_of_a_file_it_replaces(tmp_path
 
 def test_runs_of_a_dead_worker_stay_pending_and_the_command_says_so(tmp_path, monkeypatch):
     import concurrent.futures as cf
+    from concurrent.futures.process import BrokenProcessPool
 
     future = cf.Future()
-    future.set_exception(cf.process.BrokenProcessPool("a child process terminated abruptly"))
+    future.set_exception(BrokenProcessPool("a child process terminated abruptly"))
     assert execute._chunk_result(future)[0] == [] and "BrokenProcessPool" in execute._chunk_result(future)[1]
 
     real = execute.run_local

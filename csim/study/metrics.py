@@ -93,7 +93,12 @@ def run_row(result: Result, reference: Result | None = None) -> dict:
     return row
 
 
+def empty_row(status: str, reason: str = "", message: str = "") -> dict:
+    """The row of a run without a result: no numbers (NaN, counts 0)."""
+    row = {c.name: (0 if c.dtype == "i8" else NAN) for c in COLUMNS}
+    return dict(status=status, reason=reason, message=message, **row)
+
+
 def failed_row(message: str, reason: str) -> dict:
     """The row of a run that produced no result (its case was rejected, or its worker died)."""
-    row = {c.name: (0 if c.dtype == "i8" else NAN) for c in COLUMNS}
-    return dict(status="failed", reason=reason, message=message, **row)
+    return empty_row("failed", reason, message)

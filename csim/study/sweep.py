@@ -22,7 +22,7 @@ from csim.errors import CaseError, ResultFileError, SimulationFailure
 from csim.io.sweep_file import PENDING, SweepTable, read_sweep, write_sweep
 from csim.result import Result
 from csim.study import execute
-from csim.study.metrics import COLUMNS
+from csim.study.metrics import COLUMNS, empty_row
 from csim.study.plan import SweepPlan
 
 #: keys a reference run may not change: the motion error compares samples at the same times
@@ -79,7 +79,7 @@ class Sweep:
     def table(self) -> SweepTable:
         """The sweep as stored (pending runs: status "pending", NaN numbers)."""
         plan = self.plan
-        rows = [r if r is not None else _pending_row() for r in self.rows]
+        rows = [r if r is not None else empty_row(PENDING) for r in self.rows]
         columns = {c.name: np.array([r[c.name] for r in rows], dtype=c.dtype) for c in COLUMNS}
         variations = [dict(key=v.key, text=v.text, kind=v.kind, bounds=v.bounds) for v in plan.variations]
         attrs = dict(case=plan.case.to_yaml(), variations=variations, sampling=plan.sampling,
@@ -109,10 +109,6 @@ class Sweep:
         self.new_signals = {}
         self.written = True
 
-
-def _pending_row() -> dict:
-    row = {c.name: (0 if c.dtype == "i8" else np.nan) for c in COLUMNS}
-    return dict(status=PENDING, reason="", message="", **row)
 
 
 def reference_run(plan: SweepPlan, overrides: list[str]) -> Result:
