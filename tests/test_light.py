@@ -5,6 +5,7 @@ import os
 import subprocess
 import sys
 
+import pytest
 from conftest import ROOT
 
 from csim.mechanisms import MECHANISMS, MODULES, get_mechanism, light_mechanism
@@ -40,10 +41,11 @@ def test_the_snapshot_is_read_back_without_building_the_mechanism(tmp_path, monk
     assert len(built) == 2 and full_definition(second) is second.full()
 
 
-def test_a_warm_run_imports_no_sympy():
-    # the snapshot and the generated code are in the test cache after the first run
+@pytest.mark.parametrize("backend", ["python", "compiled"])
+def test_a_warm_run_imports_no_sympy(backend):
+    # the snapshot and the generated code (and the compiled model) are in the test cache after the first run
     code = ("import sys; from csim.case import load_case; from csim.pipeline import run_case; "
-            "c = load_case('configs/quick_return.yaml', ['simulation.t_end=0.05', 'simulation.backend=python']); "
+            f"c = load_case('configs/quick_return.yaml', ['simulation.t_end=0.05', 'simulation.backend={backend}']); "
             "r = run_case(c); assert r.ok, r.message; print('sympy' in sys.modules)")
     env = dict(os.environ)
     outs = [subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True, text=True,

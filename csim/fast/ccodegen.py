@@ -15,6 +15,7 @@ from __future__ import annotations
 from sympy.printing.c import C99CodePrinter
 
 from csim.fast.codegen import dims, plans
+from csim.fast.layout import c_symbol
 
 #: the compiler flags (part of the model cache key)
 CFLAGS = ("-O2", "-fPIC", "-shared", "-ffp-contract=off", "-fno-math-errno")
@@ -29,11 +30,6 @@ class _Printer(C99CodePrinter):
         # 10^19 that rationalizing an inertia given as a float produces): print it as a double
         n = int(expr)
         return super()._print_Integer(expr) if abs(n) < 2**53 else repr(float(n))
-
-
-def c_symbol(name: str) -> str:
-    """The exported name of a model function."""
-    return f"csim_{name.rstrip('_')}"
 
 
 def c_source(derived) -> str:

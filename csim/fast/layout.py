@@ -20,6 +20,12 @@ from __future__ import annotations
 MODEL_FUNCTIONS = ("terms", "phi_", "jac", "mass", "loads_", "kinetic", "potential", "observe")
 F_TERMS, F_PHI, F_JAC, F_MASS, F_LOADS, F_KINETIC, F_POTENTIAL, F_OBSERVE = range(len(MODEL_FUNCTIONS))
 
+
+def c_symbol(name: str) -> str:
+    """The exported C name of a model function (here, not in csim.fast.ccodegen, so that loading a
+    built model does not import sympy)."""
+    return f"csim_{name.rstrip('_')}"
+
 #: the model terms in the workspace, in their order there (csim.fast.codegen.TERMS) -> their pi index name
 MODEL_TERMS = ("W_M", "W_CQD", "W_H", "W_PHI", "W_J", "W_GAM", "W_S", "W_B", "W_SQ", "W_L")
 #: the kernels' scratch after the model terms: name -> size from (m, r, k, n_sw)

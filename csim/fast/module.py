@@ -41,7 +41,7 @@ from types import ModuleType
 
 import numpy as np
 
-from csim.fast.layout import MODEL_FUNCTIONS
+from csim.fast.layout import MODEL_FUNCTIONS, c_symbol
 from csim.model.cache import cache_dir, definition_key
 from csim.model.definition import MechanismDefinition
 from csim.solver.methods import STABILIZERS
@@ -238,8 +238,6 @@ def _load_c(definition, key: str, derived: _Derived) -> CompiledModel:
                 raise RuntimeError(f"{Path(cc).name} failed: {' '.join(done.stderr.split())[:300]}")
             os.chmod(out, 0o755)
             os.replace(out, path)
-    from csim.fast.ccodegen import c_symbol
-
     lib = ctypes.CDLL(str(path))
     addresses = [ctypes.cast(getattr(lib, c_symbol(name)), ctypes.c_void_p).value for name in MODEL_FUNCTIONS]
     dims = tuple(int(v) for v in (ctypes.c_long * 4).in_dll(lib, "csim_dims"))
