@@ -51,9 +51,6 @@ def run_chunk(work: Work, chunk: Sequence[tuple[int, tuple]]) -> list[Done]:
     """Run ``chunk`` ((index, values) pairs) in this process; an exception fails its run, not the chunk."""
     from csim.pipeline import run_case
 
-    reference = None
-    if work.reference is not None:
-        reference = _Reference(*work.reference)
     out = []
     for i, values in chunk:
         try:
@@ -68,16 +65,8 @@ def run_chunk(work: Work, chunk: Sequence[tuple[int, tuple]]) -> list[Done]:
             out.append((i, failed_row(f"{type(exc).__name__}: {exc}", "other"), None))
             continue
         signals = {name: np.asarray(getattr(result, name)) for name in SIGNALS} if work.keep else None
-        out.append((i, run_row(result, reference), signals))
+        out.append((i, run_row(result, work.reference), signals))
     return out
-
-
-@dataclass
-class _Reference:
-    """The reference run's samples, as :func:`csim.study.metrics.run_row` reads them."""
-
-    t: np.ndarray
-    q: np.ndarray
 
 
 def chunks(todo: Sequence[int], rows: Sequence[tuple], workers: int) -> list[list[tuple[int, tuple]]]:

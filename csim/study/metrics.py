@@ -75,8 +75,9 @@ def failure_reason(status: str, message: str, failure: str = "") -> str:
     return "other"
 
 
-def run_row(result: Result, reference: Result | None = None) -> dict:
-    """The row of one run: ``status``, ``reason``, ``message`` and every :data:`COLUMNS` value."""
+def run_row(result: Result, reference: tuple[np.ndarray, np.ndarray] | None = None) -> dict:
+    """The row of one run: ``status``, ``reason``, ``message`` and every :data:`COLUMNS` value;
+    ``reference`` is the reference run's (t (N,) [s], q (N, m))."""
     max_phi, final_phi, max_phi_dot = constraint_errors(result.phi, result.phi_dot)
     row = dict(status=result.status, reason=failure_reason(result.status, result.message, result.failure),
                message=result.message, max_phi=max_phi, final_phi=final_phi, max_phi_dot=max_phi_dot,
@@ -87,8 +88,8 @@ def run_row(result: Result, reference: Result | None = None) -> dict:
         with np.errstate(invalid="ignore", over="ignore"):
             row["energy_error"] = result.energy_error_relative
             row["energy_error_abs"] = result.energy_error_max
-    if reference is not None and reference.t.size and result.t.size:
-        err = motion_error(result.t, result.q, reference.t, reference.q)
+    if reference is not None and reference[0].size and result.t.size:
+        err = motion_error(result.t, result.q, *reference)
         row["error"], row["final_error"] = err.motion, err.final
     return row
 
