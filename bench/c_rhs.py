@@ -19,6 +19,7 @@ from sympy.printing.c import C99CodePrinter
 
 from csim.fast.codegen import TERMS
 from csim.model.derive import derive
+from csim.model.recursive import needed
 
 
 def c_source(definition, y, par, u, n_eval: int) -> str:
@@ -32,6 +33,8 @@ def c_source(definition, y, par, u, n_eval: int) -> str:
         exprs += list(mat)
         off += len(list(mat))
     temps, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("x_"), optimizations="basic")
+    # the named intermediates of a mechanism built link by link (csim.model.recursive) come first
+    temps = needed([t[1] for t in temps] + list(reduced), d.intermediates) + list(temps)
     body = []
     for i, name in enumerate(definition.coordinate_names):
         body.append(f"  const double {name} = y[{i}];")

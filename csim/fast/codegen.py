@@ -75,9 +75,14 @@ def dims(derived) -> tuple[int, int, int, int]:
     return len(d.coordinates), len(d.constraints), len(d.loads), len(d.observables)
 
 
-def _plan(name, outputs, sources) -> Plan:
+def _plan(name, outputs, sources, intermediates=()) -> Plan:
+    """The statements of one function: the named intermediates its outputs use (in order of
+    definition, :mod:`csim.model.recursive`), then one CSE over the outputs."""
+    from csim.model.recursive import needed
+
     exprs = [e for _, e in outputs]
     temps, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("_x"), optimizations="basic") if exprs else ([], [])
+    temps = needed([t[1] for t in temps] + list(reduced), intermediates) + list(temps)
     used = set()
     for e in [t[1] for t in temps] + list(reduced):
         used |= {str(s) for s in e.free_symbols}
@@ -100,12 +105,12 @@ def plans(derived) -> list[Plan]:
         for attr in attrs:
             base = offsets[OFFSETS[attr]]
             targets += [(base + i, e) for i, e in enumerate(getattr(derived, attr))]  # row-major
-        out[fname] = _plan(fname, targets, sources)
+        out[fname] = _plan(fname, targets, sources, derived.intermediates)
     for fname, attr in SCALARS.items():
-        out[fname] = _plan(fname, [(0, getattr(derived, attr))], sources)
+        out[fname] = _plan(fname, [(0, getattr(derived, attr))], sources, derived.intermediates)
     obs = list(derived.observables) if derived.observables is not None else []
     rates = list(derived.observable_jacobian * sp.Matrix(d.velocities)) if obs else []
-    out["observe"] = _plan("observe", list(enumerate(obs + rates)), sources)
+    out["observe"] = _plan("observe", list(enumerate(obs + rates)), sources, derived.intermediates)
     return [out[name] for name in MODEL_FUNCTIONS]
 
 

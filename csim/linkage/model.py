@@ -30,6 +30,7 @@ from csim.linkage.forces import Contribution, Geometry, build_forces
 from csim.linkage.frames import Frames, build_frames
 from csim.linkage.inertia import check_inertia
 from csim.linkage.joints import JOINT_TYPES
+from csim.linkage.recursive import recursive_terms
 from csim.linkage.tables import Coupling, Tables, parse_tables
 from csim.linkage.topology import Topology, analyse, grubler_kutzbach
 from csim.linkage.transforms import simplify_entry
@@ -376,6 +377,7 @@ def _definition(linkage: Linkage) -> MechanismDefinition:
         default_independent={n: linkage.start[n] for n in independent},
         default_independent_velocities={n: 0.0 for n in independent},
         default_guess={n: linkage.start[n] for n in names if n not in independent},
+        recursive=lambda: recursive_terms(tables, topology, frames, kept),
     )
 
 

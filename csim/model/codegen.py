@@ -24,14 +24,18 @@ class _Printer(PythonCodePrinter):
         return str(expr)
 
 
-def _function_source(name, args, expr, kind, unpack) -> str:
-    """Source of one function: unpack symbols, CSE temporaries, fill the output."""
+def _function_source(name, args, expr, kind, unpack, intermediates=()) -> str:
+    """Source of one function: unpack symbols, the named intermediates it uses (in order of
+    definition, :mod:`csim.model.recursive`), CSE temporaries, fill the output."""
+    from csim.model.recursive import needed
+
     printer = _Printer()
     if kind == "scalar":
         flat = [expr]
     else:
         flat = list(expr)
     temps, reduced = sp.cse(flat, symbols=sp.numbered_symbols("_x"), optimizations="basic")
+    temps = needed([t[1] for t in temps] + list(reduced), intermediates) + list(temps)
     used = set()
     for e in [t[1] for t in temps] + reduced:
         used |= {str(s) for s in e.free_symbols}
@@ -82,6 +86,6 @@ def generate_source(derived) -> str:
     for name, (args, attr, kind) in FUNCTIONS.items():
         if kind == "points":
             kind = f"points{derived.point_dim}"
-        chunks.append(_function_source(name, args, getattr(derived, attr), kind, unpack))
+        chunks.append(_function_source(name, args, getattr(derived, attr), kind, unpack, derived.intermediates))
         chunks.append("")
     return "\n\n".join(chunks)

@@ -8,6 +8,7 @@ h, Phi_q, gamma and the load matrix B from it.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -282,6 +283,12 @@ class MechanismDefinition:
     figures : list of DeclaredFigure
         Mechanism-specific figures of ``csim plot`` (e.g. the paper's), besides the ones
         every mechanism gets (coordinates, velocities, constraints, energy, multipliers).
+    recursive : callable () -> csim.model.recursive.RecursiveTerms, or None
+        The same mechanism's kinematics link by link in named intermediates (a linkage
+        built from tables, :mod:`csim.linkage.recursive`): when given,
+        :func:`csim.model.derive.derive` assembles M, C qd, T, Phi, Phi_q and gamma from it
+        instead of differentiating the whole-mechanism T and Phi (same values, to round-off;
+        linear instead of steep growth with the number of links).
     """
 
     name: str
@@ -300,6 +307,7 @@ class MechanismDefinition:
     default_independent_velocities: dict[str, float] = field(default_factory=dict)
     default_guess: dict[str, float] = field(default_factory=dict)
     figures: list[DeclaredFigure] = field(default_factory=list)
+    recursive: Callable | None = field(default=None, repr=False, compare=False)
 
     @property
     def coordinate_names(self) -> list[str]:

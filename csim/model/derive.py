@@ -18,7 +18,7 @@ with every term derived here from T(q, qd), V(q), Phi(q) and the load coordinate
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import sympy as sp
 
@@ -55,6 +55,10 @@ class DerivedModel:
     observable_jacobian: sp.Matrix
     points: sp.Matrix
     point_dim: int = 2
+    #: (symbol, expression) in order of definition: named intermediates that the terms
+    #: above may use (a mechanism built link by link, :mod:`csim.model.recursive`); the code
+    #: generators emit the ones a function needs before its body
+    intermediates: list = field(default_factory=list)
 
 
 #: expressions with more operations than this are left as they are: trigsimp's cost grows
@@ -94,6 +98,8 @@ def derive(definition: MechanismDefinition) -> DerivedModel:
 def _derive(definition: MechanismDefinition) -> DerivedModel:
     """:func:`derive`, every time."""
     definition = full_definition(definition)
+    if getattr(definition, "recursive", None) is not None:
+        return _derive_recursive(definition)
     q = sp.Matrix(definition.coordinates)
     qd = sp.Matrix(definition.velocities)
     T = sp.expand(definition.kinetic_energy)
@@ -112,6 +118,38 @@ def _derive(definition: MechanismDefinition) -> DerivedModel:
     Phi = sp.Matrix(definition.constraints) if definition.constraints else sp.zeros(0, 1)  # a tree: no constraints
     Phi_q = Phi.jacobian(q)
     gamma = (-(Phi_q * qd).jacobian(q) * qd).applyfunc(_simplify)
+    return _model(definition, M, Cqd, h, Phi, Phi_q, gamma, T, V)
+
+
+def _derive_recursive(definition: MechanismDefinition) -> DerivedModel:
+    """:func:`derive` of a mechanism built link by link (:mod:`csim.model.recursive`): M, C qd
+    and T from the bodies' Jacobians and bias accelerations, Phi, Phi_q and gamma by the chain
+    rule over the named intermediates; h = dV/dq, the loads, observables and points from the
+    definition's expressions as for any mechanism (no simplification: none pays at this size)."""
+    from csim.model.recursive import assemble
+
+    terms = definition.recursive()
+    q = sp.Matrix(definition.coordinates)
+    m = len(q)
+    M, Cqd, T = assemble(terms, m)
+    V = definition.potential_energy
+    # h = dV/dq
+    h = sp.Matrix([sp.diff(V, qi) if qi in V.free_symbols else 0 for qi in q]) if m else sp.zeros(0, 1)
+    r = len(terms.phi)
+    Phi = sp.Matrix(terms.phi) if r else sp.zeros(0, 1)
+    Phi_q = sp.zeros(r, m)
+    for i, row in enumerate(terms.phi_q):
+        for j, value in row.items():
+            Phi_q[i, j] = value
+    gamma = sp.Matrix(terms.gamma) if r else sp.zeros(0, 1)
+    model = _model(definition, M, Cqd, h, Phi, Phi_q, gamma, T, V)
+    model.intermediates = terms.intermediates.items
+    return model
+
+
+def _model(definition, M, Cqd, h, Phi, Phi_q, gamma, T, V) -> DerivedModel:
+    """The :class:`DerivedModel` with the loads, observables and drawing points of ``definition``."""
+    q = sp.Matrix(definition.coordinates)
     s, S, B, f = _loads(definition, q)
     if definition.observables:
         obs = sp.Matrix([o.expression for o in definition.observables])
