@@ -34,6 +34,7 @@ from csim.linkage.recursive import recursive_terms
 from csim.linkage.tables import Coupling, Tables, parse_tables
 from csim.linkage.topology import Topology, analyse, grubler_kutzbach
 from csim.linkage.transforms import simplify_entry
+from csim.model.recursive import sparse_jacobian
 from csim.model.definition import Drawing, MechanismDefinition, Observable, Parameter
 from csim.schema import describe
 
@@ -195,11 +196,13 @@ def energies(tables: Tables, topology: Topology, frames: Frames) -> tuple[sp.Exp
         if omega is None:
             omega = link_angular_velocities(topology, frames)
         r_c = (frames.links[number] * sp.Matrix([*link.com, 1]))[:3, 0].applyfunc(simplify_entry)
-        v_c = r_c.jacobian(q) * qd if q else sp.zeros(3, 1)
+        v_c = sparse_jacobian(list(r_c), q) * qd if q else sp.zeros(3, 1)
         w = omega[number]
-        # contracted per link (sin^2 + cos^2 -> 1), so that the derivation starts from a short T
-        kinetic += simplify_entry(sp.Rational(1, 2) * link.mass * (v_c.T * v_c)[0]
-                                  + sp.Rational(1, 2) * (w.T * link.inertia * w)[0])
+        # left as products of sums: expanding |v_c|^2 grows with the fourth power of a link's
+        # depth in the tree (the equations of motion come from csim.linkage.recursive, not
+        # from this expression; it is what csim describe, the kinematic model and the model's
+        # cache key read)
+        kinetic += sp.Rational(1, 2) * link.mass * (v_c.T * v_c)[0] + sp.Rational(1, 2) * (w.T * link.inertia * w)[0]
         potential += -link.mass * (g.T * r_c)[0]
     return kinetic, potential
 

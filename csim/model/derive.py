@@ -24,6 +24,7 @@ import sympy as sp
 
 from csim.model.definition import MechanismDefinition
 from csim.model.light import full_definition
+from csim.model.recursive import sparse_jacobian
 
 
 @dataclass
@@ -153,7 +154,7 @@ def _model(definition, M, Cqd, h, Phi, Phi_q, gamma, T, V) -> DerivedModel:
     s, S, B, f = _loads(definition, q)
     if definition.observables:
         obs = sp.Matrix([o.expression for o in definition.observables])
-        obs_q = obs.jacobian(q)
+        obs_q = sparse_jacobian(list(obs), list(q))  # = obs.jacobian(q), without the zero derivatives
     else:
         obs = sp.zeros(0, 1)
         obs_q = sp.zeros(0, len(q))
@@ -192,7 +193,7 @@ def _loads(definition: MechanismDefinition, q: sp.Matrix) -> tuple[sp.Matrix, sp
         return sp.zeros(0, 1), sp.zeros(len(q), 0), sp.zeros(len(q), 0), sp.zeros(0, 1)
     s = sp.Matrix([load.coordinate for load in loads])
     # S = ds/dq^T: the rates the switching laws watch, ds/dt = S^T qd
-    S = s.jacobian(q).T
+    S = sparse_jacobian(list(s), list(q)).T
     # B: b_k = ds_k/dq, or the load's own direction (virtual power u_k b_k . qd)
     columns = [S[:, k] if load.direction is None else sp.Matrix(list(load.direction)) for k, load in enumerate(loads)]
     for load, column in zip(loads, columns):

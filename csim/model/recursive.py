@@ -169,3 +169,40 @@ def needed(exprs, intermediates: list[tuple[sp.Symbol, sp.Expr]]) -> list[tuple[
         want.add(sym)
         stack += [s for s in intermediates[index[sym]][1].free_symbols if s in index and s not in want]
     return [item for item in intermediates if item[0] in want]
+
+
+def common_subexpressions(exprs, intermediates, prefix: str = "_x") -> tuple[list, list]:
+    """``sympy.cse`` of a function's outputs: (temporaries, reduced outputs).
+
+    Without named intermediates: one CSE over all outputs ("basic" optimizations). With
+    them, the outputs assembled from intermediates (sums of products of symbols, no
+    function calls) are left as they are: the intermediates already share what CSE would
+    find, and CSE of thousands of them costs more than the rest of the code generation;
+    the others (observables, points, loads: expressions of the coordinates) get one CSE.
+    """
+    exprs = list(exprs)
+    symbols = sp.numbered_symbols(prefix)
+    if not intermediates:
+        return sp.cse(exprs, symbols=symbols, optimizations="basic") if exprs else ([], [])
+    whole = [k for k, e in enumerate(exprs) if sp.sympify(e).has(sp.Function)]
+    if not whole:
+        return [], exprs
+    temps, reduced = sp.cse([exprs[k] for k in whole], symbols=symbols, optimizations="basic")
+    out = list(exprs)
+    for k, e in zip(whole, reduced):
+        out[k] = e
+    return temps, out
+
+
+def sparse_jacobian(exprs, q) -> sp.Matrix:
+    """d exprs / dq, (len(exprs), len(q)), differentiating each entry only by the coordinates
+    it contains (the same matrix as ``Matrix.jacobian``, without its many zero derivatives)."""
+    exprs = [sp.sympify(e) for e in exprs]
+    J = sp.zeros(len(exprs), len(q))
+    for i, e in enumerate(exprs):
+        fs = e.free_symbols
+        for j, qj in enumerate(q):
+            if qj in fs:
+                J[i, j] = sp.diff(e, qj)
+    return J
+
