@@ -398,8 +398,9 @@ def _partition(linkage: Linkage) -> tuple[list[str], list[str]]:
     tables = linkage.tables
     subs = tables.values
     subs.update({v.symbol: linkage.start[v.name] for v in linkage.topology.variables})
-    J = np.array(sp.Matrix([e.expression for e in kept]).jacobian([v.symbol for v in linkage.topology.variables])
-                 .subs(subs).evalf(), dtype=float)
+    at = {k: sp.Float(v) for k, v in subs.items()}
+    J = np.array(sparse_jacobian([e.expression for e in kept], [v.symbol for v in linkage.topology.variables])
+                 .xreplace(at).evalf(), dtype=float)
     _, _, piv = scipy.linalg.qr(J, pivoting=True)
     dependent = set(piv[:len(kept)].tolist())
     return [n for i, n in enumerate(names) if i not in dependent], [n for i, n in enumerate(names) if i in dependent]

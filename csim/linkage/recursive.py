@@ -61,6 +61,25 @@ class LinkState:
     G: dict
 
 
+def _mul(A: sp.Matrix, B: sp.Matrix) -> sp.Matrix:
+    """A B for small matrices, entry by entry (sympy's general product converts to a domain
+    matrix first, which costs more than these 3 x 3 products themselves)."""
+    zero, one = sp.S.Zero, sp.S.One
+    a, b = A.tolist(), B.tolist()
+
+    def product(x, y):
+        return y if x is one else x if y is one else x * y
+
+    return sp.Matrix(A.rows, B.cols, [sp.Add(*[product(a[i][k], b[k][j]) for k in range(A.cols)
+                                               if a[i][k] is not zero and b[k][j] is not zero])
+                                      for i in range(A.rows) for j in range(B.cols)])
+
+
+def _diff(A: sp.Matrix, x: sp.Symbol) -> sp.Matrix:
+    """dA/dx entry by entry."""
+    return A.applyfunc(lambda e: sp.diff(e, x) if x in e.free_symbols else sp.Integer(0))
+
+
 def _root() -> LinkState:
     z3 = sp.zeros(3, 1)
     return LinkState(sp.eye(3), z3, {}, {}, sp.zeros(3, 3), z3, sp.zeros(3, 3), z3, z3, z3, {})
@@ -98,16 +117,16 @@ class _Builder:
         w_joint = JOINT_TYPES[c.type].angular_velocity(q_own, qd_own)
         A_ik = self.frames.local[(c.i, c.k)][:3, :3]
         w_rel = A_ik * w_joint if edge.forward else -A * A_ik * w_joint
-        w_own = (A.T * w_rel).applyfunc(simplify_entry)
+        w_own = _mul(A.T, w_rel).applyfunc(simplify_entry)
         # own derivatives, before the sines and cosines are named
-        dA = {qj: A.diff(qj) for qj in q_own}
-        ds = {qj: s.diff(qj) for qj in q_own}
+        dA = {qj: _diff(A, qj) for qj in q_own}
+        ds = {qj: _diff(s, qj) for qj in q_own}
         Ad = sum((dA[qj] * qdj for qj, qdj in zip(q_own, qd_own)), sp.zeros(3, 3))
         sd = sum((ds[qj] * qdj for qj, qdj in zip(q_own, qd_own)), sp.zeros(3, 1))
-        Add = sum((Ad.diff(qj) * qdj for qj, qdj in zip(q_own, qd_own)), sp.zeros(3, 3))
-        sdd = sum((sd.diff(qj) * qdj for qj, qdj in zip(q_own, qd_own)), sp.zeros(3, 1))
-        G_own = {qj: w_own.diff(qdj) for qj, qdj in zip(q_own, qd_own)}
-        wd_own = sum((w_own.diff(qj) * qdj for qj, qdj in zip(q_own, qd_own)), sp.zeros(3, 1))
+        Add = sum((_diff(Ad, qj) * qdj for qj, qdj in zip(q_own, qd_own)), sp.zeros(3, 3))
+        sdd = sum((_diff(sd, qj) * qdj for qj, qdj in zip(q_own, qd_own)), sp.zeros(3, 1))
+        G_own = {qj: _diff(w_own, qdj) for qj, qdj in zip(q_own, qd_own)}
+        wd_own = sum((_diff(w_own, qj) * qdj for qj, qdj in zip(q_own, qd_own)), sp.zeros(3, 1))
         pieces = [A, s, Ad, sd, Add, sdd, w_own, wd_own, *dA.values(), *ds.values(), *G_own.values()]
         trig = _trig_names([e for P in pieces for e in P], self.pool)
 
@@ -119,24 +138,24 @@ class _Builder:
         name = self.name
         dR, dp, G = {}, {}, {}
         for j, dRp in par.dR.items():  # an ancestor's variable
-            dR[j] = name(dRp * A)
-            dp[j] = name(par.dp[j] + dRp * s)
+            dR[j] = name(_mul(dRp, A))
+            dp[j] = name(par.dp[j] + _mul(dRp, s))
         for qj in q_own:
             j = self.index[qj]
-            dR[j] = name(par.R * own(dA[qj]))
-            dp[j] = name(par.R * own(ds[qj]))
+            dR[j] = name(_mul(par.R, own(dA[qj])))
+            dp[j] = name(_mul(par.R, own(ds[qj])))
         for j, Gp in par.G.items():
-            G[j] = name(A.T * Gp)
+            G[j] = name(_mul(A.T, Gp))
         for qj in q_own:
             G[self.index[qj]] = own(G_own[qj])
-        R = name(par.R * A)
-        p = name(par.p + par.R * s)
-        Rd = name(par.Rd * A + par.R * Ad)
-        pd = name(par.pd + par.Rd * s + par.R * sd)
-        Rdd = name(par.Rdd * A + 2 * par.Rd * Ad + par.R * Add)
-        pdd = name(par.pdd + par.Rdd * s + 2 * par.Rd * sd + par.R * sdd)
-        w = name(A.T * par.w + w_own)
-        wd = name(A.T * par.wd + Ad.T * par.w + wd_own)
+        R = name(_mul(par.R, A))
+        p = name(par.p + _mul(par.R, s))
+        Rd = name(_mul(par.Rd, A) + _mul(par.R, Ad))
+        pd = name(par.pd + _mul(par.Rd, s) + _mul(par.R, sd))
+        Rdd = name(_mul(par.Rdd, A) + 2 * _mul(par.Rd, Ad) + _mul(par.R, Add))
+        pdd = name(par.pdd + _mul(par.Rdd, s) + 2 * _mul(par.Rd, sd) + _mul(par.R, sdd))
+        w = name(_mul(A.T, par.w) + w_own)
+        wd = name(_mul(A.T, par.wd) + _mul(Ad.T, par.w) + wd_own)
         self.states[child] = LinkState(R, p, dR, dp, Rd, pd, Rdd, pdd, w, wd, G)
 
     def body(self, number: int) -> BodyTerms:
@@ -144,10 +163,10 @@ class _Builder:
         link, st = self.tables.links[number], self.states[number]
         com = sp.Matrix(link.com)
         name = self.name
-        jv = {j: name(st.dp[j] + st.dR[j] * com) for j in st.dp}
+        jv = {j: name(st.dp[j] + _mul(st.dR[j], com)) for j in st.dp}
         jv = {j: v for j, v in jv.items() if not v.is_zero_matrix}
-        v = name(st.pd + st.Rd * com)
-        a = name(st.pdd + st.Rdd * com)
+        v = name(st.pd + _mul(st.Rd, com))
+        a = name(st.pdd + _mul(st.Rdd, com))
         jw = {j: g for j, g in st.G.items() if not g.is_zero_matrix}
         return BodyTerms(link.mass, sp.Matrix(link.inertia), jv, jw, v, a, st.w, st.wd)
 
@@ -173,7 +192,8 @@ class _Builder:
         f = sp.expand(record.expression(CutGeometry.from_transforms(*frames)))
         at = dict(zip(X, values))
         used = [k for k, x in enumerate(X) if f.has(x)]
-        grad = {k: self.pool.name(sp.diff(f, X[k]).xreplace(at)) for k in used}
+        df = {k: sp.diff(f, X[k]) for k in used}
+        grad = {k: self.pool.name(df[k].xreplace(at)) for k in used}
         row: dict[int, list] = {}
         for k in used:
             for j, dx in dX[k].items():
@@ -184,7 +204,7 @@ class _Builder:
         acc = [grad[k] * Xdd[k] for k in used]
         for x, k in enumerate(used):
             for l in used[x:]:
-                h = sp.diff(f, X[k], X[l])
+                h = sp.diff(df[k], X[l]) if X[l] in df[k].free_symbols else 0
                 if h != 0:
                     acc.append((1 if k == l else 2) * h.xreplace(at) * Xd[k] * Xd[l])
         return f.xreplace(at), phi_q, -sp.Add(*acc)

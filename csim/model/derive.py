@@ -127,7 +127,7 @@ def _derive_recursive(definition: MechanismDefinition) -> DerivedModel:
     and T from the bodies' Jacobians and bias accelerations, Phi, Phi_q and gamma by the chain
     rule over the named intermediates; h = dV/dq, the loads, observables and points from the
     definition's expressions as for any mechanism (no simplification: none pays at this size)."""
-    from csim.model.recursive import assemble
+    from csim.model.recursive import assemble, gradient
 
     terms = definition.recursive()
     q = sp.Matrix(definition.coordinates)
@@ -135,7 +135,7 @@ def _derive_recursive(definition: MechanismDefinition) -> DerivedModel:
     M, Cqd, T = assemble(terms, m)
     V = definition.potential_energy
     # h = dV/dq
-    h = sp.Matrix([sp.diff(V, qi) if qi in V.free_symbols else 0 for qi in q]) if m else sp.zeros(0, 1)
+    h = gradient(V, list(q))
     r = len(terms.phi)
     Phi = sp.Matrix(terms.phi) if r else sp.zeros(0, 1)
     Phi_q = sp.zeros(r, m)

@@ -206,3 +206,18 @@ def sparse_jacobian(exprs, q) -> sp.Matrix:
                 J[i, j] = sp.diff(e, qj)
     return J
 
+
+def gradient(expr, q) -> sp.Matrix:
+    """d expr / dq as a column (len(q), 1), term by term: each term of a sum is differentiated
+    only by the coordinates it contains (a long chain's V has a term per link)."""
+    parts: dict[int, list] = {}
+    index = {qj: j for j, qj in enumerate(q)}
+    for term in sp.Add.make_args(sp.sympify(expr)):
+        for qj in term.free_symbols:
+            if qj in index:
+                parts.setdefault(index[qj], []).append(sp.diff(term, qj))
+    out = sp.zeros(len(q), 1)
+    for j, terms in parts.items():
+        out[j] = sp.Add(*terms)
+    return out
+
