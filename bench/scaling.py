@@ -48,7 +48,7 @@ import yaml  # noqa: E402
 from scaling_cases import fourbar_chain, nbar_loop  # noqa: E402
 
 FAMILIES = {"chain": fourbar_chain, "loop": nbar_loop}
-DEFAULT_SIZES = {"chain": [1, 2, 4, 8, 16], "loop": [4, 5, 6, 8, 12]}
+DEFAULT_SIZES = {"chain": [1, 2, 4, 8, 16, 32], "loop": [4, 5, 6, 8, 12]}
 ENV = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])))
 
 

@@ -23,7 +23,7 @@ TERMS = [("mass", "q"), ("velocity_terms", "qv"), ("gravity", "q"), ("phi", "q")
 def functions(definition) -> dict:
     """The generated Python functions of ``definition``'s derivation (no cache)."""
     namespace: dict = {}
-    exec(generate_source(derive_module._derive(definition)), namespace)  # noqa: S102 - generated here
+    exec(generate_source(derive_module._derive(definition)), namespace)
     return namespace
 
 

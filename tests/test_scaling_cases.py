@@ -137,7 +137,7 @@ def test_fourbar_chain_model_terms(n):
     assert np.allclose(lagrange_residual(model, q, qd, par), 0, atol=1e-7)
 
 
-@pytest.mark.parametrize("n", [8, pytest.param(32, marks=pytest.mark.slow)])
+@pytest.mark.parametrize("n", [4, pytest.param(8, marks=pytest.mark.slow), pytest.param(32, marks=pytest.mark.slow)])
 def test_fourbar_chain_under_gravity_conserves_energy(n):
     """A long chain released at rest under gravity (compiled model functions): T + V stays
     constant and the loops stay closed."""

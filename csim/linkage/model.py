@@ -34,8 +34,8 @@ from csim.linkage.recursive import recursive_terms
 from csim.linkage.tables import Coupling, Tables, parse_tables
 from csim.linkage.topology import Topology, analyse, grubler_kutzbach
 from csim.linkage.transforms import simplify_entry
-from csim.model.recursive import sparse_jacobian
 from csim.model.definition import Drawing, MechanismDefinition, Observable, Parameter
+from csim.model.recursive import sparse_jacobian
 from csim.schema import describe
 
 T = sp.Symbol("t", real=True)

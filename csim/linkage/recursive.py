@@ -178,8 +178,8 @@ class _Builder:
         frames = []
         for link, index in ((c.i, c.k), (c.j, c.m)):
             st = self.states[link]
-            Rs = sp.Matrix(3, 3, lambda a, b: sp.Symbol(f"_R{link}_{a}{b}", real=True))
-            ps = sp.Matrix(3, 1, lambda a, b: sp.Symbol(f"_p{link}_{a}", real=True))
+            Rs = sp.Matrix(3, 3, [sp.Symbol(f"_R{link}_{a}{b}", real=True) for a in range(3) for b in range(3)])
+            ps = sp.Matrix([sp.Symbol(f"_p{link}_{a}", real=True) for a in range(3)])
             T = sp.eye(4)
             T[:3, :3], T[:3, 3] = Rs, ps
             frames.append(T * self.frames.local[(link, index)])

@@ -11,7 +11,6 @@ keyed by a hash of the symbolic definition, so the sympy derivation runs once pe
 """
 from __future__ import annotations
 
-import sympy as sp
 from sympy.printing.pycode import PythonCodePrinter
 
 from csim.model.cache import FUNCTIONS
