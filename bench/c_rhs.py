@@ -22,10 +22,18 @@ from csim.model.derive import derive
 from csim.model.recursive import needed
 
 
+class _Printer(C99CodePrinter):
+    def _print_Integer(self, expr):
+        # an integer literal beyond 64 bits overflows in C (exact rationals of float inputs,
+        # e.g. an inertia m L^2 / 12): print it as a double, as csim.fast.ccodegen does
+        n = int(expr)
+        return super()._print_Integer(expr) if abs(n) < 2**53 else repr(float(n))
+
+
 def c_source(definition, y, par, u, n_eval: int) -> str:
     d = derive(definition)
     m, r, k = len(definition.coordinates), len(definition.constraints), len(definition.loads)
-    printer = C99CodePrinter()
+    printer = _Printer()
     exprs, offsets, off = [], {}, 0
     for attr in TERMS:
         mat = getattr(d, attr)

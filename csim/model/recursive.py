@@ -41,15 +41,25 @@ class Intermediates:
     def __init__(self, prefix: str = "_v"):
         self.prefix = prefix
         self.items: list[tuple[sp.Symbol, sp.Expr]] = []
+        self._known: dict[sp.Expr, sp.Symbol] = {}
 
     def name(self, expr) -> sp.Expr:
-        """A symbol for ``expr``, or ``expr`` itself when it is a number or a symbol (+-)."""
+        """A symbol for ``expr``, or ``expr`` itself when it is a number or a symbol (+-).
+
+        An expression named before (or its negative) gets the same symbol (or its negative).
+        """
         expr = sp.sympify(expr)
         if expr.is_Number or expr.is_Symbol or (expr.is_Mul and len(expr.args) == 2 and expr.args[0] == -1
                                                   and expr.args[1].is_Symbol):
             return expr
+        if expr in self._known:
+            return self._known[expr]
+        negative = -expr
+        if negative in self._known:
+            return -self._known[negative]
         sym = sp.Symbol(f"{self.prefix}{len(self.items)}", real=True)
         self.items.append((sym, expr))
+        self._known[expr] = sym
         return sym
 
     def matrix(self, matrix: sp.Matrix) -> sp.Matrix:
