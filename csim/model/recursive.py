@@ -188,7 +188,8 @@ def common_subexpressions(exprs, intermediates, prefix: str = "_x") -> tuple[lis
     them, the outputs assembled from intermediates (sums of products of symbols, no
     function calls) are left as they are: the intermediates already share what CSE would
     find, and CSE of thousands of them costs more than the rest of the code generation;
-    the others (observables, points, loads: expressions of the coordinates) get one CSE.
+    the others (observables, points, loads: expressions of the coordinates) get one CSE
+    without the "basic" pre- and post-processing.
     """
     exprs = list(exprs)
     symbols = sp.numbered_symbols(prefix)
@@ -197,7 +198,9 @@ def common_subexpressions(exprs, intermediates, prefix: str = "_x") -> tuple[lis
     whole = [k for k, e in enumerate(exprs) if sp.sympify(e).has(sp.Function)]
     if not whole:
         return [], exprs
-    temps, reduced = sp.cse([exprs[k] for k in whole], symbols=symbols, optimizations="basic")
+    # no "basic" pre-processing: its factor_terms costs most of the code generation of deep
+    # observables (a 12-bar loop's points), for a few negations
+    temps, reduced = sp.cse([exprs[k] for k in whole], symbols=symbols)
     out = list(exprs)
     for k, e in zip(whole, reduced):
         out[k] = e
