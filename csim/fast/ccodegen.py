@@ -44,7 +44,40 @@ def c_source(derived) -> str:
         lines += [f"  const double s_{sym} = " + ("t" if arg == "t" else f"{args[arg]}[{i}]") + ";"
                   for sym, arg, i in plan.unpack]
         lines += [f"  const double {doprint(sym)} = {doprint(value)};" for sym, value in plan.temps]
-        lines += [f"  out[{ix}] = {doprint(value)};" for ix, value in plan.outputs]
+        lines += _stores(plan.outputs, doprint, loops=bool(derived.intermediates))
         lines += ["  (void)t; (void)y; (void)par;", "}"]
         chunks.append("\n".join(lines))
     return "\n\n".join(chunks) + "\n"
+
+
+#: runs of at least this many zero entries are stored by a loop (a long chain's M and Phi_q are
+#: mostly zeros: thousands of single stores made most of its C source and of the compile time)
+ZERO_RUN = 8
+
+
+def _stores(outputs, doprint, loops: bool) -> list[str]:
+    """``out[ix] = value;`` for each output; with ``loops``, runs of ZERO_RUN or more
+    consecutive zeros as one loop."""
+    if not loops:
+        return [f"  out[{ix}] = {doprint(value)};" for ix, value in outputs]
+    lines, run = [], []
+
+    def flush():
+        if len(run) >= ZERO_RUN:
+            lines.append(f"  for (long i = {run[0]}; i <= {run[-1]}; i++) out[i] = 0.0;")
+        else:
+            lines.extend(f"  out[{ix}] = 0;" for ix in run)
+        run.clear()
+
+    for ix, value in outputs:
+        if value == 0 and (not run or ix == run[-1] + 1):
+            run.append(ix)
+            continue
+        flush()
+        if value == 0:
+            run.append(ix)
+        else:
+            lines.append(f"  out[{ix}] = {doprint(value)};")
+    flush()
+    return lines
+
