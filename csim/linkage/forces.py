@@ -22,6 +22,7 @@ found and what was expected.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -39,9 +40,76 @@ from csim.model.definition import Load, Observable, time_symbol
 from csim.schema import describe
 
 
+class ElementGeometry:
+    """What force elements are located by: the interface the element kinds use.
+
+    Two implementations: :class:`Geometry` (a link-coupling mechanism: its tables, tree and
+    transforms) and :class:`csim.mechanisms.sites.DeclaredGeometry` (a registered
+    mechanism's declared bodies, points and joints, :class:`csim.model.definition.Sites`).
+    Every position is a sympy expression of the coordinates q and the parameters.
+    """
+
+    @property
+    def q(self) -> list[sp.Symbol]:
+        raise NotImplementedError
+
+    @property
+    def qd(self) -> list[sp.Symbol]:
+        raise NotImplementedError
+
+    @property
+    def symbols(self) -> dict[str, sp.Symbol]:
+        """The parameters' symbols by name."""
+        raise NotImplementedError
+
+    @property
+    def values(self) -> dict[sp.Symbol, float]:
+        """The parameters' values by symbol."""
+        raise NotImplementedError
+
+    def variables(self) -> dict[str, sp.Symbol]:
+        """The coordinates and their rates by the names a law may use."""
+        raise NotImplementedError
+
+    def link(self, path: str, raw: Any, problems: list[str]) -> Any:
+        """The link (body) named by ``raw`` (None, with the problem listed, when none is)."""
+        raise NotImplementedError
+
+    def point(self, path: str, raw: Any, problems: list[str]) -> tuple[sp.Matrix, Any] | None:
+        """``[LINK, POINT]`` or ``[LINK, [x, y, z]]``: the global position r(q) (3, 1) [m] and the link."""
+        raise NotImplementedError
+
+    def named_point(self, name: str) -> sp.Matrix | None:
+        """The global position (3, 1) [m] of the point called ``name`` (None: no such point)."""
+        raise NotImplementedError
+
+    def joint(self, path: str, raw: Any, problems: list[str], unit: str | None = None) -> JointCoordinate | None:
+        """The joint variable named by ``raw`` (``unit`` resolves a joint with several)."""
+        raise NotImplementedError
+
+    def rotation(self, link: Any) -> sp.Matrix:
+        """The link's axes in global axes, (3, 3)."""
+        raise NotImplementedError
+
+    def omega(self, link: Any) -> sp.Matrix:
+        """Angular velocity of a link in its own axes (3, 1) [rad/s], linear in the velocities."""
+        raise NotImplementedError
+
+    def rate(self, expr: sp.Expr) -> sp.Expr:
+        """d expr/dt = (d expr/dq) qd of an expression of q (no explicit time)."""
+        return sum((sp.diff(expr, qi) * qdi for qi, qdi in zip(self.q, self.qd)), sp.Integer(0))
+
+    def gradient(self, expr: sp.Expr) -> list[sp.Expr]:
+        """d expr/dq, one entry per coordinate."""
+        return [sp.diff(expr, qi) for qi in self.q]
+
+    def scope(self) -> Scope:
+        return Scope(self.symbols, self.values)
+
+
 @dataclass
-class Geometry:
-    """What the elements are located by: the tables, the tree and the symbolic transforms.
+class Geometry(ElementGeometry):
+    """A link-coupling mechanism's geometry: the tables, the tree and the symbolic transforms.
 
     Attributes
     ----------
@@ -55,7 +123,6 @@ class Geometry:
     _omega: dict[int, sp.Matrix] | None = None
 
     def omega(self, link: int) -> sp.Matrix:
-        """Angular velocity of a link in its own axes (3, 1) [rad/s], linear in the velocities."""
         if self._omega is None:
             from csim.linkage.model import link_angular_velocities
 
@@ -70,16 +137,34 @@ class Geometry:
     def qd(self) -> list[sp.Symbol]:
         return [v.velocity for v in self.topology.variables]
 
-    def rate(self, expr: sp.Expr) -> sp.Expr:
-        """d expr/dt = (d expr/dq) qd of an expression of q (no explicit time)."""
-        return sum((sp.diff(expr, qi) * qdi for qi, qdi in zip(self.q, self.qd)), sp.Integer(0))
+    @property
+    def symbols(self) -> dict[str, sp.Symbol]:
+        return self.tables.symbols
 
-    def gradient(self, expr: sp.Expr) -> list[sp.Expr]:
-        """d expr/dq, one entry per coordinate."""
-        return [sp.diff(expr, qi) for qi in self.q]
+    @property
+    def values(self) -> dict[sp.Symbol, float]:
+        return self.tables.values
 
-    def scope(self) -> Scope:
-        return Scope(self.tables.symbols, self.tables.values)
+    def variables(self) -> dict[str, sp.Symbol]:
+        names = {}
+        for v in self.topology.variables:
+            names[v.name], names[str(v.velocity)] = v.symbol, v.velocity
+        return names
+
+    def link(self, path: str, raw: Any, problems: list[str]) -> int | None:
+        return link_of(self, path, raw, problems)
+
+    def point(self, path: str, raw: Any, problems: list[str]) -> tuple[sp.Matrix, int] | None:
+        return point_of(self, path, raw, problems)
+
+    def named_point(self, name: str) -> sp.Matrix | None:
+        return _point_named(self, name)
+
+    def joint(self, path: str, raw: Any, problems: list[str], unit: str | None = None) -> JointCoordinate | None:
+        return joint_of(self, path, raw, problems, unit)
+
+    def rotation(self, link: int) -> sp.Matrix:
+        return self.frames.links[link][:3, :3]
 
 
 @dataclass(frozen=True)
@@ -100,13 +185,38 @@ class JointCoordinate:
     label: str
 
 
+@dataclass(frozen=True)
+class ElementRecord:
+    """One built element, for reports (``csim describe``).
+
+    Attributes
+    ----------
+    name, kind : str
+        The row's ``name`` and ``type``.
+    row : dict
+        Its other keys as written.
+    potential : sympy expression
+        What it adds to V [J] (0 for none).
+    loads : list of Load
+        The loads it adds (direction, law, switching).
+    """
+
+    name: str
+    kind: str
+    row: dict
+    potential: sp.Expr
+    loads: list[Load]
+
+
 @dataclass
 class Contribution:
-    """What one element adds to the mechanism: potential [J], loads, observables."""
+    """What one element (or the whole list) adds to the mechanism: potential [J], loads,
+    observables; ``elements`` records each element of the list (:func:`build_forces`)."""
 
     potential: sp.Expr = field(default_factory=lambda: sp.Integer(0))
     loads: list[Load] = field(default_factory=list)
     observables: list[Observable] = field(default_factory=list)
+    elements: list[ElementRecord] = field(default_factory=list)
 
 
 @dataclass(frozen=True)
@@ -121,7 +231,7 @@ class ForceKind:
         The keys a row may have besides ``name`` and ``type``.
     summary : str
         One line for messages and the README.
-    build : callable (Element, Geometry, problems) -> Contribution or None
+    build : callable (Element, ElementGeometry, problems) -> Contribution or None
         Locates the element and derives its potential and loads (None: a problem was
         reported).
     """
@@ -280,17 +390,17 @@ def _point_named(geo: Geometry, name: str) -> sp.Matrix | None:
     return (moving or found or [None])[0]
 
 
-def two_points(geo: Geometry, path: str, ends: Any, problems: list[str]) -> tuple | None:
+def two_points(geo: ElementGeometry, path: str, ends: Any, problems: list[str]) -> tuple | None:
     """Two points on links, ``[[LINK, POINT], [LINK, POINT]]`` at ``path``, as :func:`point_of`
     gives each (None, with the problem listed, when either is not one)."""
     if not isinstance(ends, list) or len(ends) != 2:
         problems.append(f"{path}: got {describe(ends)}; expected two points [[LINK, POINT], [LINK, POINT]]")
         return None
-    a, b = (point_of(geo, f"{path}[{n}]", e, problems) for n, e in enumerate(ends))
+    a, b = (geo.point(f"{path}[{n}]", e, problems) for n, e in enumerate(ends))
     return None if a is None or b is None else (a, b)
 
 
-def switch_coordinate(geo: Geometry, path: str, raw: Any, problems: list[str]) -> tuple[sp.Expr, str] | None:
+def switch_coordinate(geo: ElementGeometry, path: str, raw: Any, problems: list[str]) -> tuple[sp.Expr, str] | None:
     """The coordinate a switching law watches (``on``): a joint (as :func:`joint_of`), a
     named point's global coordinate ``POINT_x`` / ``_y`` / ``_z``, or ``{distance: [A, B]}``
     between two points on links. Returns (s(q), unit)."""
@@ -302,11 +412,11 @@ def switch_coordinate(geo: Geometry, path: str, raw: Any, problems: list[str]) -
         d = a[0] - b[0]
         return sp.sqrt(simplify_entry((d.T * d)[0])), "m"
     if isinstance(raw, str) and raw[-2:] in ("_x", "_y", "_z"):
-        found = _point_named(geo, raw[:-2])
+        found = geo.named_point(raw[:-2])
         if found is not None:
             return found["xyz".index(raw[-1])], "m"
     problems_here: list[str] = []
-    joint = joint_of(geo, path, raw, problems_here)
+    joint = geo.joint(path, raw, problems_here)
     if joint is None:
         problems.append(f"{path}: got {describe(raw)}; expected a joint (coupling number or name, or joint "
                         f"variable), a named point's coordinate POINT_x, POINT_y or POINT_z, or "
@@ -318,32 +428,35 @@ def switch_coordinate(geo: Geometry, path: str, raw: Any, problems: list[str]) -
 # ---------------------------------------------------------------------------------------
 # numbers and laws
 # ---------------------------------------------------------------------------------------
-def law_symbols(geo: Geometry, local: dict[str, sp.Symbol]) -> dict[str, sp.Symbol]:
+def law_symbols(geo: ElementGeometry, local: dict[str, sp.Symbol]) -> dict[str, sp.Symbol]:
     """The names a law may use: parameters, t, joint variables and rates, the element's own."""
-    names = dict(geo.tables.symbols)
+    names = dict(geo.symbols)
     names["t"] = time_symbol()
-    for v in geo.topology.variables:
-        names[v.name], names[str(v.velocity)] = v.symbol, v.velocity
+    names.update(geo.variables())
     names.update(local)
     return names
 
 
-def law_of(geo: Geometry, path: str, raw: Any, local: dict[str, sp.Expr], problems: list[str]) -> sp.Expr | None:
+def law_of(geo: ElementGeometry, path: str, raw: Any, local: dict[str, sp.Expr], problems: list[str]) -> sp.Expr | None:
     """A force law: a number or an expression of :func:`law_symbols`, with the element's own
     names (``local``: name -> expression of q and qd) substituted."""
-    clash = sorted(set(local) & (set(geo.tables.symbols) | {v.name for v in geo.topology.variables}))
-    if clash:
-        problems.append(f"{path}: the element's own variable {clash[0]!r} is also the name of a parameter or joint "
-                        f"variable; expected that parameter renamed")
+    # an own name that is also a parameter's or coordinate's is ambiguous where the law uses it
+    clash = sorted(set(local) & (set(geo.symbols) | set(geo.variables())))
+    used = set(re.findall(r"[A-Za-z_][A-Za-z0-9_]*", raw)) if isinstance(raw, str) else set()
+    if set(clash) & used:
+        name = sorted(set(clash) & used)[0]
+        problems.append(f"{path}: the element's own variable {name!r} is also the name of a parameter or "
+                        f"coordinate; expected that parameter renamed, or the law written without {name!r}")
         return None
+    local = {name: value for name, value in local.items() if name not in clash}
     own = {name: sp.Symbol(name, real=True) for name in local}
-    expr = parse_expression(path, raw, law_symbols(geo, own), problems, geo.tables.values)
+    expr = parse_expression(path, raw, law_symbols(geo, own), problems, geo.values)
     if expr is None:
         return None
     return expr.xreplace({own[name]: value for name, value in local.items()})
 
 
-def number_of(geo: Geometry, element: Element, key: str, unit: str, problems: list[str], default: Any = None,
+def number_of(geo: ElementGeometry, element: Element, key: str, unit: str, problems: list[str], default: Any = None,
               minimum: float | None = None) -> sp.Expr | None:
     """A constant of an element: a number or an expression of the parameters, >= ``minimum``."""
     raw = element.row.get(key, default)
@@ -351,7 +464,7 @@ def number_of(geo: Geometry, element: Element, key: str, unit: str, problems: li
     expr = geo.scope().parse(path, raw, problems)
     if expr is None or minimum is None:
         return expr
-    value = evaluate(expr, geo.tables.values)
+    value = evaluate(expr, geo.values)
     if value is not None and not value.real >= minimum:
         problems.append(f"{path}: got {describe(raw)}, {value.real:g} {unit} at the parameter values; expected a "
                         f"value >= {minimum:g} {unit}")
@@ -359,7 +472,7 @@ def number_of(geo: Geometry, element: Element, key: str, unit: str, problems: li
     return expr
 
 
-def _direction(geo: Geometry, element: Element, key: str, problems: list[str]) -> sp.Matrix | None:
+def _direction(geo: ElementGeometry, element: Element, key: str, problems: list[str]) -> sp.Matrix | None:
     """A unit vector from a row's [x, y, z] (any length but zero)."""
     raw = element.row.get(key)
     path = element.key(key)
@@ -371,14 +484,14 @@ def _direction(geo: Geometry, element: Element, key: str, problems: list[str]) -
         return None
     e = sp.Matrix(entries)
     norm = sp.sqrt((e.T * e)[0])
-    if evaluate(norm, geo.tables.values) is None or abs(evaluate(norm, geo.tables.values)) == 0:
+    if evaluate(norm, geo.values) is None or abs(evaluate(norm, geo.values)) == 0:
         problems.append(f"{path}: got {describe(raw)}; a zero vector; expected a direction [x, y, z] of nonzero "
                         f"length")
         return None
     return e / norm
 
 
-def _switching(geo: Geometry, element: Element, default: tuple[sp.Expr, str] | None,
+def _switching(geo: ElementGeometry, element: Element, default: tuple[sp.Expr, str] | None,
                problems: list[str]) -> tuple[sp.Expr, str, tuple[float, float], str] | None:
     """The switching law of a row: (s(q), unit of s, window, velocity condition).
 
@@ -427,7 +540,7 @@ def _one_of(element: Element, keys: tuple[str, ...], problems: list[str]) -> str
     return given[0]
 
 
-def _damper_load(element: Element, s: sp.Expr, rate: sp.Expr, damping: sp.Expr, geo: Geometry, unit: str,
+def _damper_load(element: Element, s: sp.Expr, rate: sp.Expr, damping: sp.Expr, geo: ElementGeometry, unit: str,
                  s_unit: str, what: str) -> Load:
     """A damper on s: the force c ds/dt opposing the motion, Q = -(ds/dq) c ds/dt."""
     direction = [-g for g in geo.gradient(s)]
@@ -435,7 +548,7 @@ def _damper_load(element: Element, s: sp.Expr, rate: sp.Expr, damping: sp.Expr, 
                 direction=direction, law=damping * rate, magnitude=1.0)
 
 
-def build_spring(element: Element, geo: Geometry, problems: list[str]) -> Contribution | None:
+def build_spring(element: Element, geo: ElementGeometry, problems: list[str]) -> Contribution | None:
     """Point-to-point spring-damper between two points on links.
 
     l = |r_B - r_A|. Linear: tension f = k (l - l0) + F0 + c ldot, with the potential
@@ -478,9 +591,9 @@ def build_spring(element: Element, geo: Geometry, problems: list[str]) -> Contri
     return out
 
 
-def build_joint_spring(element: Element, geo: Geometry, problems: list[str]) -> Contribution | None:
+def build_joint_spring(element: Element, geo: ElementGeometry, problems: list[str]) -> Contribution | None:
     """Spring-damper on a joint variable x: V = k (x - x0)^2 / 2, the damper c xdot as a load."""
-    joint = joint_of(geo, element.key("joint"), element.row.get("joint"), problems)
+    joint = geo.joint(element.key("joint"), element.row.get("joint"), problems)
     if joint is None:
         return None
     angular = joint.unit == "rad"
@@ -502,7 +615,7 @@ def build_joint_spring(element: Element, geo: Geometry, problems: list[str]) -> 
     return out
 
 
-def _applied_load(element: Element, geo: Geometry, law_key: str, coordinate: tuple[sp.Expr, str] | None,
+def _applied_load(element: Element, geo: ElementGeometry, law_key: str, coordinate: tuple[sp.Expr, str] | None,
                   direction: list[sp.Expr] | None, local: dict[str, sp.Expr], unit: str, what: str,
                   problems: list[str]) -> Contribution | None:
     """A load u = active * law(...) with its switching law (``window``, ``velocity``, ``on``)."""
@@ -517,14 +630,14 @@ def _applied_load(element: Element, geo: Geometry, law_key: str, coordinate: tup
                                     magnitude=1.0, window=window, velocity=velocity)])
 
 
-def build_actuator(element: Element, geo: Geometry, problems: list[str]) -> Contribution | None:
+def build_actuator(element: Element, geo: ElementGeometry, problems: list[str]) -> Contribution | None:
     """A torque (``torque``, rotations) or force (``force``, translations) on a joint:
     Q = (dx/dq) u, the power u xdot."""
     key = _one_of(element, ("torque", "force"), problems)
     if key is None:
         return None
-    joint = joint_of(geo, element.key("joint"), element.row.get("joint"), problems,
-                     unit="rad" if key == "torque" else "m")
+    joint = geo.joint(element.key("joint"), element.row.get("joint"), problems,
+                      unit="rad" if key == "torque" else "m")
     if joint is None:
         return None
     if (joint.unit == "rad") != (key == "torque"):
@@ -545,13 +658,13 @@ def _frame(element: Element, problems: list[str]) -> str | None:
     return frame
 
 
-def build_force(element: Element, geo: Geometry, problems: list[str]) -> Contribution | None:
+def build_force(element: Element, geo: ElementGeometry, problems: list[str]) -> Contribution | None:
     """A force of value u along a direction e at a point P of a link: Q = (dr_P/dq)^T e u.
 
     e is fixed in the global frame (then the force works along s = e . r_P, its default
     switching coordinate) or in the link's frame (e = R e_link).
     """
-    point = point_of(geo, element.key("point"), [element.row.get("link"), element.row.get("point")], problems)
+    point = geo.point(element.key("point"), [element.row.get("link"), element.row.get("point")], problems)
     e = _direction(geo, element, "direction", problems)
     frame = _frame(element, problems)
     if point is None or e is None or frame is None:
@@ -561,21 +674,21 @@ def build_force(element: Element, geo: Geometry, problems: list[str]) -> Contrib
         s = simplify_entry((e.T * r)[0])
         return _applied_load(element, geo, "value", (s, "m"), None, {}, "N", f"force on {element.name!r} along "
                              f"{list(e)}", problems)
-    e_global = geo.frames.links[link][:3, :3] * e
+    e_global = geo.rotation(link) * e
     direction = [simplify_entry(x) for x in (r.jacobian(geo.q).T * e_global)]
     return _applied_load(element, geo, "value", None, direction, {}, "N", f"force on {element.name!r} along "
                          f"{list(e)} in the frame of link {link}", problems)
 
 
-def build_torque(element: Element, geo: Geometry, problems: list[str]) -> Contribution | None:
+def build_torque(element: Element, geo: ElementGeometry, problems: list[str]) -> Contribution | None:
     """A torque of value u about an axis e on a link: Q = d(e . omega)/dqd u (e in the global
     or the link frame)."""
-    link = link_of(geo, element.key("link"), element.row.get("link"), problems)
+    link = geo.link(element.key("link"), element.row.get("link"), problems)
     e = _direction(geo, element, "axis", problems)
     frame = _frame(element, problems)
     if link is None or e is None or frame is None:
         return None
-    R = geo.frames.links[link][:3, :3]
+    R = geo.rotation(link)
     e_link = R.T * e if frame == "global" else e  # omega is in link axes
     power = simplify_entry((e_link.T * geo.omega(link))[0])  # e . omega, linear in qd
     direction = [simplify_entry(sp.diff(power, v)) for v in geo.qd]
@@ -629,7 +742,7 @@ def _element(n: int, row: Any, names: set[str], problems: list[str]) -> Element 
     return Element(name, kind.name, row, path)
 
 
-def build_forces(raw: Any, geo: Geometry, problems: list[str]) -> Contribution:
+def build_forces(raw: Any, geo: ElementGeometry, problems: list[str]) -> Contribution:
     """All elements of ``mechanism.forces``: their potential summed, their loads and
     observables in row order. Problems are appended (every row is checked)."""
     total = Contribution()
@@ -650,4 +763,7 @@ def build_forces(raw: Any, geo: Geometry, problems: list[str]) -> Contribution:
         total.potential += part.potential
         total.loads += part.loads
         total.observables += part.observables
+        total.elements.append(ElementRecord(element.name, element.kind, {k: v for k, v in element.row.items()
+                                                                         if k not in ("name", "type")},
+                                            part.potential, list(part.loads)))
     return total
