@@ -115,6 +115,7 @@ def test_quick_return_torque_and_cutting_force_as_elements_equal_the_loads():
     np.testing.assert_allclose(elements.work[-1, 2:], loads.work[-1], rtol=1e-7)
 
 
+@pytest.mark.slow  # about 17 s: the extended model is derived anew
 def test_andrews_spring_and_torque_as_elements_reach_the_test_sets_solution():
     """The mechanism's own spring switched off (c0 = 0) and given as a spring element
     between D on the triangle and C on the ground, its torque as an actuator on joint O."""

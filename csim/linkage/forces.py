@@ -31,7 +31,7 @@ import sympy as sp
 
 from csim.linkage.expressions import Scope, evaluate, parse_expression, valid_name
 from csim.linkage.frames import Frames
-from csim.linkage.joints import JOINT_TYPES
+from csim.linkage.joints import JOINT_TYPES, CutGeometry
 from csim.linkage.tables import Coupling, Tables
 from csim.linkage.topology import Topology
 from csim.linkage.transforms import simplify_entry
@@ -332,17 +332,21 @@ def _coupling(geo: Geometry, raw: Any) -> Coupling | None:
 
 
 def _cut_coordinate(geo: Geometry, c: Coupling, slot: int) -> sp.Expr:
-    """The relative motion of frame jm against frame ik of a cut joint whose variables are
-    about or along z_ik (R, P, C: :attr:`csim.linkage.joints.JointType.along_z`), from q.
+    """Joint variable ``slot`` of a cut joint, measured from its two frames as a function of
+    q (:attr:`csim.linkage.joints.JointType.measure`, exact on the constraint manifold).
 
-    Rotation about z_ik: atan2(z_ik . (x_ik x x_jm), x_ik . x_jm); translation along z_ik:
-    z_ik . (r_jm - r_ik). Exact on the constraint manifold, where z_jm = z_ik.
+    E.g. a rotation about z_ik: atan2(z_ik . (x_ik x x_jm), x_ik . x_jm); a translation
+    along z_ik: z_ik . (r_jm - r_ik); the angles of a U or S joint from A_ik^T A_jm.
     """
-    T_ik, T_jm = geo.frames.joint_frame(c.i, c.k), geo.frames.joint_frame(c.j, c.m)
-    x_ik, z_ik, x_jm = T_ik[:3, 0], T_ik[:3, 2], T_jm[:3, 0]
-    if JOINT_TYPES[c.type].variables[slot].unit == "rad":
-        return sp.atan2(simplify_entry(z_ik.dot(x_ik.cross(x_jm))), simplify_entry(x_ik.dot(x_jm)))
-    return simplify_entry(z_ik.dot(T_jm[:3, 3] - T_ik[:3, 3]))
+    g = CutGeometry.from_transforms(geo.frames.joint_frame(c.i, c.k), geo.frames.joint_frame(c.j, c.m))
+    return JOINT_TYPES[c.type].measure(g, simplify_entry)[slot]
+
+
+def _cut_variables(geo: Geometry) -> dict[str, tuple[Coupling, int]]:
+    """The variables of the cut joints by name (not coordinates: measured from the joint's
+    frames): the type's templates with the coupling's name, or its number (``q_B_1``, ``q_4_2``)."""
+    return {name: (c, slot) for c in geo.topology.cut_joints
+            for slot, name in enumerate(JOINT_TYPES[c.type].variable_names(str(c.name or c.number)))}
 
 
 def joint_of(geo: Geometry, path: str, raw: Any, problems: list[str], unit: str | None = None
@@ -350,10 +354,11 @@ def joint_of(geo: Geometry, path: str, raw: Any, problems: list[str], unit: str 
     """The joint variable named by ``raw``: a coupling number or name, or a joint variable
     name. A joint with several variables is resolved by ``unit`` ("rad" for a torque, "m"
     for a force) when that leaves one; otherwise its variable must be named."""
-    variables = {v.name: v for v in geo.topology.variables}
+    variables = {v.name: (v.coupling, v.slot) for v in geo.topology.variables}
+    variables.update(_cut_variables(geo))
     c, slot = _coupling(geo, raw), None
     if c is None and isinstance(raw, str) and raw in variables:
-        c, slot = variables[raw].coupling, variables[raw].slot
+        c, slot = variables[raw]
     if c is None:
         couplings = ", ".join(str(x.name or x.number) for x in geo.tables.couplings)
         problems.append(f"{path}: got {describe(raw)}; no such joint; expected a coupling number or name "
@@ -363,7 +368,7 @@ def joint_of(geo: Geometry, path: str, raw: Any, problems: list[str], unit: str 
     if slot is None:
         slots = [s for s, spec in enumerate(specs) if unit is None or spec.unit == unit]
         if len(slots) != 1:
-            names = ", ".join(v.name for v in geo.topology.variables_of(c)) or "its joint variables"
+            names = ", ".join(name for name, (d, _) in variables.items() if d is c) or "its joint variables"
             problems.append(f"{path}: {c.label} has {len(specs)} joint variables; expected one of them named "
                             f"({names})" if slots else
                             f"{path}: {c.label} has no {'rotation' if unit == 'rad' else 'translation'}; expected a "
@@ -371,8 +376,8 @@ def joint_of(geo: Geometry, path: str, raw: Any, problems: list[str], unit: str 
             return None
         slot = slots[0]
     if c in geo.topology.cut_joints:
-        if not JOINT_TYPES[c.type].along_z:
-            measured = ", ".join(name for name, kind in JOINT_TYPES.items() if kind.along_z)
+        if JOINT_TYPES[c.type].measure is None:
+            measured = ", ".join(name for name, kind in JOINT_TYPES.items() if kind.measure is not None)
             problems.append(f"{path}: {c.label} is a cut {c.type} joint, whose relative motion csim does not "
                             f"measure; expected an element on a tree joint or on a cut joint of type {measured}")
             return None
