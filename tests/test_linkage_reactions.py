@@ -85,8 +85,8 @@ def test_cut_pin_reaction_of_a_four_bar_at_rest_against_hand_statics():
     assert result.ok, result.message
     assert np.max(np.abs(result.qdd[0])) < 1e-9                # static: the torque holds it
     assert np.max(np.abs(result.q - result.q[0])) < 1e-9       # and it stays at rest
-    (reaction,) = result.reactions
-    assert reaction.name == "C"
+    assert [r.name for r in result.reactions] == ["C", "crank", "B", "rocker"]  # the cut joint, then the tree's
+    reaction = result.reactions[0]
     scale = np.linalg.norm(F)
     assert np.allclose(reaction.force_global[:, :2], F, atol=1e-8 * scale, rtol=0)
     assert np.allclose(reaction.force_global[:, 2], 0.0) and np.allclose(reaction.torque_global, 0.0)
@@ -97,6 +97,16 @@ def test_cut_pin_reaction_of_a_four_bar_at_rest_against_hand_statics():
     # the planar model carries no f_z, m_x, m_y: named, not silently zero
     assert len(reaction.undetermined) == 3
     assert all("planar" in u for u in reaction.undetermined)
+    # the tree joints, by Newton-Euler of the links beyond each: the hand statics' free bodies
+    # crank: F_A - F_B + m1 g = 0 (F_B: crank on coupler = F - m2 g); rocker: F_D + F + m3 g = 0
+    F_B = F - p["m2"] * G
+    expected = {"crank": F_B - p["m1"] * G, "B": F_B, "rocker": -F - p["m3"] * G}
+    for tree in result.reactions[1:]:
+        assert "tree joint" in tree.label and tree.undetermined
+        assert np.allclose(tree.force_global[:, :2], expected[tree.name], atol=1e-8 * scale, rtol=0), tree.name
+        # the moment about the pin's axis is the joint's equation of motion (the motor's torque
+        # at the crank is a force element, not a reaction): zero
+        assert np.max(np.abs(tree.torque_global)) < 1e-9 * scale * p["b"], tree.name
 
 
 def _accelerations(p, q, qd, qdd):
@@ -119,14 +129,14 @@ def test_newton_euler_on_the_coupler_with_reactions_at_both_ends():
     from a run of the same four-bar whose table order cuts B instead."""
     settings = {"t_end": 0.6, "rtol": 1e-11, "atol": 1e-11}
     cut_c = run_case(validate_case(_case(**{f"simulation__{k}": v for k, v in settings.items()})))
-    assert cut_c.ok and [r.name for r in cut_c.reactions] == ["C"]
+    assert cut_c.ok and [r.name for r in cut_c.reactions][0] == "C"
     data = _case(**{f"simulation__{k}": v for k, v in settings.items()})
     rows = data["mechanism"]["couplings"]
     data["mechanism"]["couplings"] = [rows[0], rows[2], rows[3], rows[1]]  # crank, rocker, C, then B: B is cut
     q = dict(zip(cut_c.coordinate_names, cut_c.q[0]))
     data["initial"]["guess"] = {"q_rocker": q["q_rocker"], "q_C": q["q_rocker"] - q["q_crank"] - q["q_B"]}
     cut_b = run_case(validate_case(data))
-    assert cut_b.ok and [r.name for r in cut_b.reactions] == ["B"]
+    assert cut_b.ok and [r.name for r in cut_b.reactions][0] == "B"
     assert np.array_equal(cut_b.t, cut_c.t)
     assert np.max(np.abs(cut_b.q[:, 0] - cut_c.q[:, 0])) < 1e-8   # the same motion
     p = validate_case(_case()).parameters
@@ -143,6 +153,11 @@ def test_newton_euler_on_the_coupler_with_reactions_at_both_ends():
     G2, C = B + p["b"] / 2 * u2, B + p["b"] * u2
     moments = _cross((B - G2).T, F_B.T) + _cross((C - G2).T, -F_C.T)
     assert np.max(np.abs(moments - I2 * alpha2)) < 1e-8 * scale * p["b"]   # measured 3.5e-11
+    # each run's tree-joint reactions (Newton-Euler) against the other run's cut-joint ones (multipliers)
+    tree_b = next(r for r in cut_c.reactions if r.name == "B")
+    tree_c = next(r for r in cut_b.reactions if r.name == "C")
+    assert np.max(np.abs(tree_b.force_global - cut_b.reactions[0].force_global)) < 1e-9 * scale  # measured 2.4e-9 N
+    assert np.max(np.abs(tree_c.force_global - cut_c.reactions[0].force_global)) < 1e-9 * scale  # of 73 N
 
 
 def test_reactions_round_trip_through_hdf5(tmp_path):
@@ -150,7 +165,8 @@ def test_reactions_round_trip_through_hdf5(tmp_path):
     path = tmp_path / "fourbar.h5"
     write_result(path, result)
     back = read_result(path)
-    (a,), (b,) = result.reactions, back.reactions
+    assert [r.name for r in back.reactions] == [r.name for r in result.reactions] == ["C", "crank", "B", "rocker"]
+    a, b = result.reactions[0], back.reactions[0]
     assert (b.name, b.label, b.undetermined) == (a.name, a.label, a.undetermined)
     for name in ("force_global", "force_joint", "torque_global", "torque_joint"):
         assert np.array_equal(getattr(a, name), getattr(b, name))
