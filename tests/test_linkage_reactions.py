@@ -214,3 +214,61 @@ def _rodrigues(v):
     k = v / angle
     K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
     return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
+
+
+def test_tree_pin_of_a_pendulum_with_springs_and_damper_against_hand_newton():
+    """A bar pinned at O (no cut joint), with a torsional spring-damper at O and a spring from
+    its tip P to a fixed point: ground on bar F = m (a_G - g) - F_spring, a_G by hand from
+    the recorded angle, rate and acceleration; the moment about the pin's axis (its equation
+    of motion, the torsional spring's torque included) vanishes."""
+    m, a, L, k, l0, anchor = 1.5, 0.4, 0.8, 20.0, 0.2, np.array([0.5, 0.3])
+    mech = {"label": "pendulum", "parameters": {"m": m, "a": a, "L": L}, "gravity": [0, -9.81, 0],
+            "links": [{"link": 0, "name": "ground", "joints": [["R", 0, "O"]]},
+                      {"link": 1, "name": "bar", "joints": [["R", 0, "O"], ["R", ["L", 0, 0], "P"]], "mass": "m",
+                       "com": ["a", 0, 0], "inertia": 0.02}],
+            "couplings": [{"name": "O", "couple": ["ground", "O", "bar", "O"]}],
+            "forces": [{"name": "tors", "type": "joint_spring", "joint": "O", "stiffness": 3.0, "free_angle": 0.2,
+                        "damping": 0.1},
+                       {"name": "pull", "type": "spring", "between": [["bar", "P"], ["ground", [0.5, 0.3, 0]]],
+                        "stiffness": k, "free_length": l0}]}
+    res = run_case(validate_case({"mechanism": mech, "initial": {"q": {"q_O": -1.0}, "qd": {"q_O": 0.0}},
+                                  "simulation": {"t_end": 1.0, "rtol": 1e-11, "atol": 1e-11, "backend": "python"}}))
+    assert res.ok, res.message
+    (pin,) = res.reactions
+    th, w, al = res.q[:, 0], res.qd[:, 0], res.qdd[:, 0]
+    a_G = a * (al[:, None] * np.column_stack((-np.sin(th), np.cos(th)))
+               - (w ** 2)[:, None] * np.column_stack((np.cos(th), np.sin(th))))
+    d = anchor - L * np.column_stack((np.cos(th), np.sin(th)))
+    length = np.linalg.norm(d, axis=1)
+    F_spring = k * (length - l0)[:, None] * d / length[:, None]  # pulls P towards the anchor
+    F = m * (a_G - G) - F_spring
+    assert np.ptp(al) > 10.0
+    assert np.max(np.abs(pin.force_global[:, :2] - F)) < 1e-10 * np.max(np.abs(F))  # measured 9e-15 N of 16 N
+    assert np.max(np.abs(pin.torque_global)) < 1e-12 and np.all(pin.force_global[:, 2] == 0)
+
+
+@pytest.mark.slow  # about 20 s: a spatial body with a full inertia tensor, derived and run on the Python path
+def test_spherical_joint_of_a_spatial_body_against_newton_from_its_recorded_motion():
+    """A body on a spherical joint (spatial, no cut joint): the joint's force is m (a_G - g),
+    with a_G differentiated numerically from the recorded velocity of a point named at the
+    centre of mass; a spherical joint carries no moment."""
+    m = 2.0
+    com = [0.1, 0.05, -0.3]
+    mech = {"label": "top", "parameters": {"m": m}, "gravity": [0, 0, -9.81],
+            "links": [{"link": 0, "name": "ground", "joints": [["S", 0, "O"]]},
+                      {"link": 1, "name": "body", "joints": [["S", 0, "O"], ["R", com, "G"]], "mass": "m", "com": com,
+                       "inertia": [[0.05, 0.001, 0], [0.001, 0.04, 0.002], [0, 0.002, 0.02]]}],
+            "couplings": [{"name": "O", "couple": ["ground", "O", "body", "O"]}]}
+    res = run_case(validate_case({
+        "mechanism": mech, "output": {"dt": 1e-3},
+        "initial": {"q": {"q_O_1": 0.3, "q_O_2": 0.8, "q_O_3": -0.2}, "qd": {"q_O_1": 1.0, "q_O_2": -0.5, "q_O_3": 2.0}},
+        "simulation": {"t_end": 0.5, "rtol": 1e-12, "atol": 1e-12, "backend": "python"}}))
+    assert res.ok, res.message
+    (joint,) = res.reactions
+    assert joint.undetermined == []  # spatial: every component
+    v = np.column_stack([res.observable_rates[:, res.observable_names.index(f"G_{a}")] for a in "xyz"])
+    a_G = np.gradient(v, res.t, axis=0, edge_order=2)
+    F = m * (a_G - np.array([0, 0, -9.81]))
+    assert np.max(np.abs(joint.force_global - F)[2:-2]) < 1e-4 * np.max(np.abs(F))  # finite differences: 8e-6
+    assert np.max(np.abs(joint.torque_global)) < 1e-10
+    assert np.allclose(joint.force_joint, joint.force_global)  # frame ik is the ground's
