@@ -721,7 +721,13 @@ def _mechanism_json_schema(name: str) -> dict:
         "if": {"properties": {"mechanism": {"properties": {"name": {"const": name}}, "required": ["name"]}},
                "required": ["mechanism"]},
         "then": {"properties": {
-            "mechanism": {"properties": {"parameters": {"properties": parameters, "additionalProperties": False}}},
+            # with force elements, parameters the elements use may be added (csim.mechanisms.sites)
+            "mechanism": {"properties": {"parameters": {"properties": parameters}},
+                          "if": {"required": ["forces"], "properties": {"forces": {"type": "array"}}},
+                          "then": {"properties": {"parameters": {"additionalProperties": {
+                              "type": "number", "description": "a parameter the force elements use"}}}},
+                          "else": {"properties": {"parameters": {"properties": dict.fromkeys(parameters, True),
+                                                                 "additionalProperties": False}}}},
             "initial": {"properties": {
                 "q": coordinates("coordinate", ""), "qd": coordinates("velocity of", "/s"),
                 "guess": coordinates("Newton start of", ""), "q_offset": coordinates("offset of", ""),
