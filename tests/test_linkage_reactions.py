@@ -261,7 +261,8 @@ def test_spherical_joint_of_a_spatial_body_against_newton_from_its_recorded_moti
             "couplings": [{"name": "O", "couple": ["ground", "O", "body", "O"]}]}
     res = run_case(validate_case({
         "mechanism": mech, "output": {"dt": 1e-3},
-        "initial": {"q": {"q_O_1": 0.3, "q_O_2": 0.8, "q_O_3": -0.2}, "qd": {"q_O_1": 1.0, "q_O_2": -0.5, "q_O_3": 2.0}},
+        "initial": {"q": {"q_O_1": 0.3, "q_O_2": 0.8, "q_O_3": -0.2},
+                    "qd": {"q_O_1": 1.0, "q_O_2": -0.5, "q_O_3": 2.0}},
         "simulation": {"t_end": 0.5, "rtol": 1e-12, "atol": 1e-12, "backend": "python"}}))
     assert res.ok, res.message
     (joint,) = res.reactions
