@@ -28,12 +28,16 @@ is reported as 0 and named in :attr:`JointReaction.undetermined`:
 from __future__ import annotations
 
 import functools
+from dataclasses import dataclass
 
 import numpy as np
 import sympy as sp
 
 from csim.linkage.constraints import KEPT, ZERO
+from csim.linkage.forces import Geometry, JointCoordinate, build_forces
+from csim.linkage.frames import Frames
 from csim.linkage.joints import JOINT_TYPES, CutGeometry
+from csim.linkage.tables import Coupling
 from csim.result import JointReaction
 
 #: units of the recorded reactions
@@ -222,64 +226,71 @@ EPS = sp.symbols("eps_tx eps_ty eps_tz eps_rx eps_ry eps_rz", real=True)
 EPS_DOT = sp.symbols("eps_tx_dot eps_ty_dot eps_tz_dot eps_rx_dot eps_ry_dot eps_rz_dot", real=True)
 
 
-class _Released:
+@dataclass
+class ReleasedGeometry(Geometry):
     """A link-coupling geometry with the subtree beyond one tree joint given a virtual rigid
     motion eps (6) about the joint's point r_J: p -> p + tau + rho x (p - r_J), to first order
     in eps (only derivatives at eps = 0 are taken). The force elements built on it
     (:func:`csim.linkage.forces.build_forces`) have potentials and directions in (q, eps).
+    Build it with :meth:`released`.
+
+    Attributes
+    ----------
+    released : Coupling
+        The tree joint.
+    below : frozenset of int
+        The links beyond it (:func:`subtree`).
+    base : Frames
+        The mechanism's own transforms (``frames`` holds the moved ones).
     """
 
-    @staticmethod
-    def make(linkage, coupling, below: set[int]):
-        from csim.linkage.forces import Geometry
-        from csim.linkage.frames import Frames
+    released: Coupling | None = None
+    below: frozenset = frozenset()
+    base: Frames | None = None
 
+    @classmethod
+    def released_at(cls, linkage, coupling: Coupling, below: set[int]) -> ReleasedGeometry:
+        """The geometry of ``linkage`` with the links ``below`` the tree joint ``coupling`` moved by eps."""
         frames = linkage.frames
         r_J = frames.joint_frame(coupling.j, coupling.m)[:3, 3]
         tau, rho = sp.Matrix(EPS[:3]), sp.Matrix(EPS[3:])
-        D = sp.eye(4)
+        D = sp.eye(4)  # [[E + [rho]x, tau - [rho]x r_J], [0, 1]]
         D[:3, :3] += _skew(rho)
         D[:3, 3] = tau - _skew(rho) * r_J
         links = {n: (D * T if n in below else T) for n, T in frames.links.items()}
         moved = Frames(local=frames.local, joints=frames.joints, relative=frames.relative, links=links)
+        return cls(linkage.tables, linkage.topology, moved, released=coupling, below=frozenset(below), base=frames)
 
-        class Released(Geometry):
-            @property
-            def q(self):
-                return [v.symbol for v in self.topology.variables] + list(EPS)
+    @property
+    def q(self):
+        return [v.symbol for v in self.topology.variables] + list(EPS)
 
-            @property
-            def qd(self):
-                return [v.velocity for v in self.topology.variables] + list(EPS_DOT)
+    @property
+    def qd(self):
+        return [v.velocity for v in self.topology.variables] + list(EPS_DOT)
 
-            def omega(self, link):
-                w = super().omega(link)  # the tree's own, from the joint rates
-                if link not in below:
-                    return w
-                return w + frames.links[link][:3, :3].T * sp.Matrix(EPS_DOT[3:])
+    def omega(self, link):
+        w = super().omega(link)  # the tree's own, from the joint rates
+        if link not in self.below:
+            return w
+        return w + self.base.links[link][:3, :3].T * sp.Matrix(EPS_DOT[3:])
 
-            def joint(self, path, raw, problems, unit=None):
-                found = super().joint(path, raw, problems, unit)
-                own = [v.symbol for v in self.topology.variables_of(coupling)]
-                if found is None or found.value not in own:
-                    return found
-                # the released joint's own variable: q plus the change eps makes in the relative
-                # motion of its two frames (the joint type's measure)
-                from csim.linkage.forces import JointCoordinate
-                from csim.linkage.joints import JOINT_TYPES, CutGeometry
+    def joint(self, path, raw, problems, unit=None):
+        found = super().joint(path, raw, problems, unit)
+        c = self.released
+        own = [v.symbol for v in self.topology.variables_of(c)]
+        if found is None or found.value not in own:
+            return found
+        # the released joint's own variable: q plus the change eps makes in the relative
+        # motion of its two frames (the joint type's measure)
+        slot = own.index(found.value)
+        measure = JOINT_TYPES[c.type].measure
 
-                slot = own.index(found.value)
-                measure = JOINT_TYPES[coupling.type].measure
+        def measured(frames):
+            g = CutGeometry.from_transforms(frames.joint_frame(c.i, c.k), frames.joint_frame(c.j, c.m))
+            return measure(g, lambda e: e)[slot]
 
-                def measured(fr):
-                    g = CutGeometry.from_transforms(fr.joint_frame(coupling.i, coupling.k),
-                                                    fr.joint_frame(coupling.j, coupling.m))
-                    return measure(g, lambda e: e)[slot]
-
-                return JointCoordinate(found.value + measured(self.frames) - measured(frames), found.unit,
-                                       found.label)
-
-        return Released(linkage.tables, linkage.topology, moved)
+        return JointCoordinate(found.value + measured(self.frames) - measured(self.base), found.unit, found.label)
 
 
 def _element_terms(linkage, definition, raw_forces, coupling, below: set[int]):
@@ -288,15 +299,16 @@ def _element_terms(linkage, definition, raw_forces, coupling, below: set[int]):
     are neither. V is the elements' potential, B_eps the eps rows of the loads' generalized
     directions (in the order of ``definition.loads``), D_eps those of the joint's driven
     variables (in the order of ``linkage.drive``)."""
-    from csim.linkage.forces import build_forces
-
     own = {v.name for v in linkage.topology.variables_of(coupling)}
     driven = [name for name in linkage.drive if name in own]
     if not raw_forces and not driven:
         return None
-    geo = _Released.make(linkage, coupling, below)
+    geo = ReleasedGeometry.released_at(linkage, coupling, below)
     problems: list[str] = []
     part = build_forces(raw_forces, geo, problems)  # checked once already, by the model's build
+    if problems or len(part.loads) != len(definition.loads):
+        raise RuntimeError(f"the force elements rebuilt for the reaction of {coupling.label} differ from the "
+                           f"model's: {'; '.join(problems) or 'another number of loads'}")
     at_zero = {e: 0 for e in (*EPS, *EPS_DOT)}
     m = len(definition.coordinates)
 
@@ -367,7 +379,7 @@ PLANAR_UNDETERMINED = ["force along the plane's normal, moments about in-plane a
 
 def tree_reactions(linkage, definition, raw_forces, par, run, cut_reactions) -> list[JointReaction]:
     """The reactions of every tree joint at the recorded samples, by Newton-Euler of the
-    subtree beyond the joint with the joint released (see :class:`_Released`).
+    subtree beyond the joint with the joint released (see :class:`ReleasedGeometry`).
 
     The wrench W (force F, moment M about the origin of frame jm) that link i exerts on
     link j, from the virtual work of a rigid virtual motion eps of the subtree S beyond the
@@ -451,8 +463,6 @@ def _tree_wrench(c, below, terms, T_jm, T_ik, at, g, normal, cut, state) -> tupl
 def _plane_normal(linkage, definition, par, q) -> np.ndarray | None:
     """The normal of a planar mechanism's plane (None: spatial), from the z axis of a joint
     frame whose axis is the normal (an R joint's), at the first recorded sample."""
-    from csim.linkage.joints import JOINT_TYPES
-
     if not linkage.planar or not q.shape[0]:
         return None
     c = next((c for c in linkage.tables.couplings if JOINT_TYPES[c.type].planar_axis == "normal"), None)
