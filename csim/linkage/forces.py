@@ -2,8 +2,11 @@
 
 ``mechanism.forces`` is a list of named elements, each a mapping with a ``type`` of
 :data:`FORCE_KINDS` (``spring``, ``joint_spring``, ``actuator``, ``force``, ``torque``).
-No element is given as a generalized force: each is located by the geometry of the tables
-(points on links, joints), and csim derives what it does:
+No element is given as a generalized force: each is located by the geometry (points on
+links, joints) of an :class:`ElementGeometry`: the tables of a link-coupling mechanism
+(:class:`Geometry`; a cut joint's variables measured from its two frames), or the declared
+bodies and joints of a registered one (:class:`csim.mechanisms.sites.DeclaredGeometry`).
+csim derives what each does:
 
 - a **conservative** part (a linear spring, a preload) as a potential V_e(q) added to the
   mechanism's potential energy, so that h = dV/dq carries it and T + V stays constant;
