@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import yaml
 
-from csim.case import validate_case
+from csim.case import load_case, validate_case
 from csim.io.hdf5 import read_result, write_result
 from csim.pipeline import run_case
 
@@ -273,3 +273,20 @@ def test_spherical_joint_of_a_spatial_body_against_newton_from_its_recorded_moti
     assert np.max(np.abs(joint.force_global - F)[2:-2]) < 1e-4 * np.max(np.abs(F))  # finite differences: 8e-6
     assert np.max(np.abs(joint.torque_global)) < 1e-10
     assert np.allclose(joint.force_joint, joint.force_global)  # frame ik is the ground's
+
+
+@pytest.mark.slow  # about 6 s: the tabled quick-return's model derived, 0.5 s on the Python path
+def test_tree_joints_of_the_tabled_quick_return_carry_nothing_along_their_free_directions():
+    """The tabled quick-return (an actuator on the crank pivot O, the switched cutting force on
+    the ram, two cut slides): at every tree pin the moment about the pin's axis, which is the
+    pin's equation of motion with the motor torque and the loads applied, vanishes to round-off."""
+    case = load_case(CONFIG.parent / "quick_return_tables.yaml", ["simulation.backend=python", "simulation.t_end=0.5"])
+    result = run_case(case)
+    assert result.ok, result.message
+    tree = {str(c.name or c.number) for c in case.linkage.topology.tree_joints}
+    reactions = [r for r in result.reactions if r.name in tree]
+    assert sorted(r.name for r in reactions) == ["A", "B", "C", "D", "O"]
+    scale = max(np.max(np.abs(r.force_global)) for r in reactions)
+    assert scale > 1e5  # the cutting force and the crank torque's reactions, N
+    for r in reactions:
+        assert np.max(np.abs(r.torque_joint[:, 2])) < 1e-11 * scale, r.name  # measured 1.5e-9 N m at O
