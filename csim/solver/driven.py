@@ -64,9 +64,10 @@ def driven_problems(data: dict) -> list[str]:
     problems = []
     method = data["stabilization"].get("method")
     if method not in DRIVEN_METHODS:
-        problems.append(f"stabilization.method: got {method!r} with mechanism.drive_mode 'dynamic'; the drives "
-                        f"are constraints that depend on time, which {method} does not take (it projects or "
-                        f"integrates a system of its own); expected one of {', '.join(DRIVEN_METHODS)}")
+        problems.append(f"stabilization.method: got {method!r} with mechanism.drive_mode 'dynamic'; {method} "
+                        f"integrates a system of its own in the free coordinates, and with one drive per degree of "
+                        f"freedom the drives and constraints fix q(t) and qd(t) entirely (nothing is left free "
+                        f"to integrate); expected one of {', '.join(DRIVEN_METHODS)}")
     for key in GAIN_KEYS:
         if method in DRIVEN_METHODS and isinstance(data["stabilization"].get(key), list):
             problems.append(f"stabilization.{key}: got a list (one per constraint) with mechanism.drive_mode "
