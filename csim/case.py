@@ -125,8 +125,9 @@ SCHEMA = Section({
         "drive_mode": Field("string", None, "link coupling with drive: kinematic (default: the motion alone) or "
                             "dynamic (driven dynamics: the drives are constraints, their torques and forces are "
                             "recorded)", nullable=True, choices=DRIVE_MODES),
-        "forces": Field("list", None, "link coupling: force elements (spring, joint_spring, actuator, force, "
-                        "torque), checked by csim.linkage.forces", nullable=True),
+        "forces": Field("list", None, "force elements (spring, joint_spring, actuator, force, torque) on the "
+                        "links, or on a registered mechanism's bodies and joints; checked by csim.linkage.forces",
+                        nullable=True),
     }, "the mechanism and its parameters"),
     "initial": Section({
         "q": Field("mapping", None, "independent coordinates, name: value [rad or m]", nullable=True),
@@ -402,6 +403,8 @@ def validate_case(data: dict, source: str = "<dict>") -> Case:
         raise CaseError(problems)
     if name is not None:
         for key in LINKAGE_KEYS:
+            if key == "forces":  # force elements on the registered mechanism's sites
+                continue
             if section.get(key) is not None:
                 problems.append(f"mechanism.{key}: given with mechanism.name {name!r}; expected either a registered "
                                 f"mechanism (name, parameters) or a link-coupling description (links, couplings, "
@@ -410,6 +413,12 @@ def validate_case(data: dict, source: str = "<dict>") -> Case:
         if name not in MECHANISMS:
             raise CaseError(problems)
         mech = light_mechanism(name)
+        if section.get("forces") is not None:
+            from csim.mechanisms.sites import with_forces
+
+            mech = with_forces(mech, section["forces"], section.get("parameters") or {}, problems)
+            if mech is None:
+                raise CaseError(problems)
     else:
         section.pop("name", None)
         if problems:
@@ -712,7 +721,13 @@ def _mechanism_json_schema(name: str) -> dict:
         "if": {"properties": {"mechanism": {"properties": {"name": {"const": name}}, "required": ["name"]}},
                "required": ["mechanism"]},
         "then": {"properties": {
-            "mechanism": {"properties": {"parameters": {"properties": parameters, "additionalProperties": False}}},
+            # with force elements, parameters the elements use may be added (csim.mechanisms.sites)
+            "mechanism": {"properties": {"parameters": {"properties": parameters}},
+                          "if": {"required": ["forces"], "properties": {"forces": {"type": "array"}}},
+                          "then": {"properties": {"parameters": {"additionalProperties": {
+                              "type": "number", "description": "a parameter the force elements use"}}}},
+                          "else": {"properties": {"parameters": {"properties": dict.fromkeys(parameters, True),
+                                                                 "additionalProperties": False}}}},
             "initial": {"properties": {
                 "q": coordinates("coordinate", ""), "qd": coordinates("velocity of", "/s"),
                 "guess": coordinates("Newton start of", ""), "q_offset": coordinates("offset of", ""),

@@ -22,11 +22,12 @@ FAILURES = ("", "assembly", "interrupted")
 
 @dataclass
 class JointReaction:
-    """The reaction of one cut joint of a link-coupling mechanism over a run (N samples).
+    """The reaction of one joint of a link-coupling mechanism over a run (N samples).
 
     The force F and moment M that link i exerts on link j (coupling row (i, k, j, m)) at
     the origin of joint frame jm; link i receives -F and -M there. Derived from the
-    multipliers by :mod:`csim.linkage.reactions`.
+    multipliers (a cut joint) or by Newton-Euler of the links beyond it (a tree joint) by
+    :mod:`csim.linkage.reactions`.
 
     Attributes
     ----------
@@ -89,8 +90,8 @@ class Result:
         has no compiled path, numba is missing, or the kernels could not be loaded); ``""``
         when it ran compiled or the Python path was asked for.
     reactions : list of JointReaction
-        The reactions of the cut joints of a link-coupling mechanism (empty otherwise, and
-        for a kinematic analysis).
+        The reactions of the joints of a link-coupling mechanism, the cut joints' first
+        (empty otherwise, and for a kinematic analysis).
     drive_names, drive_units : list of str
         The driven joint variables of a driven-dynamics run and the unit of each drive's
         force (``"N m"`` for a rotation, ``"N"`` for a translation); empty otherwise.
