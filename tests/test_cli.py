@@ -315,7 +315,7 @@ def test_a_run_that_fails_exits_1_and_is_not_marked_as_bad_input(tmp_path):
     assert_clean_exit(result, 1)
     assert errors(result).startswith("csim: simulation failed:") and "max_steps" in result.stderr
     with h5py.File(out, "r") as fh:
-        assert text_attr(fh, "status") == "failed" and text_attr(fh, "failure") == ""
+        assert text_attr(fh, "status") == "failed" and text_attr(fh, "failure") == "max steps"
 
 
 # --------------------------------------------------------------------------- help and version
@@ -462,6 +462,7 @@ def test_a_chattering_load_law_fails_fast_with_its_file(tmp_path):
     with h5py.File(out, "r") as fh:
         assert text_attr(fh, "status") == "failed"
         assert text_attr(fh, "message").startswith("chattering load law: cutting_force")
+        assert text_attr(fh, "failure") == "chatter"  # machine-readable, not only in the message
         assert fh["events/times"].shape == (23 + 20,)
 
 
