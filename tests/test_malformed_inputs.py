@@ -254,7 +254,8 @@ def main() -> int:
                                   capture_output=True, text=True, timeout=300)
             kind = classify(proc.returncode, proc.stderr, bad, case)
             tally[kind] += 1
-            first = next((ln.strip() for ln in proc.stderr.splitlines() if ln.strip() and "error:" not in ln), "")
+            text = [ln.strip().removeprefix("csim: error:").strip() for ln in proc.stderr.splitlines()]
+            first = next((ln for ln in text if ln and "problem(s):" not in ln), "")
             lines.append(f"{kind:<9} exit {proc.returncode}  {bad.id}: {first[:150]}")
     print("\n".join(lines))
     print(f"\n{len(BAD)} inputs: " + ", ".join(f"{n} {k}" for k, n in tally.most_common()))

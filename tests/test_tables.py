@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import io
+import re
 import sys
 
 from rich.console import Console
@@ -11,7 +12,8 @@ from csim.tables import Column, Fields, Lines, Report, Table, emit
 
 def table() -> Table:
     return Table([Column("name", "left"), Column("status", "left"), Column("value"), Column("n")],
-                 rows=[["a", "success", "1.00e-08", "3"], ["longer_name", "failed", "-", "12345"]],
+                 rows=[["a", "success", "1.00e-08", "3"], ["longer_name", "failed", "-", "12345"],
+                       ["b", "step 1e-03", "2.0 J", "0"]],
                  notes=["* a note"])
 
 
@@ -20,15 +22,15 @@ def test_plain_columns_line_up_under_their_headers():
     assert rule == "-" * len(head) and note == "* a note"
     assert {len(r) for r in rows} == {len(head)}  # right-justified last column: every row as wide as the header
     # a left column starts where its header starts, a right one ends where its header ends
-    assert [r.index(cell) for r, cell in zip(rows, ("success", "failed"))] == [head.index("status")] * 2
-    for r, cell in zip(rows, ("1.00e-08", "-")):
+    assert [r.index(cell) for r, cell in zip(rows, ("success", "failed", "step"))] == [head.index("status")] * 3
+    for r, cell in zip(rows, ("1.00e-08", "-", "2.0 J")):
         assert r.index(cell) + len(cell) == head.index("value") + len("value")
-    assert [r.split() for r in rows] == table().rows  # one line per row, the cells separated by spaces
+    assert [re.split(r"  +", r.strip()) for r in rows] == table().rows  # one line per row, cells split by 2+ spaces
 
 
 def test_a_table_finds_cells_by_header_and_rows_by_their_first_cell():
     t = table()
-    assert t.column("n") == ["3", "12345"] and t.record("longer_name")["status"] == "failed"
+    assert t.column("n") == ["3", "12345", "0"] and t.record("longer_name")["status"] == "failed"
 
 
 def test_fields_line_up_their_values_and_a_long_key_keeps_one_space():
