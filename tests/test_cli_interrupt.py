@@ -24,6 +24,20 @@ def ctrl_c() -> None:
     signal.raise_signal(signal.SIGINT)
 
 
+@pytest.fixture(autouse=True)
+def _python_sigint_handler():
+    """Python's own SIGINT handler (KeyboardInterrupt) during each test, as in a fresh csim process.
+
+    Run after tests/test_cli.py in one pytest session, SIGINT was found ignored (SIG_IGN, set
+    outside Python's signal module: no signal.signal call did it) after that file's first
+    test, and ctrl_c() then did nothing; alone, neither file shows it.
+    """
+    old = signal.getsignal(signal.SIGINT)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, old if old is not None else signal.SIG_DFL)
+
+
 @pytest.fixture
 def previous(tmp_path):
     """A good result at OUT from an earlier run, and its bytes."""
