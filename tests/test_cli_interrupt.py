@@ -26,11 +26,10 @@ def ctrl_c() -> None:
 
 @pytest.fixture(autouse=True)
 def _python_sigint_handler():
-    """Python's own SIGINT handler (KeyboardInterrupt) during each test, as in a fresh csim process.
+    """Python's own SIGINT handler (KeyboardInterrupt) during each test, as in csim started at a terminal.
 
-    Run after tests/test_cli.py in one pytest session, SIGINT was found ignored (SIG_IGN, set
-    outside Python's signal module: no signal.signal call did it) after that file's first
-    test, and ctrl_c() then did nothing; alone, neither file shows it.
+    A pytest started in the background by a non-interactive shell (``pytest &`` in a script)
+    inherits SIGINT ignored (POSIX), Python then keeps SIG_IGN, and ctrl_c() would do nothing.
     """
     old = signal.getsignal(signal.SIGINT)
     signal.signal(signal.SIGINT, signal.default_int_handler)
