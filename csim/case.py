@@ -56,6 +56,12 @@ if TYPE_CHECKING:
     from csim.linkage.model import Linkage
 
 EPS = float(np.finfo(float).eps)
+#: the smallest simulation.atol: below it no state can be held to it in double precision
+#: (1e-20 is round-off, EPS |y|, of a state of size 1e-4), and the step size collapses
+MIN_ATOL = 1e-20
+#: the most simulation.event_samples: each is an evaluation of the switching functions per step
+#: (and per step a row of workspace), so a huge count only exhausts time and memory
+MAX_EVENT_SAMPLES = 1000
 
 
 class CaseLoader(yaml.SafeLoader):
@@ -157,7 +163,7 @@ SCHEMA = Section({
         "t_end": Field("number", 5.0, "end time", "s", gt=0.0),
         "integrator": Field("string", "DOP853", "time integrator", choices=lambda: list(INTEGRATORS)),
         "rtol": Field("number", 1e-8, "relative tolerance (adaptive integrators)", ge=100 * EPS, le=1.0),
-        "atol": Field("number", 1e-8, "absolute tolerance (adaptive integrators)", gt=0.0),
+        "atol": Field("number", 1e-8, "absolute tolerance (adaptive integrators)", ge=MIN_ATOL),
         "step": Field("number", 1e-3, "step of the fixed-step integrators", "s", gt=0.0),
         "max_step": Field("number", None, "largest step of the adaptive integrators", "s", gt=0.0, nullable=True),
         "first_step": Field("number", None, "first step of the adaptive integrators", "s", gt=0.0, nullable=True),
@@ -167,7 +173,7 @@ SCHEMA = Section({
                                 "events come closer together, on average, than min_step", ge=2),
         "max_steps": Field("integer", 1_000_000, "fail after this many integration steps", ge=1),
         "event_samples": Field("integer", 4, "interior points of each step where switching functions are checked "
-                               "(catches a zero crossed twice within one step)", ge=0),
+                               "(catches a zero crossed twice within one step)", ge=0, le=MAX_EVENT_SAMPLES),
         "max_phi": Field("number", 0.1, "fail when max |Phi| exceeds this after a step (joints torn apart)",
                          "unit of Phi", gt=0.0),
         "min_step": Field("number", 1e-10, "fail when an adaptive integrator accepts a shorter step "
