@@ -56,6 +56,12 @@ if TYPE_CHECKING:
     from csim.linkage.model import Linkage
 
 EPS = float(np.finfo(float).eps)
+#: the smallest simulation.atol: below it no state can be held to it in double precision
+#: (1e-20 is round-off, EPS |y|, of a state of size 1e-4), and the step size collapses
+MIN_ATOL = 1e-20
+#: the most simulation.event_samples: each is an evaluation of the switching functions per step
+#: (and per step a row of workspace), so a huge count only exhausts time and memory
+MAX_EVENT_SAMPLES = 1000
 
 
 class CaseLoader(yaml.SafeLoader):
@@ -125,8 +131,9 @@ SCHEMA = Section({
         "drive_mode": Field("string", None, "link coupling with drive: kinematic (default: the motion alone) or "
                             "dynamic (driven dynamics: the drives are constraints, their torques and forces are "
                             "recorded)", nullable=True, choices=DRIVE_MODES),
-        "forces": Field("list", None, "link coupling: force elements (spring, joint_spring, actuator, force, "
-                        "torque), checked by csim.linkage.forces", nullable=True),
+        "forces": Field("list", None, "force elements (spring, joint_spring, actuator, force, torque) on the "
+                        "links, or on a registered mechanism's bodies and joints; checked by csim.linkage.forces",
+                        nullable=True),
     }, "the mechanism and its parameters"),
     "initial": Section({
         "q": Field("mapping", None, "independent coordinates, name: value [rad or m]", nullable=True),
@@ -156,7 +163,7 @@ SCHEMA = Section({
         "t_end": Field("number", 5.0, "end time", "s", gt=0.0),
         "integrator": Field("string", "DOP853", "time integrator", choices=lambda: list(INTEGRATORS)),
         "rtol": Field("number", 1e-8, "relative tolerance (adaptive integrators)", ge=100 * EPS, le=1.0),
-        "atol": Field("number", 1e-8, "absolute tolerance (adaptive integrators)", gt=0.0),
+        "atol": Field("number", 1e-8, "absolute tolerance (adaptive integrators)", ge=MIN_ATOL),
         "step": Field("number", 1e-3, "step of the fixed-step integrators", "s", gt=0.0),
         "max_step": Field("number", None, "largest step of the adaptive integrators", "s", gt=0.0, nullable=True),
         "first_step": Field("number", None, "first step of the adaptive integrators", "s", gt=0.0, nullable=True),
@@ -166,7 +173,7 @@ SCHEMA = Section({
                                 "events come closer together, on average, than min_step", ge=2),
         "max_steps": Field("integer", 1_000_000, "fail after this many integration steps", ge=1),
         "event_samples": Field("integer", 4, "interior points of each step where switching functions are checked "
-                               "(catches a zero crossed twice within one step)", ge=0),
+                               "(catches a zero crossed twice within one step)", ge=0, le=MAX_EVENT_SAMPLES),
         "max_phi": Field("number", 0.1, "fail when max |Phi| exceeds this after a step (joints torn apart)",
                          "unit of Phi", gt=0.0),
         "min_step": Field("number", 1e-10, "fail when an adaptive integrator accepts a shorter step "
@@ -402,6 +409,8 @@ def validate_case(data: dict, source: str = "<dict>") -> Case:
         raise CaseError(problems)
     if name is not None:
         for key in LINKAGE_KEYS:
+            if key == "forces":  # force elements on the registered mechanism's sites
+                continue
             if section.get(key) is not None:
                 problems.append(f"mechanism.{key}: given with mechanism.name {name!r}; expected either a registered "
                                 f"mechanism (name, parameters) or a link-coupling description (links, couplings, "
@@ -410,6 +419,12 @@ def validate_case(data: dict, source: str = "<dict>") -> Case:
         if name not in MECHANISMS:
             raise CaseError(problems)
         mech = light_mechanism(name)
+        if section.get("forces") is not None:
+            from csim.mechanisms.sites import with_forces
+
+            mech = with_forces(mech, section["forces"], section.get("parameters") or {}, problems)
+            if mech is None:
+                raise CaseError(problems)
     else:
         section.pop("name", None)
         if problems:
@@ -712,7 +727,13 @@ def _mechanism_json_schema(name: str) -> dict:
         "if": {"properties": {"mechanism": {"properties": {"name": {"const": name}}, "required": ["name"]}},
                "required": ["mechanism"]},
         "then": {"properties": {
-            "mechanism": {"properties": {"parameters": {"properties": parameters, "additionalProperties": False}}},
+            # with force elements, parameters the elements use may be added (csim.mechanisms.sites)
+            "mechanism": {"properties": {"parameters": {"properties": parameters}},
+                          "if": {"required": ["forces"], "properties": {"forces": {"type": "array"}}},
+                          "then": {"properties": {"parameters": {"additionalProperties": {
+                              "type": "number", "description": "a parameter the force elements use"}}}},
+                          "else": {"properties": {"parameters": {"properties": dict.fromkeys(parameters, True),
+                                                                 "additionalProperties": False}}}},
             "initial": {"properties": {
                 "q": coordinates("coordinate", ""), "qd": coordinates("velocity of", "/s"),
                 "guess": coordinates("Newton start of", ""), "q_offset": coordinates("offset of", ""),

@@ -277,10 +277,8 @@ def run(
     _write(out, result, c.mechanism.coordinate_units)
     if not quiet:
         where = "" if output else DEFAULT_NOTE
-        typer.echo(f"case:              {case}")
-        typer.echo(result.summary())
-        typer.echo(f"result:            {out}{where}" + (", replacing the file there" if replaced else ""))
-    if result.failure == "assembly":
+        _print_summary(result, f"{out}{where}" + (", replacing the file there" if replaced else ""), case=case)
+    if result.failure == "assembly" and result.t.size == 0:  # at the start (a kinematic analysis may lose it later)
         typer.echo(f"csim: error: the mechanism cannot be assembled at its initial values: {result.message}; "
                    f"expected mechanism.parameters that close the mechanism, and initial.q, initial.guess on an "
                    f"assembly branch (result file with status failed: {out})", err=True)
@@ -288,6 +286,16 @@ def run(
     if not result.ok:
         typer.echo(f"csim: simulation failed: {result.message} (partial result in {out})", err=True)
         raise typer.Exit(EXIT_FAILED)
+
+
+def _print_summary(run, where: str, case: Path | None = None) -> None:
+    """Print a run's summary (rich on a terminal, plain aligned ``key: value`` lines
+    otherwise), after the case file and before where the result file went."""
+    from csim.result import SUMMARY_WIDTH
+    from csim.tables import Fields, Report, emit
+
+    items = ([("case", str(case))] if case is not None else []) + run.summary_items() + [("result", where)]
+    emit(Report([Fields(items, width=SUMMARY_WIDTH)]))
 
 
 def _write(out: Path, result, coordinate_units: list[str], code: int = EXIT_BAD_INPUT) -> None:
@@ -323,8 +331,7 @@ def _keep_interrupted(c, result, out: Path, quiet: bool) -> NoReturn:
     partial = interrupted_path(out)
     _write(partial, result, c.mechanism.coordinate_units, code=EXIT_INTERRUPTED)
     if not quiet:
-        typer.echo(result.summary())
-        typer.echo(f"result:            {partial} (partial)")
+        _print_summary(result, f"{partial} (partial)")
     kept = f"{out} was left as it was" if out.exists() else f"nothing was written to {out}"
     typer.echo(f"csim: interrupted (Ctrl-C): partial result in {partial}; {kept}", err=True)
     raise typer.Exit(EXIT_INTERRUPTED)
@@ -407,7 +414,8 @@ def compare(
         check_writable(out, protect=[case], suffixes=RESULT_SUFFIXES)
         comparison = run_comparison(case, methods=method_list, tolerances=tol_list, overrides=set_ or [],
                                     reference=ReferenceSettings(method=reference_method, tol=ref_tol[0]),
-                                    jobs=jobs, progress=progress)
+                                    jobs=jobs, progress=progress,
+                                    warn=None if quiet else lambda w: typer.echo(f"csim: warning: {w}", err=True))
     except CsimError as exc:
         _fail_input(exc)
     _finish_comparison(comparison, out, default=output is None, quiet=quiet)
@@ -423,8 +431,10 @@ def _finish_comparison(comparison, out: Path, default: bool, quiet: bool) -> Non
         typer.echo(f"csim: error: cannot write {target}: {exc}", err=True)
         raise typer.Exit(EXIT_INTERRUPTED if comparison.interrupted else EXIT_BAD_INPUT) from None
     if not quiet:
-        typer.echo(comparison.table())
-        typer.echo(f"\nresult:     {target}" + (DEFAULT_NOTE if default else ""))
+        from csim.tables import Fields, Lines, emit
+
+        where = f"{target}" + (DEFAULT_NOTE if default else "")
+        emit(comparison.report().add(Lines([""]), Fields([("result", where)])))
     if comparison.interrupted:
         kept = f"{out} was left as it was" if out.exists() else f"nothing was written to {out}"
         typer.echo(f"csim: comparison interrupted (Ctrl-C): partial results in {target}; {kept}", err=True)
@@ -522,7 +532,9 @@ def sweep(
     except CsimError as exc:
         _fail_input(exc)
     if not quiet:
-        typer.echo(sweep_summary(result, out))
+        from csim.tables import emit
+
+        emit(sweep_report(result, out))
     if result.interrupted:
         typer.echo(f"csim: sweep interrupted (Ctrl-C): {result.done} of {len(result.rows)} runs in {out}; "
                    f"add --resume to the same command to run the rest", err=True)
@@ -547,12 +559,14 @@ def _sweep_option_problems(jobs, scheduler, reference, resume: bool, out: Path) 
     return problems
 
 
-def sweep_summary(result, out: Path) -> str:
-    """Runs by outcome, and where the file went."""
+def sweep_report(result, out: Path):
+    """What was varied, the runs by outcome, and where the file went (a :class:`csim.tables.Report`)."""
+    from csim.tables import Fields, Report
+
     counts = ", ".join(f"{n} {label}" for label, n in sorted(result.counts().items(), key=lambda kv: -kv[1]))
     keys = " x ".join(f"{v.key} ({len(set(map(str, result.plan.column(v.key))))})" for v in result.plan.variations)
-    return "\n".join([f"sweep:      {len(result.rows)} runs of {keys} ({result.plan.sampling})",
-                      f"outcomes:   {counts}", f"result:     {out}"])
+    return Report([Fields([("sweep", f"{len(result.rows)} runs of {keys} ({result.plan.sampling})"),
+                           ("outcomes", counts), ("result", str(out))], width=12)])
 
 
 @app.command(cls=_Command)
@@ -647,10 +661,10 @@ def _finish_batch(result, junit: Path | None, output: Path | None, quiet: bool) 
         typer.echo(f"csim: error: cannot write the batch's files: {exc}", err=True)
         raise typer.Exit(EXIT_INTERRUPTED if result.interrupted else EXIT_BAD_INPUT) from None
     if not quiet:
-        typer.echo(result.table())
-        for label, path in (("results:", output), ("junit:", junit)):
-            if path is not None:
-                typer.echo(f"{label:<12}{path}")
+        from csim.tables import Fields, Lines, emit
+
+        files = [(label, str(path)) for label, path in (("results", output), ("junit", junit)) if path is not None]
+        emit(result.report().add(*([Lines([""]), Fields(files, width=12)] if files else [])))
     if result.interrupted:
         typer.echo("csim: batch interrupted (Ctrl-C); unfinished runs are reported as failed", err=True)
         raise typer.Exit(EXIT_INTERRUPTED)

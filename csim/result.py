@@ -9,6 +9,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+#: column where the values of :meth:`Result.summary` start
+SUMMARY_WIDTH = 19
+
 #: a kernel load longer than this [s] was a compilation, and the summary says so
 COMPILE_NOTICE = 3.0
 
@@ -16,17 +19,56 @@ COMPILE_NOTICE = 3.0
 #: energy the run records: the relative energy balance is then round-off over round-off
 TINY_ENERGY_SCALE = 1e-9
 
-#: values of :attr:`Result.failure`
-FAILURES = ("", "assembly", "interrupted")
+#: why a failed run failed (:attr:`Result.failure`): the first kind whose phrases its message
+#: starts with, in this order (the messages of csim.physics.status, the drivers and the
+#: kinematic analysis; a phrase with ``{t}`` also needs its tail in the message)
+FAILURE_KINDS = (
+    ("invalid", ("case: ",)),
+    ("assembly", ("initial conditions", "the mechanism cannot be assembled")),
+    ("interrupted", ("interrupted",)),
+    ("blow-up", ("blow-up",)),
+    ("drift", ("constraint violation",)),
+    ("step", ("integrator rk4 failed",)),
+    ("step collapse", ("step-size collapse", "integrator ")),
+    ("max steps", ("more than simulation.max_steps",)),
+    ("chatter", ("more than simulation.max_events", "chattering load law")),
+    ("projection", ("projection: gauss-newton",)),
+    ("singular", ("singular", "projection: singular", "numerical error after t = {t}: linalgerror")),
+    ("event location", ("numerical error",)),
+    ("drive", ("mechanism.drive",)),
+)
+
+#: values of :attr:`Result.failure`: "" for a success, a kind of :data:`FAILURE_KINDS`, or
+#: ``"other"`` for a failure no kind names
+FAILURES = ("", *(kind for kind, _ in FAILURE_KINDS), "other")
+
+#: the prefix of a kinematic analysis's failure messages (csim.linkage.kinematics.KINEMATIC_RUN)
+_KINEMATIC_PREFIX = "kinematic analysis: "
+
+
+def failure_kind(message: str) -> str:
+    """The kind of a failure (:data:`FAILURES`) from its message; ``"other"`` where none fits.
+
+    Examples
+    --------
+    >>> failure_kind("chattering load law: ...")
+    'chatter'
+    """
+    text = message.lower().strip().removeprefix(_KINEMATIC_PREFIX)
+    for kind, starts in FAILURE_KINDS:
+        if any(text.startswith(s.split("{t}")[0]) and s.split("{t}")[-1] in text for s in starts):
+            return kind
+    return "other"
 
 
 @dataclass
 class JointReaction:
-    """The reaction of one cut joint of a link-coupling mechanism over a run (N samples).
+    """The reaction of one joint of a link-coupling mechanism over a run (N samples).
 
     The force F and moment M that link i exerts on link j (coupling row (i, k, j, m)) at
     the origin of joint frame jm; link i receives -F and -M there. Derived from the
-    multipliers by :mod:`csim.linkage.reactions`.
+    multipliers (a cut joint) or by Newton-Euler of the links beyond it (a tree joint) by
+    :mod:`csim.linkage.reactions`.
 
     Attributes
     ----------
@@ -80,17 +122,20 @@ class Result:
     run_kind : {"simulation", "kinematic"}
         A dynamic simulation, or a kinematic analysis of prescribed motion (no forces:
         lam, work, loads and generalized forces are NaN).
-    failure : {"", "assembly", "interrupted"}
-        What kind of failure a failed run is, where csim knows: ``"assembly"`` the initial
-        state cannot be assembled (Newton-Raphson on Phi(q) = 0 failed: bad input),
-        ``"interrupted"`` stopped by the user (Ctrl-C); ``""`` otherwise.
+    failure : str
+        What kind of failure a failed run is (:data:`FAILURES`), ``""`` for a success: e.g.
+        ``"assembly"`` the initial state cannot be assembled (Newton-Raphson on Phi(q) = 0
+        failed: bad input), ``"interrupted"`` stopped by the user (Ctrl-C), ``"chatter"``,
+        ``"blow-up"``, ``"drift"``. Given, or else set from the message
+        (:func:`failure_kind`) when the run is made; written to HDF5 as the ``failure``
+        attribute.
     backend_reason : str
         Why a run under ``simulation.backend: auto`` ran on the Python path (the combination
         has no compiled path, numba is missing, or the kernels could not be loaded); ``""``
         when it ran compiled or the Python path was asked for.
     reactions : list of JointReaction
-        The reactions of the cut joints of a link-coupling mechanism (empty otherwise, and
-        for a kinematic analysis).
+        The reactions of the joints of a link-coupling mechanism, the cut joints' first
+        (empty otherwise, and for a kinematic analysis).
     drive_names, drive_units : list of str
         The driven joint variables of a driven-dynamics run and the unit of each drive's
         force (``"N m"`` for a rotation, ``"N"`` for a translation); empty otherwise.
@@ -138,6 +183,10 @@ class Result:
     drive_units: list[str] = field(default_factory=list)
     drive_forces: np.ndarray | None = None
     drive_work: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.status != "success" and not self.failure:
+            self.failure = failure_kind(self.message)
 
     @classmethod
     def empty(cls, mechanism: str, coordinate_names: list[str], load_names: list[str],
@@ -240,34 +289,41 @@ class Result:
         return float(np.max(np.abs(self.phi_dot), initial=0.0)) if self.t.size else float("nan")
 
     def summary(self) -> str:
-        """A short, human-readable account of the run."""
-        lines = [f"status:            {self.status} ({self.message})"]
+        """A short, human-readable account of the run (the plain text of :meth:`summary_items`)."""
+        from csim.tables import Fields
+
+        return "\n".join(Fields(self.summary_items(), width=SUMMARY_WIDTH).plain())
+
+    def summary_items(self) -> list[tuple[str, str]]:
+        """The run's summary as (key, value) pairs: status, final state, constraint errors,
+        energy balance, drives, events, cost."""
+        items = [("status", f"{self.status} ({self.message})")]
         if self.t.size:
             names = self.coordinate_names
-            lines.append(f"final time:        {self.t[-1]:.6g} s")
-            lines.append("final q:           " + ", ".join(f"{n} = {v:.8g}" for n, v in zip(names, self.q[-1])))
-            lines.append("final qd:          " + ", ".join(f"{n} = {v:.8g}" for n, v in zip(names, self.qd[-1])))
-            lines.append(f"max |Phi|:         {self.max_phi:.3e}")
-            lines.append(f"max |Phi_q qd|:    {self.max_phi_dot:.3e}")
+            items.append(("final time", f"{self.t[-1]:.6g} s"))
+            items.append(("final q", ", ".join(f"{n} = {v:.8g}" for n, v in zip(names, self.q[-1]))))
+            items.append(("final qd", ", ".join(f"{n} = {v:.8g}" for n, v in zip(names, self.qd[-1]))))
+            items.append(("max |Phi|", f"{self.max_phi:.3e}"))
+            items.append(("max |Phi_q qd|", f"{self.max_phi_dot:.3e}"))
             if self.run_kind == "kinematic":
-                lines.append("energy balance:    - (a kinematic analysis of prescribed motion: no forces)")
+                items.append(("energy balance", "- (a kinematic analysis of prescribed motion: no forces)"))
             elif self.energy_balance[1] == "J":
-                lines.append(f"energy balance:    {self.energy_balance[0]:.3e} J (max |T + V - T0 - V0 - W|, in J: "
-                             f"the energy scale is zero, the mechanism stays at rest)")
+                items.append(("energy balance", f"{self.energy_balance[0]:.3e} J (max |T + V - T0 - V0 - W|, in J: "
+                                                f"the energy scale is zero, the mechanism stays at rest)"))
             else:
-                lines.append(f"energy balance:    {self.energy_balance[0]:.3e} (max |T + V - T0 - V0 - W|"
-                             f" / {self.energy_scale:.4g} J)")
+                items.append(("energy balance", f"{self.energy_balance[0]:.3e} (max |T + V - T0 - V0 - W|"
+                                                f" / {self.energy_scale:.4g} J)"))
         if self.drive_forces is not None and self.t.size:
-            lines.append("drives:            " + ", ".join(
+            items.append(("drives", ", ".join(
                 f"{n}: max |force| = {np.nanmax(np.abs(self.drive_forces[:, j])):.6g} {u}"
-                for j, (n, u) in enumerate(zip(self.drive_names, self.drive_units))))
-        lines.append(f"events:            {len(self.event_times)}")
-        lines.append(f"wall time:         {self.wall_time:.3f} s ({self.backend} backend)")
+                for j, (n, u) in enumerate(zip(self.drive_names, self.drive_units)))))
+        items.append(("events", f"{len(self.event_times)}"))
+        items.append(("wall time", f"{self.wall_time:.3f} s ({self.backend} backend)"))
         if self.backend_reason:
-            lines.append(f"python backend:    not compiled because {self.backend_reason}")
+            items.append(("python backend", f"not compiled because {self.backend_reason}"))
         if self.backend == "compiled" and self.kernel_load_time > COMPILE_NOTICE:
-            lines.append(f"compilation:       {self.kernel_load_time:.1f} s before the run (the first run of this "
-                         f"mechanism, or of this csim installation: the kernels are compiled once; later runs "
-                         f"load them from the cache)")
-        lines.append(f"RHS evaluations:   {self.nfev} ({self.nsteps} steps)")
-        return "\n".join(lines)
+            items.append(("compilation", f"{self.kernel_load_time:.1f} s before the run (the first run of this "
+                                         f"mechanism, or of this csim installation: the kernels are compiled once; "
+                                         f"later runs load them from the cache)"))
+        items.append(("RHS evaluations", f"{self.nfev} ({self.nsteps} steps)"))
+        return items

@@ -118,6 +118,15 @@ def test_a_run_that_raises_fails_its_status_and_is_written_marked(monkeypatch, t
     messages = [o.message for o in by_name["projection"].failures]
     assert messages[0] == "status: measured failed (RuntimeError: boom), expected success"
     assert "max_phi: measured -, expected <= 1e-13 (no output samples)" in messages
+    table = batch.report().tables()[0]  # the pass/fail table's cells
+    assert table.column("case") == ["start", "projection", "comes_apart"]
+    assert table.column("result") == ["pass", "FAIL", "pass"]
+    row = table.record("projection")
+    assert (row["status"], row["wall [s]"], row["max|Phi|"], row["backend"]) == ("failed", "-", "-", "-")
+    outcomes = by_name["projection"].outcomes
+    assert row["checks"] == f"{sum(o.passed for o in outcomes)}/{len(outcomes)}" == "3/6"
+    assert table.record("comes_apart")["status"] == "failed" and table.record("start")["backend"] == "python"
+    assert batch.table() == batch.report().plain() and batch.table().splitlines()[-1].startswith("2 of 3 cases")
     batch.write_results(tmp_path / "runs")
     failed = read_result(tmp_path / "runs" / "projection.h5")
     assert failed.status == "failed" and failed.message == "RuntimeError: boom" and failed.t.size == 0

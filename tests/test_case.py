@@ -334,7 +334,9 @@ def test_problems_across_sections_and_mechanism_parts_are_collected(tmp_path):
                  id="integer-beyond-float-range"),
     ("simulation: {rtol: -1e-6}\n", "simulation.rtol", ["-1e-06", ">= ", "<= 1"]),
     ("simulation: {rtol: 2}\n", "simulation.rtol", ["2.0", "<= 1"]),
-    ("simulation: {atol: 0}\n", "simulation.atol", ["0.0", "> 0"]),
+    ("simulation: {atol: 0}\n", "simulation.atol", ["0.0", ">= 1e-20"]),
+    ("simulation: {atol: 1e-300}\n", "simulation.atol", ["1e-300", ">= 1e-20"]),  # not scipy's step-size message
+    ("simulation: {event_samples: 1000000000}\n", "simulation.event_samples", ["1000000000", "<= 1000"]),
     ("simulation: {integrator: rk4}\n", "simulation.integrator",
      ["'rk4'", f"one of {INTEGRATOR_NAMES}", "did you mean 'RK4'"]),
     ("simulation: {max_events: 1.5}\n", "simulation.max_events", ["1.5", "an integer >= 1"]),

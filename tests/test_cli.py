@@ -315,7 +315,7 @@ def test_a_run_that_fails_exits_1_and_is_not_marked_as_bad_input(tmp_path):
     assert_clean_exit(result, 1)
     assert errors(result).startswith("csim: simulation failed:") and "max_steps" in result.stderr
     with h5py.File(out, "r") as fh:
-        assert text_attr(fh, "status") == "failed" and text_attr(fh, "failure") == ""
+        assert text_attr(fh, "status") == "failed" and text_attr(fh, "failure") == "max steps"
 
 
 # --------------------------------------------------------------------------- help and version
@@ -462,6 +462,7 @@ def test_a_chattering_load_law_fails_fast_with_its_file(tmp_path):
     with h5py.File(out, "r") as fh:
         assert text_attr(fh, "status") == "failed"
         assert text_attr(fh, "message").startswith("chattering load law: cutting_force")
+        assert text_attr(fh, "failure") == "chatter"  # machine-readable, not only in the message
         assert fh["events/times"].shape == (23 + 20,)
 
 
@@ -476,3 +477,16 @@ def test_a_run_stopped_at_max_events_still_writes_its_file(tmp_path):
     with h5py.File(out, "r") as fh:
         assert text_attr(fh, "status") == "failed"
         assert fh["events/times"].shape[0] > 100_000
+
+
+def test_a_kinematic_analysis_that_loses_assembly_later_exits_1_not_2(tmp_path):
+    """A crank of 0.3 m with coupler 0.35 m and rocker 0.3 m on a 0.4 m ground closes at q_crank = 0
+    (|B D| = 0.1 m) but not at q_crank = pi (|B D| = 0.7 m > 0.35 + 0.3): the run fails (exit 1), its
+    failure kind is assembly, and it is not reported as bad input at the initial values."""
+    out = tmp_path / "k.h5"
+    result = invoke("run", CONFIG.parent / "fourbar.yaml", "-o", out, "--set", "mechanism.parameters.a=0.3")
+    assert_clean_exit(result, 1)
+    assert "cannot be assembled at t = " in result.stderr and "at its initial values" not in result.stderr
+    with h5py.File(out, "r") as fh:
+        assert (text_attr(fh, "status"), text_attr(fh, "failure")) == ("failed", "assembly")
+        assert 0 < fh["t"][-1] < 0.5

@@ -150,6 +150,12 @@ def test_a_method_that_blows_up_is_a_failed_row_and_the_others_finish(tmp_path):
     assert row(result.stdout, "baumgarte")[1] == "failed"
     assert "baumgarte: failed: " in result.stdout
     assert row(result.stdout, "none")[1] == row(result.stdout, "projection")[1] == "success"
+    # csim run's warning before the run, once, for the method and step it concerns
+    warnings = [line for line in result.stderr.splitlines() if line.startswith("csim: warning:")]
+    assert warnings == ["csim: warning: baumgarte at step = 1.00e-03 s: stabilization.w * simulation.step = 100 "
+                        "lies outside RK4's stability interval (2.785): the constraint error will grow; choose "
+                        "simulation.step <= 2.51e-05 s or a smaller gain"]
+    assert read_result(out, group="baumgarte").failure in ("blow-up", "drift")
     table = read_comparison(out)
     status = dict(zip(table.summary["method"], table.summary["status"]))
     assert status == {"none": "success", "baumgarte": "failed", "projection": "success"}
@@ -160,6 +166,20 @@ def test_a_method_that_blows_up_is_a_failed_row_and_the_others_finish(tmp_path):
     for i, method in enumerate(table.summary["method"]):
         finite = math.isfinite(table.summary["final_error"][i])
         assert finite == (method != "baumgarte")  # no final error for a run that did not reach t_end
+
+
+def test_stability_warnings_come_once_per_method_and_step():
+    from csim.compare.comparison import case_warnings
+    from csim.compare.plan import plan_comparison
+
+    plan = plan_comparison(QR, ["none", "baumgarte", "sliding_mode"], [1e-3, 2e-4], [*SHORT, *BLOW_UP],
+                           ReferenceSettings(), 1)
+    warnings = case_warnings(plan, "projection")
+    assert [w.split(":")[0] for w in warnings] == ["baumgarte at step = 1.00e-03 s", "baumgarte at step = 2.00e-04 s"]
+    assert "stabilization.w * simulation.step = 20 lies outside" in warnings[1]
+    heard = []
+    compare(QR, ["none"], overrides=[*SHORT, *BLOW_UP], jobs=1, warn=heard.append)
+    assert heard == []  # no gain: nothing to warn of
 
 
 def test_an_exception_in_a_run_is_a_failed_row(monkeypatch, tmp_path):

@@ -155,3 +155,52 @@ def test_failed_initial_conditions_are_marked_as_an_assembly_failure(tmp_path):
     write_result(tmp_path / "a.h5", res)
     assert read_result(tmp_path / "a.h5").failure == "assembly"
     assert run_case(qr_case("simulation.t_end=0.05")).failure == ""
+
+
+def _status_codes() -> dict[str, int]:
+    """Every failure code of csim.physics.status, by name (OK left out)."""
+    from csim.physics import status as st
+
+    return {name: code for name, code in vars(st).items()
+            if name.isupper() and isinstance(code, int) and code != st.OK}
+
+
+#: the kind each status code's message is filed under (a new code must be added here)
+CODE_KINDS = {"NONFINITE_RHS": "blow-up", "NONFINITE_STATE": "blow-up", "MAX_PHI": "drift",
+              "STEP_COLLAPSE": "step collapse", "MAX_STEPS": "max steps", "STEP_TOO_SMALL": "step collapse",
+              "SINGULAR_KKT": "singular", "PROJ_SINGULAR": "singular", "PROJ_NO_CONVERGENCE": "projection",
+              "MAX_EVENTS": "chatter", "RK4_RESOLUTION": "step", "SINGULAR_MASS": "singular",
+              "NO_SIGN_CHANGE": "event location", "CHATTER": "chatter"}
+
+
+def test_every_status_code_is_listed():
+    assert set(_status_codes()) == set(CODE_KINDS)
+
+
+@pytest.mark.parametrize("name", sorted(CODE_KINDS))
+def test_every_failure_code_writes_its_kind_as_the_failure_attribute(tmp_path, name):
+    from types import SimpleNamespace
+
+    from csim.physics import status as st
+    from csim.result import FAILURES, Result
+
+    case = qr_case()  # an adaptive integrator (an RK4 step failure is its own kind)
+    projection = SimpleNamespace(tol=1e-10, max_iter=10)
+    message = st.failure_message(_status_codes()[name], 1.0, 2.0, case.integration_settings(), projection,
+                                 ["cutting_force"])
+    failed = Result.empty("quick_return", ["q1", "q2", "q3"], [], [], 2, "", message=message)
+    assert failed.failure == CODE_KINDS[name] and failed.failure in FAILURES
+    path = tmp_path / "f.h5"
+    write_result(path, failed)
+    with h5py.File(path) as fh:
+        assert fh.attrs["failure"] == CODE_KINDS[name]
+    assert read_result(path).failure == CODE_KINDS[name]
+
+
+def test_a_success_has_no_failure_and_a_given_kind_is_kept(short_result):
+    from csim.result import Result
+
+    assert short_result.failure == ""
+    kept = Result.empty("quick_return", ["q1"], [], [], 0, "", message="blow-up: x", failure="interrupted")
+    assert kept.failure == "interrupted"
+    assert Result.empty("quick_return", ["q1"], [], [], 0, "", message="something new").failure == "other"

@@ -299,3 +299,43 @@ def test_switched_force_stops_at_its_window_bound(on):
     s = np.where(res.t < t1, F * res.t**2 / (2 * m), 0.8 + F * t1 / m * (res.t - t1))
     assert np.max(np.abs(res.q[:, 0] - s)) < 1e-10
     assert abs(res.work[-1, 0] - F * 0.8) < 1e-9
+
+
+def rsur_with_mass() -> dict:
+    """configs/rsur_spatial.yaml without its drive, with masses and gravity along -z: a
+    spatial 1-DOF loop whose spherical joint B is cut."""
+    mech = copy.deepcopy(load_case(CONFIGS / "rsur_spatial.yaml").data["mechanism"])
+    mech = {k: mech[k] for k in ("label", "parameters", "links", "couplings")}
+    mech["gravity"] = [0, 0, -9.81]
+    for n, (mass, length, inertia) in enumerate([(1.0, "a", 2e-3), (0.5, "b", 5e-3), (0.8, "c", 4e-3)], start=1):
+        mech["links"][n].update(mass=mass, com=[f"{length}/2", 0, 0], inertia=[1e-3, inertia, inertia])
+    return mech
+
+
+@pytest.mark.slow  # about 15 s: a spatial model derived and integrated on the Python path
+def test_springs_damper_and_actuator_on_a_cut_spherical_joint_keep_the_energy_balance():
+    """Elements on the three Euler angles of the cut S joint B, measured from its two frames
+    (the measure is checked against the joint transform in test_linkage_joints): T + V
+    (springs included) - W (damper, actuator) stays constant, and the elements work."""
+    mech = rsur_with_mass()
+    mech["forces"] = [
+        {"name": "twist", "type": "joint_spring", "joint": "q_B_1", "stiffness": 0.5, "free_angle": 0.3,
+         "damping": 0.02},
+        {"name": "motor", "type": "actuator", "joint": "q_B_3", "torque": 0.2},
+        {"name": "bend", "type": "joint_spring", "joint": "q_B_2", "stiffness": 0.3, "free_angle": 1.0}]
+    res = run(mech, {"q": {"q_A": 0.0}, "qd": {"q_A": 0.0}, "guess": {"q_D": 1.57, "q_C_1": 0.3, "q_C_2": 1.3}},
+              t_end=0.5, rtol=1e-10, atol=1e-10, stabilization={"method": "projection"})
+    assert res.load_names == ["twist", "motor"]
+    assert np.all(np.abs(res.work[-1]) > 1e-4)  # measured: damper -0.65 J, actuator 1.9e-4 J at t = 0.5 s
+    assert res.energy_error_relative < 1e-9  # measured 3.3e-11
+    assert res.max_phi < 1e-12
+
+
+def test_elements_on_cut_joint_variables_are_named_by_the_joint_templates():
+    mech = rsur_with_mass()
+    mech["forces"] = [{"name": "f", "type": "actuator", "joint": "B", "torque": 1.0}]
+    with pytest.raises(Exception) as excinfo:
+        validate_case({"mechanism": mech, "initial": {"q": {"q_A": 0.0}, "guess": {"q_D": 1.57}}})
+    assert any(p.startswith("mechanism.forces[0] (f).joint: coupling 2 'B' S (1,2)-(2,1) has 3 joint variables; "
+                            "expected one of them named (q_B_1, q_B_2, q_B_3)") for p in excinfo.value.problems), \
+        excinfo.value.problems

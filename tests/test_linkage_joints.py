@@ -163,3 +163,19 @@ def test_no_other_linkage_module_keeps_a_table_of_joint_types():
             continue
         hits = [line.strip() for line in path.read_text().splitlines() if pattern.search(line)]
         assert hits == [], f"{path.name} keeps per-type facts: {hits}"
+
+
+@pytest.mark.parametrize("name", ["R", "P", "C", "U", "S"])
+def test_measure_inverts_the_joint_transform_at_any_pose(name):
+    """Frame jm placed by the joint's own transform, T_jm = T_ik T(q), at random poses of
+    frame ik: the variables measured from the two frames are q (S: its second angle in (0, pi))."""
+    kind = JOINT_TYPES[name]
+    rng = np.random.default_rng(11)
+    for _ in range(6):
+        pose = [sp.Float(x) for x in rng.uniform(-np.pi, np.pi, 3)]
+        T_ik = translation(*[sp.Float(x) for x in rng.uniform(-1, 1, 3)]) * euler_zxz(*pose)
+        q = [rng.uniform(0.1, np.pi - 0.1) if name == "S" and n == 1 else
+             rng.uniform(-1, 1) if v.unit == "m" else rng.uniform(-np.pi, np.pi) for n, v in enumerate(kind.variables)]
+        T_jm = T_ik * kind.transform([sp.Float(x) for x in q])
+        measured = kind.measure(CutGeometry.from_transforms(T_ik, T_jm), lambda e: e)
+        np.testing.assert_allclose([float(x) for x in measured], q, rtol=0, atol=1e-12)

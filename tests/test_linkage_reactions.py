@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import yaml
 
-from csim.case import validate_case
+from csim.case import load_case, validate_case
 from csim.io.hdf5 import read_result, write_result
 from csim.pipeline import run_case
 
@@ -85,8 +85,8 @@ def test_cut_pin_reaction_of_a_four_bar_at_rest_against_hand_statics():
     assert result.ok, result.message
     assert np.max(np.abs(result.qdd[0])) < 1e-9                # static: the torque holds it
     assert np.max(np.abs(result.q - result.q[0])) < 1e-9       # and it stays at rest
-    (reaction,) = result.reactions
-    assert reaction.name == "C"
+    assert [r.name for r in result.reactions] == ["C", "crank", "B", "rocker"]  # the cut joint, then the tree's
+    reaction = result.reactions[0]
     scale = np.linalg.norm(F)
     assert np.allclose(reaction.force_global[:, :2], F, atol=1e-8 * scale, rtol=0)
     assert np.allclose(reaction.force_global[:, 2], 0.0) and np.allclose(reaction.torque_global, 0.0)
@@ -97,6 +97,16 @@ def test_cut_pin_reaction_of_a_four_bar_at_rest_against_hand_statics():
     # the planar model carries no f_z, m_x, m_y: named, not silently zero
     assert len(reaction.undetermined) == 3
     assert all("planar" in u for u in reaction.undetermined)
+    # the tree joints, by Newton-Euler of the links beyond each: the hand statics' free bodies
+    # crank: F_A - F_B + m1 g = 0 (F_B: crank on coupler = F - m2 g); rocker: F_D + F + m3 g = 0
+    F_B = F - p["m2"] * G
+    expected = {"crank": F_B - p["m1"] * G, "B": F_B, "rocker": -F - p["m3"] * G}
+    for tree in result.reactions[1:]:
+        assert "tree joint" in tree.label and tree.undetermined
+        assert np.allclose(tree.force_global[:, :2], expected[tree.name], atol=1e-8 * scale, rtol=0), tree.name
+        # the moment about the pin's axis is the joint's equation of motion (the motor's torque
+        # at the crank is a force element, not a reaction): zero
+        assert np.max(np.abs(tree.torque_global)) < 1e-9 * scale * p["b"], tree.name
 
 
 def _accelerations(p, q, qd, qdd):
@@ -119,14 +129,14 @@ def test_newton_euler_on_the_coupler_with_reactions_at_both_ends():
     from a run of the same four-bar whose table order cuts B instead."""
     settings = {"t_end": 0.6, "rtol": 1e-11, "atol": 1e-11}
     cut_c = run_case(validate_case(_case(**{f"simulation__{k}": v for k, v in settings.items()})))
-    assert cut_c.ok and [r.name for r in cut_c.reactions] == ["C"]
+    assert cut_c.ok and [r.name for r in cut_c.reactions][0] == "C"
     data = _case(**{f"simulation__{k}": v for k, v in settings.items()})
     rows = data["mechanism"]["couplings"]
     data["mechanism"]["couplings"] = [rows[0], rows[2], rows[3], rows[1]]  # crank, rocker, C, then B: B is cut
     q = dict(zip(cut_c.coordinate_names, cut_c.q[0]))
     data["initial"]["guess"] = {"q_rocker": q["q_rocker"], "q_C": q["q_rocker"] - q["q_crank"] - q["q_B"]}
     cut_b = run_case(validate_case(data))
-    assert cut_b.ok and [r.name for r in cut_b.reactions] == ["B"]
+    assert cut_b.ok and [r.name for r in cut_b.reactions][0] == "B"
     assert np.array_equal(cut_b.t, cut_c.t)
     assert np.max(np.abs(cut_b.q[:, 0] - cut_c.q[:, 0])) < 1e-8   # the same motion
     p = validate_case(_case()).parameters
@@ -143,6 +153,11 @@ def test_newton_euler_on_the_coupler_with_reactions_at_both_ends():
     G2, C = B + p["b"] / 2 * u2, B + p["b"] * u2
     moments = _cross((B - G2).T, F_B.T) + _cross((C - G2).T, -F_C.T)
     assert np.max(np.abs(moments - I2 * alpha2)) < 1e-8 * scale * p["b"]   # measured 3.5e-11
+    # each run's tree-joint reactions (Newton-Euler) against the other run's cut-joint ones (multipliers)
+    tree_b = next(r for r in cut_c.reactions if r.name == "B")
+    tree_c = next(r for r in cut_b.reactions if r.name == "C")
+    assert np.max(np.abs(tree_b.force_global - cut_b.reactions[0].force_global)) < 1e-9 * scale  # measured 2.4e-9 N
+    assert np.max(np.abs(tree_c.force_global - cut_c.reactions[0].force_global)) < 1e-9 * scale  # of 73 N
 
 
 def test_reactions_round_trip_through_hdf5(tmp_path):
@@ -150,7 +165,8 @@ def test_reactions_round_trip_through_hdf5(tmp_path):
     path = tmp_path / "fourbar.h5"
     write_result(path, result)
     back = read_result(path)
-    (a,), (b,) = result.reactions, back.reactions
+    assert [r.name for r in back.reactions] == [r.name for r in result.reactions] == ["C", "crank", "B", "rocker"]
+    a, b = result.reactions[0], back.reactions[0]
     assert (b.name, b.label, b.undetermined) == (a.name, a.label, a.undetermined)
     for name in ("force_global", "force_joint", "torque_global", "torque_joint"):
         assert np.array_equal(getattr(a, name), getattr(b, name))
@@ -198,3 +214,79 @@ def _rodrigues(v):
     k = v / angle
     K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
     return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
+
+
+def test_tree_pin_of_a_pendulum_with_springs_and_damper_against_hand_newton():
+    """A bar pinned at O (no cut joint), with a torsional spring-damper at O and a spring from
+    its tip P to a fixed point: ground on bar F = m (a_G - g) - F_spring, a_G by hand from
+    the recorded angle, rate and acceleration; the moment about the pin's axis (its equation
+    of motion, the torsional spring's torque included) vanishes."""
+    m, a, L, k, l0, anchor = 1.5, 0.4, 0.8, 20.0, 0.2, np.array([0.5, 0.3])
+    mech = {"label": "pendulum", "parameters": {"m": m, "a": a, "L": L}, "gravity": [0, -9.81, 0],
+            "links": [{"link": 0, "name": "ground", "joints": [["R", 0, "O"]]},
+                      {"link": 1, "name": "bar", "joints": [["R", 0, "O"], ["R", ["L", 0, 0], "P"]], "mass": "m",
+                       "com": ["a", 0, 0], "inertia": 0.02}],
+            "couplings": [{"name": "O", "couple": ["ground", "O", "bar", "O"]}],
+            "forces": [{"name": "tors", "type": "joint_spring", "joint": "O", "stiffness": 3.0, "free_angle": 0.2,
+                        "damping": 0.1},
+                       {"name": "pull", "type": "spring", "between": [["bar", "P"], ["ground", [0.5, 0.3, 0]]],
+                        "stiffness": k, "free_length": l0}]}
+    res = run_case(validate_case({"mechanism": mech, "initial": {"q": {"q_O": -1.0}, "qd": {"q_O": 0.0}},
+                                  "simulation": {"t_end": 1.0, "rtol": 1e-11, "atol": 1e-11, "backend": "python"}}))
+    assert res.ok, res.message
+    (pin,) = res.reactions
+    th, w, al = res.q[:, 0], res.qd[:, 0], res.qdd[:, 0]
+    a_G = a * (al[:, None] * np.column_stack((-np.sin(th), np.cos(th)))
+               - (w ** 2)[:, None] * np.column_stack((np.cos(th), np.sin(th))))
+    d = anchor - L * np.column_stack((np.cos(th), np.sin(th)))
+    length = np.linalg.norm(d, axis=1)
+    F_spring = k * (length - l0)[:, None] * d / length[:, None]  # pulls P towards the anchor
+    F = m * (a_G - G) - F_spring
+    assert np.ptp(al) > 10.0
+    assert np.max(np.abs(pin.force_global[:, :2] - F)) < 1e-10 * np.max(np.abs(F))  # measured 9e-15 N of 16 N
+    assert np.max(np.abs(pin.torque_global)) < 1e-12 and np.all(pin.force_global[:, 2] == 0)
+
+
+@pytest.mark.slow  # about 20 s: a spatial body with a full inertia tensor, derived and run on the Python path
+def test_spherical_joint_of_a_spatial_body_against_newton_from_its_recorded_motion():
+    """A body on a spherical joint (spatial, no cut joint): the joint's force is m (a_G - g),
+    with a_G differentiated numerically from the recorded velocity of a point named at the
+    centre of mass; a spherical joint carries no moment."""
+    m = 2.0
+    com = [0.1, 0.05, -0.3]
+    mech = {"label": "top", "parameters": {"m": m}, "gravity": [0, 0, -9.81],
+            "links": [{"link": 0, "name": "ground", "joints": [["S", 0, "O"]]},
+                      {"link": 1, "name": "body", "joints": [["S", 0, "O"], ["R", com, "G"]], "mass": "m", "com": com,
+                       "inertia": [[0.05, 0.001, 0], [0.001, 0.04, 0.002], [0, 0.002, 0.02]]}],
+            "couplings": [{"name": "O", "couple": ["ground", "O", "body", "O"]}]}
+    res = run_case(validate_case({
+        "mechanism": mech, "output": {"dt": 1e-3},
+        "initial": {"q": {"q_O_1": 0.3, "q_O_2": 0.8, "q_O_3": -0.2},
+                    "qd": {"q_O_1": 1.0, "q_O_2": -0.5, "q_O_3": 2.0}},
+        "simulation": {"t_end": 0.5, "rtol": 1e-12, "atol": 1e-12, "backend": "python"}}))
+    assert res.ok, res.message
+    (joint,) = res.reactions
+    assert joint.undetermined == []  # spatial: every component
+    v = np.column_stack([res.observable_rates[:, res.observable_names.index(f"G_{a}")] for a in "xyz"])
+    a_G = np.gradient(v, res.t, axis=0, edge_order=2)
+    F = m * (a_G - np.array([0, 0, -9.81]))
+    assert np.max(np.abs(joint.force_global - F)[2:-2]) < 1e-4 * np.max(np.abs(F))  # finite differences: 8e-6
+    assert np.max(np.abs(joint.torque_global)) < 1e-10
+    assert np.allclose(joint.force_joint, joint.force_global)  # frame ik is the ground's
+
+
+@pytest.mark.slow  # about 6 s: the tabled quick-return's model derived, 0.5 s on the Python path
+def test_tree_joints_of_the_tabled_quick_return_carry_nothing_along_their_free_directions():
+    """The tabled quick-return (an actuator on the crank pivot O, the switched cutting force on
+    the ram, two cut slides): at every tree pin the moment about the pin's axis, which is the
+    pin's equation of motion with the motor torque and the loads applied, vanishes to round-off."""
+    case = load_case(CONFIG.parent / "quick_return_tables.yaml", ["simulation.backend=python", "simulation.t_end=0.5"])
+    result = run_case(case)
+    assert result.ok, result.message
+    tree = {str(c.name or c.number) for c in case.linkage.topology.tree_joints}
+    reactions = [r for r in result.reactions if r.name in tree]
+    assert sorted(r.name for r in reactions) == ["A", "B", "C", "D", "O"]
+    scale = max(np.max(np.abs(r.force_global)) for r in reactions)
+    assert scale > 1e5  # the cutting force and the crank torque's reactions, N
+    for r in reactions:
+        assert np.max(np.abs(r.torque_joint[:, 2])) < 1e-11 * scale, r.name  # measured 1.5e-9 N m at O

@@ -425,7 +425,9 @@ def test_drive_and_reactions_figures_plot_the_recorded_values(driven_file):
     (ax,) = build(driven_file, "drive").axes
     np.testing.assert_array_equal(data_lines(ax)[0].get_ydata(), read(driven_file, "forces/drive")[:, 0])
     assert ax.get_ylabel() == "drive torque on q_crank [N m]"
-    force, torque = build(driven_file, "reactions").axes
+    axes = build(driven_file, "reactions").axes
+    assert len(axes) == 2 * 4  # the cut pin C, then the tree joints crank, B, slide
+    force, torque = axes[:2]
     f = read(driven_file, "reactions/C/force_global")
     lines = data_lines(force)
     assert len(lines) == 2  # F_z is zero throughout in the plane: left out

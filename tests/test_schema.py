@@ -169,3 +169,13 @@ def test_csim_schema_to_an_unwritable_place_exits_2(tmp_path):
     (tmp_path / "file").write_text("")
     result = invoke("schema", "-o", tmp_path / "file" / "schema.json")
     assert result.exit_code == 2 and "--output" in result.output and "Traceback" not in result.output
+
+
+def test_registered_mechanism_with_forces_may_add_the_elements_parameters():
+    schema = json_schema()
+    forces = [{"name": "s", "type": "joint_spring", "joint": "pivot", "stiffness": "k"}]
+    jsonschema.validate({"mechanism": {"name": "pendulum", "parameters": {"k": 4.0}, "forces": forces}}, schema)
+    with pytest.raises(jsonschema.ValidationError):
+        jsonschema.validate({"mechanism": {"name": "pendulum", "parameters": {"k": 4.0}}}, schema)
+    with pytest.raises(jsonschema.ValidationError):
+        jsonschema.validate({"mechanism": {"name": "pendulum", "parameters": {"k": "soft"}, "forces": forces}}, schema)

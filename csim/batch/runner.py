@@ -19,6 +19,7 @@ from csim.batch.manifest import Entry, Manifest
 from csim.compare.pool import job_count, run_tasks
 from csim.compare.runs import INTERRUPTED, shorten
 from csim.result import Result
+from csim.tables import Column, Fields, Lines, Report, Table
 
 
 @dataclass
@@ -112,8 +113,12 @@ class Batch:
         return [r for r in self.runs if not r.passed]
 
     def table(self) -> str:
-        """The pass/fail table, the failed expectations below it, and a count."""
+        """The pass/fail table, the failed expectations below it, and a count, as plain text."""
         return format_table(self)
+
+    def report(self) -> Report:
+        """The same as a report (:mod:`csim.tables`): rich tables on a terminal."""
+        return batch_report(self)
 
     def write_results(self, folder: str | Path) -> list[Path]:
         """Write each run's result file, ``FOLDER/NAME.h5`` (a run that raised or never ran:
@@ -191,16 +196,16 @@ def schedule(runs: list[CaseRun]) -> list[CaseRun]:
     return [*first, *python, *rest]
 
 
-#: (header, width, text of a run) of the table's columns after the name
-_COLUMNS: list[tuple[str, int, Callable[[CaseRun], str]]] = [
-    ("result", 6, lambda r: "pass" if r.passed else "FAIL"),
-    ("status", 7, lambda r: r.record.status),
-    ("wall [s]", 8, lambda r: f"{r.wall_time:.3f}" if r.result is not None else "-"),
-    ("max|Phi|", 9, lambda r: _number(r.record.max_phi)),
-    ("energy err", 10, lambda r: _energy(r.record)),
-    ("events", 6, lambda r: str(len(r.record.event_times))),
-    ("backend", 8, lambda r: r.record.backend if r.result is not None else "-"),
-    ("checks", 6, lambda r: f"{sum(o.passed for o in r.outcomes)}/{len(r.outcomes)}"),
+#: (header, justify, text of a run) of the table's columns after the name
+_COLUMNS: list[tuple[str, str, Callable[[CaseRun], str]]] = [
+    ("result", "left", lambda r: "pass" if r.passed else "FAIL"),
+    ("status", "left", lambda r: r.record.status),
+    ("wall [s]", "right", lambda r: f"{r.wall_time:.3f}" if r.result is not None else "-"),
+    ("max|Phi|", "right", lambda r: _number(r.record.max_phi)),
+    ("energy err", "right", lambda r: _energy(r.record)),
+    ("events", "right", lambda r: str(len(r.record.event_times))),
+    ("backend", "left", lambda r: r.record.backend if r.result is not None else "-"),
+    ("checks", "right", lambda r: f"{sum(o.passed for o in r.outcomes)}/{len(r.outcomes)}"),
 ]
 
 
@@ -215,16 +220,23 @@ def _energy(result: Result) -> str:
     return _number(value) + (f" {unit}" if unit else "")
 
 
-def format_table(batch: Batch) -> str:
-    """The batch as plain aligned text: one row per entry, the failed expectations (measured
-    against expected) and the runs' failure messages below, and the count passed."""
-    width = max([4, *(len(r.entry.name) for r in batch.runs)])
-    head = f"{'case':<{width}}" + "".join(f"  {h:>{w}}" for h, w, _ in _COLUMNS)
-    lines = [f"manifest:   {batch.manifest.path} ({len(batch.runs)} cases, jobs = {batch.jobs}"
-             + ("; wall times of parallel runs share the CPU)" if batch.jobs > 1 else ")"), "", head, "-" * len(head)]
-    for run in batch.runs:
-        lines.append(f"{run.entry.name:<{width}}" + "".join(f"  {text(run):>{w}}" for _, w, text in _COLUMNS))
+def batch_table(batch: Batch) -> Table:
+    """One row per entry: its name, pass/FAIL, status, wall time, max |Phi|, energy error,
+    events, backend and expectations held / checked."""
+    table = Table([Column("case", "left"), *(Column(h, j) for h, j, _ in _COLUMNS)])
+    table.rows = [[run.entry.name, *(text(run) for _, _, text in _COLUMNS)] for run in batch.runs]
+    return table
+
+
+def batch_report(batch: Batch) -> Report:
+    """The batch: the manifest, the table (:func:`batch_table`), the failed expectations
+    (measured against expected) below it, and the count passed."""
+    report = Report([Fields([("manifest", f"{batch.manifest.path} ({len(batch.runs)} cases, jobs = {batch.jobs}"
+                                          + ("; wall times of parallel runs share the CPU)" if batch.jobs > 1
+                                             else ")"))]),
+                     Lines([""]), batch_table(batch)])
     failed = batch.failed
+    lines = []
     if failed:
         lines += ["", "failed expectations:"]
         for run in failed:
@@ -233,4 +245,9 @@ def format_table(batch: Batch) -> str:
         lines += ["", "interrupted: Ctrl-C stopped the batch; unfinished runs fail their expectations"]
     lines += ["", f"{len(batch.runs) - len(failed)} of {len(batch.runs)} cases passed"
               + (f", {len(failed)} failed: {shorten(', '.join(r.entry.name for r in failed), 200)}" if failed else "")]
-    return "\n".join(lines)
+    return report.add(Lines(lines))
+
+
+def format_table(batch: Batch) -> str:
+    """The batch as plain aligned text (see :func:`batch_report`)."""
+    return batch_report(batch).plain()

@@ -7,7 +7,7 @@ table (:mod:`csim.compare.table`) and writes the comparison file (:mod:`csim.com
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -17,7 +17,8 @@ from csim.compare.plan import CaseInput, Plan, ReferenceSettings, own_tolerance,
 from csim.compare.pool import Progress, job_count, run_tasks
 from csim.compare.runs import Run, run_setting
 from csim.compare.specs import tolerance_kind
-from csim.compare.table import format_table
+from csim.compare.table import comparison_report, format_table
+from csim.tables import Report
 
 
 @dataclass
@@ -116,11 +117,16 @@ class Comparison:
         method and tolerance of a study), and the failures below."""
         return format_table(self)
 
+    def report(self) -> Report:
+        """The comparison as a report (:mod:`csim.tables`): what ``csim compare`` prints,
+        as rich tables on a terminal and as :meth:`table` otherwise."""
+        return comparison_report(self)
+
 
 def compare(case: CaseInput, methods: Sequence[str] | None = None,
             tolerances: Sequence[float] | None = None, overrides: Sequence[str] = (),
             reference: ReferenceSettings | None = None, jobs: int | None = None,
-            progress: Progress | None = None) -> Comparison:
+            progress: Progress | None = None, warn: Callable[[str], None] | None = None) -> Comparison:
     """Run ``case`` with each stabilization method (and tolerance), and a reference run.
 
     Parameters
@@ -145,6 +151,11 @@ def compare(case: CaseInput, methods: Sequence[str] | None = None,
         process.
     progress : callable, optional
         Called as ``progress(run, done, total)`` after each run finishes.
+    warn : callable, optional
+        Called before the runs with each warning of the runs' cases (a stabilizer gain times
+        a fixed step outside the integrator's stability region, :attr:`csim.case.Case.warnings`),
+        once per method and setting: ``"baumgarte at step = 1.00e-03 s: stabilization.w *
+        simulation.step = 10 lies outside ..."``.
 
     Returns
     -------
@@ -167,6 +178,9 @@ def compare(case: CaseInput, methods: Sequence[str] | None = None,
     """
     reference = reference or ReferenceSettings()
     plan = plan_comparison(case, methods, tolerances, overrides, reference, jobs)
+    if warn is not None:
+        for warning in case_warnings(plan, reference.method):
+            warn(warning)
     ref_run = _new_run(reference.method, plan.reference_case)
     # the reference first (in a pool it is the longest); then method by method, loosest value first
     tasks = [(ref_run, plan.reference_case), *((_new_run(m, c), c) for m, c in plan.run_cases())]
@@ -176,6 +190,14 @@ def compare(case: CaseInput, methods: Sequence[str] | None = None,
     for run in runs:
         run.measure_against(ref_run)
     return _gather(plan, reference, ref_run, runs, n_jobs, interrupted)
+
+
+def case_warnings(plan: Plan, reference_method: str) -> list[str]:
+    """The warnings of the cases of ``plan``'s runs (the reference's first), each once, led by
+    the method and setting it concerns."""
+    runs = [(reference_method, plan.reference_case), *plan.run_cases()]
+    return list(dict.fromkeys(f"{method} at {setting_text(case)}: {warning}"
+                              for method, case in runs for warning in case.warnings))
 
 
 def _new_run(method: str, case: Case) -> Run:

@@ -1,8 +1,9 @@
-"""The comparison as plain aligned text, as ``csim compare`` prints it.
+"""The comparison as a report (:mod:`csim.tables`), as ``csim compare`` prints it.
 
-:func:`format_table` writes, top to bottom: the settings (case, reference, what the errors
-and timings mean, backend, skipped methods), one row per method, one per method and
-tolerance of a study, and the notes (failures, partial errors).
+:func:`comparison_report` holds, top to bottom: the settings (case, reference, what the
+errors and timings mean, backend, skipped methods), a table with one row per method, one
+with a row per method and tolerance of a study, and the notes (failures, partial errors).
+:func:`format_table` is its plain text (stdout not a terminal; the file's ``table``).
 """
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ from typing import TYPE_CHECKING
 
 from csim.compare.runs import Run, run_setting, shorten
 from csim.compare.specs import TOLERANCE_LABELS, tol_text
+from csim.tables import Column, Fields, Lines, Report, Table
 
 if TYPE_CHECKING:
     from csim.compare.comparison import Comparison
@@ -25,43 +27,48 @@ _EARLY_STOP = "stopped early"
 
 
 def format_table(c: Comparison) -> str:
-    """The comparison as text: settings, one row per method (and one per method and
-    tolerance of a study), and the failures below."""
-    lines = _settings_lines(c)
-    lines += _method_section(c)
+    """The comparison as plain aligned text (see :func:`comparison_report`)."""
+    return comparison_report(c).plain()
+
+
+def comparison_report(c: Comparison) -> Report:
+    """The comparison: settings, a table with one row per method (and one with a row per
+    method and tolerance of a study), and the failures below."""
+    report = Report([Fields(_settings(c), width=12)])
+    report.add(*_method_section(c))
     if c.tolerances is not None:
         label = TOLERANCE_LABELS[c.tolerance_kind]
-        lines += ["", f"work-precision ({label} = " + ", ".join(tol_text(t) for t in c.tolerances) + "):",
-                  *format_rows(c.runs, with_tol=True)]
+        report.add(Lines(["", f"work-precision ({label} = " + ", ".join(tol_text(t) for t in c.tolerances) + "):"]),
+                   run_table(c.runs, with_tol=True))
     notes = _notes(c)
     if notes:
-        lines += ["", *notes]
-    return "\n".join(lines)
+        report.add(Lines(["", *notes]))
+    return report
 
 
-def _settings_lines(c: Comparison) -> list[str]:
-    """The lines above the rows: the case, the reference, what the numbers mean, and why
+def _settings(c: Comparison) -> list[tuple[str, str]]:
+    """The fields above the rows: the case, the reference, what the numbers mean, and why
     runs are on one backend, left out, or unfinished."""
     ref = c.reference_run
-    ref_line = f"reference:  {c.reference.describe()}: {ref.status}"
+    ref_text = f"{c.reference.describe()}: {ref.status}"
     if ref.result is not None:
-        ref_line += f", {ref.nfev} RHS evals, {ref.wall_time:.2e} s"
-    lines = [f"case:       {c.source} ({c.mechanism}, {c.integrator})", ref_line,
-             "errors:     motion = max over the output times and coordinates of |q - q_ref| [rad or m]; "
-             "final = the same at t_end",
-             f"timing:     wall time of each run in its own process, jobs = {c.jobs}"
-             + (" (parallel runs share the CPU)" if c.jobs > 1 else "")]
+        ref_text += f", {ref.nfev} RHS evals, {ref.wall_time:.2e} s"
+    items = [("case", f"{c.source} ({c.mechanism}, {c.integrator})"), ("reference", ref_text),
+             ("errors", "motion = max over the output times and coordinates of |q - q_ref| [rad or m]; "
+                        "final = the same at t_end"),
+             ("timing", f"wall time of each run in its own process, jobs = {c.jobs}"
+                        + (" (parallel runs share the CPU)" if c.jobs > 1 else ""))]
     if c.backend_note:
-        lines.append(f"backend:    {c.backend_note}")
+        items.append(("backend", c.backend_note))
     for method, reason in c.skipped.items():
-        lines.append(f"skipped:    {method}: {shorten(reason, 160)}")
+        items.append(("skipped", f"{method}: {shorten(reason, 160)}"))
     if c.interrupted:
-        lines.append("interrupted: Ctrl-C stopped the comparison; unfinished runs are marked failed")
-    return lines
+        items.append(("interrupted", "Ctrl-C stopped the comparison; unfinished runs are marked failed"))
+    return items
 
 
-def _method_section(c: Comparison) -> list[str]:
-    """The rows of the runs in the file's method groups, under a title that says their setting."""
+def _method_section(c: Comparison) -> list:
+    """The table of the runs in the file's method groups, under a title that says their setting."""
     per_method = list(c.method_runs.values())
     # a method that names its own integrator may run at another setting than the case's
     own_settings = c.tolerances is None and len({run_setting(r) for r in per_method}) > 1
@@ -71,7 +78,7 @@ def _method_section(c: Comparison) -> list[str]:
         title = f"per method ({c.setting}, as in the case):"
     else:
         title = f"per method (the tightest {TOLERANCE_LABELS[c.tolerance_kind]}: the runs in the file's method groups):"
-    return ["", title, *format_rows(per_method, with_tol=c.tolerances is not None or own_settings)]
+    return [Lines(["", title]), run_table(per_method, with_tol=c.tolerances is not None or own_settings)]
 
 
 def _notes(c: Comparison) -> list[str]:
@@ -89,27 +96,26 @@ def _notes(c: Comparison) -> list[str]:
     return notes
 
 
-def format_rows(runs: Sequence[Run], with_tol: bool) -> list[str]:
-    """A header, a rule and one row per run (with a ``setting`` column when ``with_tol``).
+def run_table(runs: Sequence[Run], with_tol: bool) -> Table:
+    """One row per run: method, (setting, when ``with_tol``), status, the errors, wall time,
+    RHS evaluations and steps.
 
-    A motion error over part of the run (it stopped early) is marked ``*``, with a footnote.
+    A motion error over part of the run (it stopped early) is marked ``*``, with a footnote;
+    a missing number is ``-``.
     """
-    width = max([6, *(len(r.method) for r in runs)])
-    tol_width = max([7, *(len(run_setting(r)) for r in runs)])
-    head = f"{'method':<{width}}" + (f"  {'setting':<{tol_width}}" if with_tol else "") + f"  {'status':<7}"
-    head += "".join(f"  {label:>{max(len(label), 9)}}" for label, _ in _NUMBER_COLUMNS)
-    head += f"  {'RHS evals':>9}  {'steps':>8}"
-    lines = [head, "-" * len(head)]
+    columns = [Column("method", "left"), *([Column("setting", "left")] if with_tol else []), Column("status", "left"),
+               *(Column(label) for label, _ in _NUMBER_COLUMNS), Column("RHS evals"), Column("steps")]
+    table = Table(columns)
     for r in runs:
-        line = f"{r.method:<{width}}" + (f"  {run_setting(r):<{tol_width}}" if with_tol else "") + f"  {r.status:<7}"
-        for label, attr in _NUMBER_COLUMNS:
+        row = [r.method, *([run_setting(r)] if with_tol else []), r.status]
+        for _, attr in _NUMBER_COLUMNS:
             value = getattr(r, attr)
             text = "-" if math.isnan(value) else f"{value:.2e}"
             if attr == "motion_error" and _EARLY_STOP in r.error_note:
                 text += "*"
-            line += f"  {text:>{max(len(label), 9)}}"
-        line += f"  {r.nfev:>9d}  {r.nsteps:>8d}"
-        lines.append(line)
+            row.append(text)
+        table.rows.append([*row, str(r.nfev), str(r.nsteps)])
     if any(_EARLY_STOP in r.error_note for r in runs):
-        lines.append("* over the output times before the run stopped")
-    return lines
+        table.notes.append("* over the output times before the run stopped")
+    return table
+

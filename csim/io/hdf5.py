@@ -7,7 +7,7 @@ Layout of a single run (a comparison file has one such group per method)::
     /forces/loads (N, k)  /forces/generalized (N, m)
     /forces/drive (N, d)  /energy/drive_work (N, d)       driven dynamics only
     /reactions/JOINT/force_global, force_joint, torque_global, torque_joint (N, 3)
-                                                          link-coupling mechanisms with cut joints
+                                                          link-coupling mechanisms (every joint)
     /observables/NAME (N,)  /observables/NAME_rate (N,)
     /events/times (E,)  /events/labels (E,)
     attributes: csim_version, format_version, mechanism, case (YAML), coordinate_names,
@@ -146,7 +146,7 @@ def _write_drives(group: h5py.Group, result: Result) -> None:
 
 
 def _write_reactions(group: h5py.Group, reactions) -> None:
-    """One group per cut joint: force and torque, global and in joint frame ik, (N, 3)."""
+    """One group per joint: force and torque, global and in joint frame ik, (N, 3)."""
     group.attrs["joints"] = np.array([r.name for r in reactions], dtype=_STR)  # their order
     for r in reactions:
         g = group.create_group(r.name)

@@ -24,7 +24,7 @@ UNITS: dict[str, str] = {
     "forces/drive": "per drive: N m for a rotation, N for a translation; the torque or force the drive "
                     "applies along its joint variable (driven dynamics)",
     "energy/drive_work": "J, one column per drive: the work of the drive since t = 0",
-    "reactions": "the force and the moment that link i exerts on link j of the cut joint (i, k)-(j, m), at the "
+    "reactions": "the force and the moment that link i exerts on link j of the joint (i, k)-(j, m), at the "
                  "origin of joint frame jm; link i receives the opposite",
     "reactions/force_global": "N, in the fixed frame's axes",
     "reactions/force_joint": "N, in the axes of joint frame ik",

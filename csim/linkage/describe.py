@@ -2,7 +2,10 @@
 
 The report lists the chain substructures, the cut joints, the joint variables, the global
 transforms of the links, the independent constraint equations (and which ones were removed,
-and why), the degrees of freedom and the reaction unknowns of every cut joint.
+and why), the degrees of freedom, the reaction unknowns of every cut joint, what a run does
+(forward dynamics, kinematic analysis or driven dynamics: ``mechanism.drive_mode``) and the
+force elements (``mechanism.forces``) with what csim derived for each: its potential and its
+loads (generalized direction, law, switching).
 """
 from __future__ import annotations
 
@@ -18,15 +21,30 @@ from csim.linkage.model import Linkage, build_linkage
 from csim.schema import describe as describe_value
 from csim.schema import validate_section
 
+#: what a run of the mechanism is, by ``mechanism.drive_mode`` (None: no drive)
+RUN_KINDS = {
+    None: "forward dynamics (no mechanism.drive): the motion under the masses, gravity and force elements",
+    "kinematic": "kinematic analysis (mechanism.drive, drive_mode kinematic): the motion prescribed by the drives, "
+                 "no forces",
+    "dynamic": "driven dynamics (mechanism.drive, drive_mode dynamic): the drives are rheonomic constraints; the "
+               "torques and forces they need are recorded (forces/drive)",
+}
 
-def load_linkage(path: str | Path, overrides: list[str] | None = None) -> Linkage:
-    """Read a case file and derive its link-coupling model (no run settings needed).
+
+def drive_mode(linkage: Linkage, mechanism: dict) -> str | None:
+    """The run's drive mode: None without drives, else ``mechanism.drive_mode`` (default kinematic)."""
+    return (mechanism.get("drive_mode") or "kinematic") if linkage.drive else None
+
+
+def read_mechanism(path: str | Path, overrides: list[str] | None = None) -> tuple[dict, dict]:
+    """The validated ``mechanism`` and ``initial`` sections of a case file with a link-coupling
+    description (no run settings needed).
 
     Raises
     ------
     CaseError
-        The file is missing or not valid YAML, its mechanism is not a link-coupling
-        description, or the description is invalid (the message names the table row).
+        The file is missing or not valid YAML, or its mechanism is not a link-coupling
+        description.
     """
     from csim.case import SCHEMA, read_case_file
 
@@ -40,6 +58,19 @@ def load_linkage(path: str | Path, overrides: list[str] | None = None) -> Linkag
                         f"{describe_value(mechanism.get('name'))})")
     if problems:
         raise CaseError(problems)
+    return mechanism, initial
+
+
+def load_linkage(path: str | Path, overrides: list[str] | None = None) -> Linkage:
+    """Read a case file and derive its link-coupling model (no run settings needed).
+
+    Raises
+    ------
+    CaseError
+        As :func:`read_mechanism`, or the description is invalid (the message names the
+        table row).
+    """
+    mechanism, initial = read_mechanism(path, overrides)
     return build_linkage(mechanism, initial, tol=initial["tol"], max_iter=initial["max_iter"])
 
 
@@ -48,7 +79,7 @@ def _link_name(linkage: Linkage, n: int) -> str:
     return f"{n} ({link.name})" if link.name else str(n)
 
 
-def report(linkage: Linkage, links: list[int] | None = None) -> dict:
+def report(linkage: Linkage, links: list[int] | None = None, mode: str | None = "") -> dict:
     """Everything the report shows, as plain data (strings for expressions).
 
     Parameters
@@ -56,6 +87,8 @@ def report(linkage: Linkage, links: list[int] | None = None) -> dict:
     linkage : Linkage
     links : list of int, optional
         Links whose global transforms are listed (default: every moving link).
+    mode : str or None, optional
+        The drive mode (:func:`drive_mode`); "" (default): kinematic when there are drives.
 
     Raises
     ------
@@ -111,7 +144,28 @@ def report(linkage: Linkage, links: list[int] | None = None) -> dict:
                 "rank_at_start": red.rank_at_start, "overconstrained": linkage.dof > linkage.grubler,
                 "configurations_sampled": red.samples},
         "notes": list(linkage.notes),
+        "drive_mode": (("kinematic" if linkage.drive else None) if mode == "" else mode),
+        "run": RUN_KINDS[("kinematic" if linkage.drive else None) if mode == "" else mode],
+        "forces": [_element(e) for e in linkage.forces.elements],
     }
+
+
+def _load(load) -> dict:
+    """A load of a force element: what it acts along, its law and switching, as strings."""
+    window = [w if abs(w) != float("inf") else str(w) for w in load.window]
+    return {"name": load.name, "unit": load.unit, "description": load.description,
+            "coordinate": str(load.coordinate), "coordinate_unit": load.coordinate_unit,
+            "law": str(load.law if load.law is not None else 1), "latex": sp.latex(load.law if load.law is not None
+                                                                                   else sp.Integer(1)),
+            "direction": None if load.direction is None else [str(d) for d in load.direction],
+            "window": window, "velocity": load.velocity}
+
+
+def _element(record) -> dict:
+    """A force element as written and what csim derived from it."""
+    return {"name": record.name, "type": record.kind, "row": record.row,
+            "potential": str(record.potential), "potential_latex": sp.latex(record.potential),
+            "loads": [_load(ld) for ld in record.loads]}
 
 
 def _text(data: dict, linkage: Linkage) -> str:
@@ -162,9 +216,29 @@ def _text(data: dict, linkage: Linkage) -> str:
     for c in data["cut_joints"]:
         out.append(f"  joint {c['number']} {c['type']}: {', '.join(c['reactions'])}; independent: "
                    f"{', '.join(c['reaction_unknowns']) or 'none'}")
+    out += ["", f"Run: {data['run']}"]
+    out += _forces_text(data["forces"])
     if data["notes"]:
         out += ["", "Notes:"] + [f"  {note}" for note in data["notes"]]
     return "\n".join(out) + "\n"
+
+
+def _forces_text(forces: list[dict]) -> list[str]:
+    """The force elements: each as written, its potential V [J] and its loads u b(q)."""
+    out = ["", f"Force elements ({len(forces)}){':' if forces else ': none (mechanism.forces)'}"]
+    for e in forces:
+        keys = ", ".join(f"{k}: {v}" for k, v in e["row"].items())
+        out.append(f"  {e['name']} ({e['type']}): {keys}")
+        if e["potential"] != "0":
+            out.append(f"    potential V = {e['potential']} [J]")
+        for ld in e["loads"]:
+            along = (f"along d({ld['coordinate']})/dq" if ld["direction"] is None else
+                     f"generalized direction [{', '.join(ld['direction'])}]")
+            switch = "" if ld["window"] == ["-inf", "inf"] and ld["velocity"] == "any" else (
+                f"; active while s = {ld['coordinate']} [{ld['coordinate_unit']}] is in {ld['window']}"
+                f"{'' if ld['velocity'] == 'any' else ' and ds/dt is ' + ld['velocity']}")
+            out.append(f"    load {ld['name']} [{ld['unit']}] = {ld['law']}, {along}{switch}")
+    return out
 
 
 def _latex(data: dict, linkage: Linkage) -> str:
@@ -179,12 +253,25 @@ def _latex(data: dict, linkage: Linkage) -> str:
     out += [r"\end{align}",
             rf"\paragraph{{Degrees of freedom}} Grubler--Kutzbach ({d['formula']}): {d['grubler_kutzbach']}; "
             rf"actual: {d['actual']} ({d['joint_variables']} joint variables, rank {d['rank']})."]
+    out.append(rf"\paragraph{{Run}} {data['run']}.")
+    if data["forces"]:
+        out += [r"\paragraph{Force elements} potentials $V_e$ [J] and load laws $u$ (N or N m)", r"\begin{align}"]
+        def tex(name: str) -> str:
+            return name.replace("_", r"\_")
+
+        rows = [rf"V_{{\mathrm{{{tex(e['name'])}}}}} &= {e['potential_latex']}" for e in data["forces"]
+                if e["potential"] != "0"]
+        rows += [rf"u_{{\mathrm{{{tex(ld['name'])}}}}} &= {ld['latex']}" for e in data["forces"]
+                 for ld in e["loads"]]
+        out += [" \\\\\n".join(rows) or "&", r"\end{align}"]
     return "\n".join(out) + "\n"
 
 
-def describe_case(linkage: Linkage, latex: bool = False, as_json: bool = False, links: list[int] | None = None) -> str:
-    """The report of a derived link-coupling model: text, LaTeX (``latex``) or JSON (``as_json``)."""
-    data = report(linkage, links)
+def describe_case(linkage: Linkage, latex: bool = False, as_json: bool = False, links: list[int] | None = None,
+                  mode: str | None = "") -> str:
+    """The report of a derived link-coupling model: text, LaTeX (``latex``) or JSON (``as_json``);
+    ``mode`` as :func:`report`."""
+    data = report(linkage, links, mode)
     if as_json:
         return json.dumps(data, indent=2) + "\n"
     if latex:
@@ -201,4 +288,6 @@ def describe_main(path: str | Path, latex: bool = False, json: bool = False, lin
     CaseError
         Bad input (see :func:`load_linkage`), naming the table row.
     """
-    return describe_case(load_linkage(path, overrides), latex=latex, as_json=json, links=links)
+    mechanism, initial = read_mechanism(path, overrides)
+    linkage = build_linkage(mechanism, initial, tol=initial["tol"], max_iter=initial["max_iter"])
+    return describe_case(linkage, latex=latex, as_json=json, links=links, mode=drive_mode(linkage, mechanism))

@@ -2,8 +2,11 @@
 
 ``mechanism.forces`` is a list of named elements, each a mapping with a ``type`` of
 :data:`FORCE_KINDS` (``spring``, ``joint_spring``, ``actuator``, ``force``, ``torque``).
-No element is given as a generalized force: each is located by the geometry of the tables
-(points on links, joints), and csim derives what it does:
+No element is given as a generalized force: each is located by the geometry (points on
+links, joints) of an :class:`ElementGeometry`: the tables of a link-coupling mechanism
+(:class:`Geometry`; a cut joint's variables measured from its two frames), or the declared
+bodies and joints of a registered one (:class:`csim.mechanisms.sites.DeclaredGeometry`).
+csim derives what each does:
 
 - a **conservative** part (a linear spring, a preload) as a potential V_e(q) added to the
   mechanism's potential energy, so that h = dV/dq carries it and T + V stays constant;
@@ -22,6 +25,7 @@ found and what was expected.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -30,7 +34,7 @@ import sympy as sp
 
 from csim.linkage.expressions import Scope, evaluate, parse_expression, valid_name
 from csim.linkage.frames import Frames
-from csim.linkage.joints import JOINT_TYPES
+from csim.linkage.joints import JOINT_TYPES, CutGeometry
 from csim.linkage.tables import Coupling, Tables
 from csim.linkage.topology import Topology
 from csim.linkage.transforms import simplify_entry
@@ -39,9 +43,76 @@ from csim.model.definition import Load, Observable, time_symbol
 from csim.schema import describe
 
 
+class ElementGeometry:
+    """What force elements are located by: the interface the element kinds use.
+
+    Two implementations: :class:`Geometry` (a link-coupling mechanism: its tables, tree and
+    transforms) and :class:`csim.mechanisms.sites.DeclaredGeometry` (a registered
+    mechanism's declared bodies, points and joints, :class:`csim.model.definition.Sites`).
+    Every position is a sympy expression of the coordinates q and the parameters.
+    """
+
+    @property
+    def q(self) -> list[sp.Symbol]:
+        raise NotImplementedError
+
+    @property
+    def qd(self) -> list[sp.Symbol]:
+        raise NotImplementedError
+
+    @property
+    def symbols(self) -> dict[str, sp.Symbol]:
+        """The parameters' symbols by name."""
+        raise NotImplementedError
+
+    @property
+    def values(self) -> dict[sp.Symbol, float]:
+        """The parameters' values by symbol."""
+        raise NotImplementedError
+
+    def variables(self) -> dict[str, sp.Symbol]:
+        """The coordinates and their rates by the names a law may use."""
+        raise NotImplementedError
+
+    def link(self, path: str, raw: Any, problems: list[str]) -> Any:
+        """The link (body) named by ``raw`` (None, with the problem listed, when none is)."""
+        raise NotImplementedError
+
+    def point(self, path: str, raw: Any, problems: list[str]) -> tuple[sp.Matrix, Any] | None:
+        """``[LINK, POINT]`` or ``[LINK, [x, y, z]]``: the global position r(q) (3, 1) [m] and the link."""
+        raise NotImplementedError
+
+    def named_point(self, name: str) -> sp.Matrix | None:
+        """The global position (3, 1) [m] of the point called ``name`` (None: no such point)."""
+        raise NotImplementedError
+
+    def joint(self, path: str, raw: Any, problems: list[str], unit: str | None = None) -> JointCoordinate | None:
+        """The joint variable named by ``raw`` (``unit`` resolves a joint with several)."""
+        raise NotImplementedError
+
+    def rotation(self, link: Any) -> sp.Matrix:
+        """The link's axes in global axes, (3, 3)."""
+        raise NotImplementedError
+
+    def omega(self, link: Any) -> sp.Matrix:
+        """Angular velocity of a link in its own axes (3, 1) [rad/s], linear in the velocities."""
+        raise NotImplementedError
+
+    def rate(self, expr: sp.Expr) -> sp.Expr:
+        """d expr/dt = (d expr/dq) qd of an expression of q (no explicit time)."""
+        return sum((sp.diff(expr, qi) * qdi for qi, qdi in zip(self.q, self.qd)), sp.Integer(0))
+
+    def gradient(self, expr: sp.Expr) -> list[sp.Expr]:
+        """d expr/dq, one entry per coordinate."""
+        return [sp.diff(expr, qi) for qi in self.q]
+
+    def scope(self) -> Scope:
+        return Scope(self.symbols, self.values)
+
+
 @dataclass
-class Geometry:
-    """What the elements are located by: the tables, the tree and the symbolic transforms.
+class Geometry(ElementGeometry):
+    """A link-coupling mechanism's geometry: the tables, the tree and the symbolic transforms.
 
     Attributes
     ----------
@@ -55,7 +126,6 @@ class Geometry:
     _omega: dict[int, sp.Matrix] | None = None
 
     def omega(self, link: int) -> sp.Matrix:
-        """Angular velocity of a link in its own axes (3, 1) [rad/s], linear in the velocities."""
         if self._omega is None:
             from csim.linkage.model import link_angular_velocities
 
@@ -70,16 +140,34 @@ class Geometry:
     def qd(self) -> list[sp.Symbol]:
         return [v.velocity for v in self.topology.variables]
 
-    def rate(self, expr: sp.Expr) -> sp.Expr:
-        """d expr/dt = (d expr/dq) qd of an expression of q (no explicit time)."""
-        return sum((sp.diff(expr, qi) * qdi for qi, qdi in zip(self.q, self.qd)), sp.Integer(0))
+    @property
+    def symbols(self) -> dict[str, sp.Symbol]:
+        return self.tables.symbols
 
-    def gradient(self, expr: sp.Expr) -> list[sp.Expr]:
-        """d expr/dq, one entry per coordinate."""
-        return [sp.diff(expr, qi) for qi in self.q]
+    @property
+    def values(self) -> dict[sp.Symbol, float]:
+        return self.tables.values
 
-    def scope(self) -> Scope:
-        return Scope(self.tables.symbols, self.tables.values)
+    def variables(self) -> dict[str, sp.Symbol]:
+        names = {}
+        for v in self.topology.variables:
+            names[v.name], names[str(v.velocity)] = v.symbol, v.velocity
+        return names
+
+    def link(self, path: str, raw: Any, problems: list[str]) -> int | None:
+        return link_of(self, path, raw, problems)
+
+    def point(self, path: str, raw: Any, problems: list[str]) -> tuple[sp.Matrix, int] | None:
+        return point_of(self, path, raw, problems)
+
+    def named_point(self, name: str) -> sp.Matrix | None:
+        return _point_named(self, name)
+
+    def joint(self, path: str, raw: Any, problems: list[str], unit: str | None = None) -> JointCoordinate | None:
+        return joint_of(self, path, raw, problems, unit)
+
+    def rotation(self, link: int) -> sp.Matrix:
+        return self.frames.links[link][:3, :3]
 
 
 @dataclass(frozen=True)
@@ -100,13 +188,38 @@ class JointCoordinate:
     label: str
 
 
+@dataclass(frozen=True)
+class ElementRecord:
+    """One built element, for reports (``csim describe``).
+
+    Attributes
+    ----------
+    name, kind : str
+        The row's ``name`` and ``type``.
+    row : dict
+        Its other keys as written.
+    potential : sympy expression
+        What it adds to V [J] (0 for none).
+    loads : list of Load
+        The loads it adds (direction, law, switching).
+    """
+
+    name: str
+    kind: str
+    row: dict
+    potential: sp.Expr
+    loads: list[Load]
+
+
 @dataclass
 class Contribution:
-    """What one element adds to the mechanism: potential [J], loads, observables."""
+    """What one element (or the whole list) adds to the mechanism: potential [J], loads,
+    observables; ``elements`` records each element of the list (:func:`build_forces`)."""
 
     potential: sp.Expr = field(default_factory=lambda: sp.Integer(0))
     loads: list[Load] = field(default_factory=list)
     observables: list[Observable] = field(default_factory=list)
+    elements: list[ElementRecord] = field(default_factory=list)
 
 
 @dataclass(frozen=True)
@@ -121,7 +234,7 @@ class ForceKind:
         The keys a row may have besides ``name`` and ``type``.
     summary : str
         One line for messages and the README.
-    build : callable (Element, Geometry, problems) -> Contribution or None
+    build : callable (Element, ElementGeometry, problems) -> Contribution or None
         Locates the element and derives its potential and loads (None: a problem was
         reported).
     """
@@ -222,17 +335,21 @@ def _coupling(geo: Geometry, raw: Any) -> Coupling | None:
 
 
 def _cut_coordinate(geo: Geometry, c: Coupling, slot: int) -> sp.Expr:
-    """The relative motion of frame jm against frame ik of a cut joint whose variables are
-    about or along z_ik (R, P, C: :attr:`csim.linkage.joints.JointType.along_z`), from q.
+    """Joint variable ``slot`` of a cut joint, measured from its two frames as a function of
+    q (:attr:`csim.linkage.joints.JointType.measure`, exact on the constraint manifold).
 
-    Rotation about z_ik: atan2(z_ik . (x_ik x x_jm), x_ik . x_jm); translation along z_ik:
-    z_ik . (r_jm - r_ik). Exact on the constraint manifold, where z_jm = z_ik.
+    E.g. a rotation about z_ik: atan2(z_ik . (x_ik x x_jm), x_ik . x_jm); a translation
+    along z_ik: z_ik . (r_jm - r_ik); the angles of a U or S joint from A_ik^T A_jm.
     """
-    T_ik, T_jm = geo.frames.joint_frame(c.i, c.k), geo.frames.joint_frame(c.j, c.m)
-    x_ik, z_ik, x_jm = T_ik[:3, 0], T_ik[:3, 2], T_jm[:3, 0]
-    if JOINT_TYPES[c.type].variables[slot].unit == "rad":
-        return sp.atan2(simplify_entry(z_ik.dot(x_ik.cross(x_jm))), simplify_entry(x_ik.dot(x_jm)))
-    return simplify_entry(z_ik.dot(T_jm[:3, 3] - T_ik[:3, 3]))
+    g = CutGeometry.from_transforms(geo.frames.joint_frame(c.i, c.k), geo.frames.joint_frame(c.j, c.m))
+    return JOINT_TYPES[c.type].measure(g, simplify_entry)[slot]
+
+
+def _cut_variables(geo: Geometry) -> dict[str, tuple[Coupling, int]]:
+    """The variables of the cut joints by name (not coordinates: measured from the joint's
+    frames): the type's templates with the coupling's name, or its number (``q_B_1``, ``q_4_2``)."""
+    return {name: (c, slot) for c in geo.topology.cut_joints
+            for slot, name in enumerate(JOINT_TYPES[c.type].variable_names(str(c.name or c.number)))}
 
 
 def joint_of(geo: Geometry, path: str, raw: Any, problems: list[str], unit: str | None = None
@@ -240,10 +357,11 @@ def joint_of(geo: Geometry, path: str, raw: Any, problems: list[str], unit: str 
     """The joint variable named by ``raw``: a coupling number or name, or a joint variable
     name. A joint with several variables is resolved by ``unit`` ("rad" for a torque, "m"
     for a force) when that leaves one; otherwise its variable must be named."""
-    variables = {v.name: v for v in geo.topology.variables}
+    variables = {v.name: (v.coupling, v.slot) for v in geo.topology.variables}
+    variables.update(_cut_variables(geo))
     c, slot = _coupling(geo, raw), None
     if c is None and isinstance(raw, str) and raw in variables:
-        c, slot = variables[raw].coupling, variables[raw].slot
+        c, slot = variables[raw]
     if c is None:
         couplings = ", ".join(str(x.name or x.number) for x in geo.tables.couplings)
         problems.append(f"{path}: got {describe(raw)}; no such joint; expected a coupling number or name "
@@ -253,7 +371,7 @@ def joint_of(geo: Geometry, path: str, raw: Any, problems: list[str], unit: str 
     if slot is None:
         slots = [s for s, spec in enumerate(specs) if unit is None or spec.unit == unit]
         if len(slots) != 1:
-            names = ", ".join(v.name for v in geo.topology.variables_of(c)) or "its joint variables"
+            names = ", ".join(name for name, (d, _) in variables.items() if d is c) or "its joint variables"
             problems.append(f"{path}: {c.label} has {len(specs)} joint variables; expected one of them named "
                             f"({names})" if slots else
                             f"{path}: {c.label} has no {'rotation' if unit == 'rad' else 'translation'}; expected a "
@@ -261,8 +379,8 @@ def joint_of(geo: Geometry, path: str, raw: Any, problems: list[str], unit: str 
             return None
         slot = slots[0]
     if c in geo.topology.cut_joints:
-        if not JOINT_TYPES[c.type].along_z:
-            measured = ", ".join(name for name, kind in JOINT_TYPES.items() if kind.along_z)
+        if JOINT_TYPES[c.type].measure is None:
+            measured = ", ".join(name for name, kind in JOINT_TYPES.items() if kind.measure is not None)
             problems.append(f"{path}: {c.label} is a cut {c.type} joint, whose relative motion csim does not "
                             f"measure; expected an element on a tree joint or on a cut joint of type {measured}")
             return None
@@ -280,17 +398,17 @@ def _point_named(geo: Geometry, name: str) -> sp.Matrix | None:
     return (moving or found or [None])[0]
 
 
-def two_points(geo: Geometry, path: str, ends: Any, problems: list[str]) -> tuple | None:
+def two_points(geo: ElementGeometry, path: str, ends: Any, problems: list[str]) -> tuple | None:
     """Two points on links, ``[[LINK, POINT], [LINK, POINT]]`` at ``path``, as :func:`point_of`
     gives each (None, with the problem listed, when either is not one)."""
     if not isinstance(ends, list) or len(ends) != 2:
         problems.append(f"{path}: got {describe(ends)}; expected two points [[LINK, POINT], [LINK, POINT]]")
         return None
-    a, b = (point_of(geo, f"{path}[{n}]", e, problems) for n, e in enumerate(ends))
+    a, b = (geo.point(f"{path}[{n}]", e, problems) for n, e in enumerate(ends))
     return None if a is None or b is None else (a, b)
 
 
-def switch_coordinate(geo: Geometry, path: str, raw: Any, problems: list[str]) -> tuple[sp.Expr, str] | None:
+def switch_coordinate(geo: ElementGeometry, path: str, raw: Any, problems: list[str]) -> tuple[sp.Expr, str] | None:
     """The coordinate a switching law watches (``on``): a joint (as :func:`joint_of`), a
     named point's global coordinate ``POINT_x`` / ``_y`` / ``_z``, or ``{distance: [A, B]}``
     between two points on links. Returns (s(q), unit)."""
@@ -302,11 +420,11 @@ def switch_coordinate(geo: Geometry, path: str, raw: Any, problems: list[str]) -
         d = a[0] - b[0]
         return sp.sqrt(simplify_entry((d.T * d)[0])), "m"
     if isinstance(raw, str) and raw[-2:] in ("_x", "_y", "_z"):
-        found = _point_named(geo, raw[:-2])
+        found = geo.named_point(raw[:-2])
         if found is not None:
             return found["xyz".index(raw[-1])], "m"
     problems_here: list[str] = []
-    joint = joint_of(geo, path, raw, problems_here)
+    joint = geo.joint(path, raw, problems_here)
     if joint is None:
         problems.append(f"{path}: got {describe(raw)}; expected a joint (coupling number or name, or joint "
                         f"variable), a named point's coordinate POINT_x, POINT_y or POINT_z, or "
@@ -318,32 +436,35 @@ def switch_coordinate(geo: Geometry, path: str, raw: Any, problems: list[str]) -
 # ---------------------------------------------------------------------------------------
 # numbers and laws
 # ---------------------------------------------------------------------------------------
-def law_symbols(geo: Geometry, local: dict[str, sp.Symbol]) -> dict[str, sp.Symbol]:
+def law_symbols(geo: ElementGeometry, local: dict[str, sp.Symbol]) -> dict[str, sp.Symbol]:
     """The names a law may use: parameters, t, joint variables and rates, the element's own."""
-    names = dict(geo.tables.symbols)
+    names = dict(geo.symbols)
     names["t"] = time_symbol()
-    for v in geo.topology.variables:
-        names[v.name], names[str(v.velocity)] = v.symbol, v.velocity
+    names.update(geo.variables())
     names.update(local)
     return names
 
 
-def law_of(geo: Geometry, path: str, raw: Any, local: dict[str, sp.Expr], problems: list[str]) -> sp.Expr | None:
+def law_of(geo: ElementGeometry, path: str, raw: Any, local: dict[str, sp.Expr], problems: list[str]) -> sp.Expr | None:
     """A force law: a number or an expression of :func:`law_symbols`, with the element's own
     names (``local``: name -> expression of q and qd) substituted."""
-    clash = sorted(set(local) & (set(geo.tables.symbols) | {v.name for v in geo.topology.variables}))
-    if clash:
-        problems.append(f"{path}: the element's own variable {clash[0]!r} is also the name of a parameter or joint "
-                        f"variable; expected that parameter renamed")
+    # an own name that is also a parameter's or coordinate's is ambiguous where the law uses it
+    clash = sorted(set(local) & (set(geo.symbols) | set(geo.variables())))
+    used = set(re.findall(r"[A-Za-z_][A-Za-z0-9_]*", raw)) if isinstance(raw, str) else set()
+    if set(clash) & used:
+        name = sorted(set(clash) & used)[0]
+        problems.append(f"{path}: the element's own variable {name!r} is also the name of a parameter or "
+                        f"coordinate; expected that parameter renamed, or the law written without {name!r}")
         return None
+    local = {name: value for name, value in local.items() if name not in clash}
     own = {name: sp.Symbol(name, real=True) for name in local}
-    expr = parse_expression(path, raw, law_symbols(geo, own), problems, geo.tables.values)
+    expr = parse_expression(path, raw, law_symbols(geo, own), problems, geo.values)
     if expr is None:
         return None
     return expr.xreplace({own[name]: value for name, value in local.items()})
 
 
-def number_of(geo: Geometry, element: Element, key: str, unit: str, problems: list[str], default: Any = None,
+def number_of(geo: ElementGeometry, element: Element, key: str, unit: str, problems: list[str], default: Any = None,
               minimum: float | None = None) -> sp.Expr | None:
     """A constant of an element: a number or an expression of the parameters, >= ``minimum``."""
     raw = element.row.get(key, default)
@@ -351,7 +472,7 @@ def number_of(geo: Geometry, element: Element, key: str, unit: str, problems: li
     expr = geo.scope().parse(path, raw, problems)
     if expr is None or minimum is None:
         return expr
-    value = evaluate(expr, geo.tables.values)
+    value = evaluate(expr, geo.values)
     if value is not None and not value.real >= minimum:
         problems.append(f"{path}: got {describe(raw)}, {value.real:g} {unit} at the parameter values; expected a "
                         f"value >= {minimum:g} {unit}")
@@ -359,7 +480,7 @@ def number_of(geo: Geometry, element: Element, key: str, unit: str, problems: li
     return expr
 
 
-def _direction(geo: Geometry, element: Element, key: str, problems: list[str]) -> sp.Matrix | None:
+def _direction(geo: ElementGeometry, element: Element, key: str, problems: list[str]) -> sp.Matrix | None:
     """A unit vector from a row's [x, y, z] (any length but zero)."""
     raw = element.row.get(key)
     path = element.key(key)
@@ -371,14 +492,14 @@ def _direction(geo: Geometry, element: Element, key: str, problems: list[str]) -
         return None
     e = sp.Matrix(entries)
     norm = sp.sqrt((e.T * e)[0])
-    if evaluate(norm, geo.tables.values) is None or abs(evaluate(norm, geo.tables.values)) == 0:
+    if evaluate(norm, geo.values) is None or abs(evaluate(norm, geo.values)) == 0:
         problems.append(f"{path}: got {describe(raw)}; a zero vector; expected a direction [x, y, z] of nonzero "
                         f"length")
         return None
     return e / norm
 
 
-def _switching(geo: Geometry, element: Element, default: tuple[sp.Expr, str] | None,
+def _switching(geo: ElementGeometry, element: Element, default: tuple[sp.Expr, str] | None,
                problems: list[str]) -> tuple[sp.Expr, str, tuple[float, float], str] | None:
     """The switching law of a row: (s(q), unit of s, window, velocity condition).
 
@@ -427,7 +548,7 @@ def _one_of(element: Element, keys: tuple[str, ...], problems: list[str]) -> str
     return given[0]
 
 
-def _damper_load(element: Element, s: sp.Expr, rate: sp.Expr, damping: sp.Expr, geo: Geometry, unit: str,
+def _damper_load(element: Element, s: sp.Expr, rate: sp.Expr, damping: sp.Expr, geo: ElementGeometry, unit: str,
                  s_unit: str, what: str) -> Load:
     """A damper on s: the force c ds/dt opposing the motion, Q = -(ds/dq) c ds/dt."""
     direction = [-g for g in geo.gradient(s)]
@@ -435,7 +556,7 @@ def _damper_load(element: Element, s: sp.Expr, rate: sp.Expr, damping: sp.Expr, 
                 direction=direction, law=damping * rate, magnitude=1.0)
 
 
-def build_spring(element: Element, geo: Geometry, problems: list[str]) -> Contribution | None:
+def build_spring(element: Element, geo: ElementGeometry, problems: list[str]) -> Contribution | None:
     """Point-to-point spring-damper between two points on links.
 
     l = |r_B - r_A|. Linear: tension f = k (l - l0) + F0 + c ldot, with the potential
@@ -478,9 +599,9 @@ def build_spring(element: Element, geo: Geometry, problems: list[str]) -> Contri
     return out
 
 
-def build_joint_spring(element: Element, geo: Geometry, problems: list[str]) -> Contribution | None:
+def build_joint_spring(element: Element, geo: ElementGeometry, problems: list[str]) -> Contribution | None:
     """Spring-damper on a joint variable x: V = k (x - x0)^2 / 2, the damper c xdot as a load."""
-    joint = joint_of(geo, element.key("joint"), element.row.get("joint"), problems)
+    joint = geo.joint(element.key("joint"), element.row.get("joint"), problems)
     if joint is None:
         return None
     angular = joint.unit == "rad"
@@ -502,7 +623,7 @@ def build_joint_spring(element: Element, geo: Geometry, problems: list[str]) -> 
     return out
 
 
-def _applied_load(element: Element, geo: Geometry, law_key: str, coordinate: tuple[sp.Expr, str] | None,
+def _applied_load(element: Element, geo: ElementGeometry, law_key: str, coordinate: tuple[sp.Expr, str] | None,
                   direction: list[sp.Expr] | None, local: dict[str, sp.Expr], unit: str, what: str,
                   problems: list[str]) -> Contribution | None:
     """A load u = active * law(...) with its switching law (``window``, ``velocity``, ``on``)."""
@@ -517,14 +638,14 @@ def _applied_load(element: Element, geo: Geometry, law_key: str, coordinate: tup
                                     magnitude=1.0, window=window, velocity=velocity)])
 
 
-def build_actuator(element: Element, geo: Geometry, problems: list[str]) -> Contribution | None:
+def build_actuator(element: Element, geo: ElementGeometry, problems: list[str]) -> Contribution | None:
     """A torque (``torque``, rotations) or force (``force``, translations) on a joint:
     Q = (dx/dq) u, the power u xdot."""
     key = _one_of(element, ("torque", "force"), problems)
     if key is None:
         return None
-    joint = joint_of(geo, element.key("joint"), element.row.get("joint"), problems,
-                     unit="rad" if key == "torque" else "m")
+    joint = geo.joint(element.key("joint"), element.row.get("joint"), problems,
+                      unit="rad" if key == "torque" else "m")
     if joint is None:
         return None
     if (joint.unit == "rad") != (key == "torque"):
@@ -545,13 +666,13 @@ def _frame(element: Element, problems: list[str]) -> str | None:
     return frame
 
 
-def build_force(element: Element, geo: Geometry, problems: list[str]) -> Contribution | None:
+def build_force(element: Element, geo: ElementGeometry, problems: list[str]) -> Contribution | None:
     """A force of value u along a direction e at a point P of a link: Q = (dr_P/dq)^T e u.
 
     e is fixed in the global frame (then the force works along s = e . r_P, its default
     switching coordinate) or in the link's frame (e = R e_link).
     """
-    point = point_of(geo, element.key("point"), [element.row.get("link"), element.row.get("point")], problems)
+    point = geo.point(element.key("point"), [element.row.get("link"), element.row.get("point")], problems)
     e = _direction(geo, element, "direction", problems)
     frame = _frame(element, problems)
     if point is None or e is None or frame is None:
@@ -561,21 +682,21 @@ def build_force(element: Element, geo: Geometry, problems: list[str]) -> Contrib
         s = simplify_entry((e.T * r)[0])
         return _applied_load(element, geo, "value", (s, "m"), None, {}, "N", f"force on {element.name!r} along "
                              f"{list(e)}", problems)
-    e_global = geo.frames.links[link][:3, :3] * e
+    e_global = geo.rotation(link) * e
     direction = [simplify_entry(x) for x in (r.jacobian(geo.q).T * e_global)]
     return _applied_load(element, geo, "value", None, direction, {}, "N", f"force on {element.name!r} along "
                          f"{list(e)} in the frame of link {link}", problems)
 
 
-def build_torque(element: Element, geo: Geometry, problems: list[str]) -> Contribution | None:
+def build_torque(element: Element, geo: ElementGeometry, problems: list[str]) -> Contribution | None:
     """A torque of value u about an axis e on a link: Q = d(e . omega)/dqd u (e in the global
     or the link frame)."""
-    link = link_of(geo, element.key("link"), element.row.get("link"), problems)
+    link = geo.link(element.key("link"), element.row.get("link"), problems)
     e = _direction(geo, element, "axis", problems)
     frame = _frame(element, problems)
     if link is None or e is None or frame is None:
         return None
-    R = geo.frames.links[link][:3, :3]
+    R = geo.rotation(link)
     e_link = R.T * e if frame == "global" else e  # omega is in link axes
     power = simplify_entry((e_link.T * geo.omega(link))[0])  # e . omega, linear in qd
     direction = [simplify_entry(sp.diff(power, v)) for v in geo.qd]
@@ -629,7 +750,7 @@ def _element(n: int, row: Any, names: set[str], problems: list[str]) -> Element 
     return Element(name, kind.name, row, path)
 
 
-def build_forces(raw: Any, geo: Geometry, problems: list[str]) -> Contribution:
+def build_forces(raw: Any, geo: ElementGeometry, problems: list[str]) -> Contribution:
     """All elements of ``mechanism.forces``: their potential summed, their loads and
     observables in row order. Problems are appended (every row is checked)."""
     total = Contribution()
@@ -650,4 +771,7 @@ def build_forces(raw: Any, geo: Geometry, problems: list[str]) -> Contribution:
         total.potential += part.potential
         total.loads += part.loads
         total.observables += part.observables
+        total.elements.append(ElementRecord(element.name, element.kind, {k: v for k, v in element.row.items()
+                                                                         if k not in ("name", "type")},
+                                            part.potential, list(part.loads)))
     return total

@@ -171,6 +171,11 @@ class JointType:
         with this joint is spatial.
     placement : str
         The brief's rule for placing its joint frame on a link.
+    measure : callable (CutGeometry, simplify) -> tuple of sympy expressions, or None
+        The joint variables measured from the two frames of the joint when it is cut (for
+        force elements on a cut joint, :mod:`csim.linkage.forces`): the inverse of
+        ``transform``, exact where the cut equations hold; ``simplify`` is applied to each
+        scalar product of the frames' axes. None: elements cannot act on it when cut.
     """
 
     name: str
@@ -182,6 +187,7 @@ class JointType:
     cut_preference: int
     planar_axis: str | None
     placement: str
+    measure: Callable[[CutGeometry, Callable], tuple] | None = None
 
     def __post_init__(self):
         if not isinstance(self.name, str) or not self.name.isalpha():
@@ -203,13 +209,6 @@ class JointType:
     def reactions(self) -> list[str]:
         """Reaction unknowns of the cut joint, one per equation, in the joint frame ik."""
         return [e.unknown for e in self.cut_equations]
-
-    @property
-    def along_z(self) -> bool:
-        """Whether every joint variable is a rotation about or a translation along z_ik (R, P,
-        C): frame jm is then frame ik turned and moved along z_ik, and a cut joint's relative
-        motion is measured from its two frames (:mod:`csim.linkage.forces`)."""
-        return all(v.meaning in (_ROTATION.meaning, _TRANSLATION.meaning) for v in self.variables)
 
     def variable_names(self, coupling: str) -> list[str]:
         """Names of the joint variables of a coupling named ``coupling``."""
@@ -248,6 +247,38 @@ def _spherical_rate(q, qd):
     return qd[0] * ez + qd[1] * (rot_z(q[0])[:3, :3] * ex) + qd[2] * ((rot_z(q[0]) * rot_x(q[1]))[:3, :3] * ez)
 
 
+def _relative(g: CutGeometry, simplify: Callable) -> Callable[[int, int], sp.Expr]:
+    """(a, b) -> entry (a, b) of A_ik^T A_jm, axis a of frame ik . axis b of frame jm (simplified)."""
+    return lambda a, b: simplify(_dot(g.axis_ik(a), g.axis_jm(b)))
+
+
+def _measure_angle(g: CutGeometry, simplify: Callable) -> sp.Expr:
+    """The rotation q of frame jm about z_ik, x_jm = Rz(q) x_ik: atan2(z_ik . (x_ik x x_jm), x_ik . x_jm)."""
+    return sp.atan2(simplify(g.axis_ik(2).dot(g.axis_ik(0).cross(g.axis_jm(0)))), simplify(_dot(g.axis_ik(0),
+                                                                                                  g.axis_jm(0))))
+
+
+def _measure_slide(g: CutGeometry, simplify: Callable) -> sp.Expr:
+    """The translation s of frame jm along z_ik: z_ik . (r_jm - r_ik)."""
+    return simplify(_dot(g.axis_ik(2), g.d))
+
+
+def _measure_universal(g: CutGeometry, simplify: Callable) -> tuple:
+    """q1, q2 of R = A_ik^T A_jm = Rz(q1) Rx(-pi/2) Rz(q2): its third column is
+    (-sin q1, cos q1, 0), its third row (-sin q2, -cos q2, 0)."""
+    R = _relative(g, simplify)
+    return sp.atan2(-R(0, 2), R(1, 2)), sp.atan2(-R(2, 0), -R(2, 1))
+
+
+def _measure_spherical(g: CutGeometry, simplify: Callable) -> tuple:
+    """The z-x-z Euler angles of R = A_ik^T A_jm = Rz(q1) Rx(q2) Rz(q3): third column
+    (sin q1 sin q2, -cos q1 sin q2, cos q2), third row (sin q2 sin q3, sin q2 cos q3, cos q2);
+    q2 in [0, pi] (q1 and q3 are undefined where q2 = 0 or pi, gimbal lock)."""
+    R = _relative(g, simplify)
+    return (sp.atan2(R(0, 2), -R(1, 2)), sp.atan2(sp.sqrt(R(0, 2) ** 2 + R(1, 2) ** 2), R(2, 2)),
+            sp.atan2(R(2, 0), R(2, 1)))
+
+
 _ROTATION = VariableSpec("q_{J}", "rad", "rotation about z_ik")
 _TRANSLATION = VariableSpec("s_{J}", "m", "translation along z_ik")
 
@@ -265,25 +296,29 @@ def register_joint_type(joint: JointType, replace: bool = False) -> JointType:
 register_joint_type(JointType(
     "R", "revolute", (_ROTATION,), lambda q: rot_z(q[0]), _revolute_rate,
     COINCIDENT_ORIGINS + PARALLEL_AXES, cut_preference=0, planar_axis="normal",
-    placement="origin at the coupling point, z along the rotation axis"))
+    placement="origin at the coupling point, z along the rotation axis",
+    measure=lambda g, simplify: (_measure_angle(g, simplify),)))
 register_joint_type(JointType(
     "P", "prismatic", (_TRANSLATION,), lambda q: translation(0, 0, q[0]), lambda q, qd: sp.zeros(3, 1),
     ON_AXIS + PARALLEL_AXES + NO_TWIST, cut_preference=0, planar_axis="in_plane",
-    placement="origin anywhere on the sliding line, z along the sliding direction"))
+    placement="origin anywhere on the sliding line, z along the sliding direction",
+    measure=lambda g, simplify: (_measure_slide(g, simplify),)))
 register_joint_type(JointType(
     "C", "cylindrical", (_ROTATION, _TRANSLATION), lambda q: rot_z(q[0]) * translation(0, 0, q[1]),
     _revolute_rate, ON_AXIS + PARALLEL_AXES, cut_preference=1, planar_axis=None,
-    placement="origin anywhere on the axis, z along the axis"))
+    placement="origin anywhere on the axis, z along the axis",
+    measure=lambda g, simplify: (_measure_angle(g, simplify), _measure_slide(g, simplify))))
 register_joint_type(JointType(
     "U", "universal", (VariableSpec("q_{J}_1", "rad", "rotation about z_ik"),
                        VariableSpec("q_{J}_2", "rad", "rotation about z_jm")),
     lambda q: simplify_matrix(rot_z(q[0]) * rot_x(-sp.pi / 2) * rot_z(q[1])), _universal_rate,
     COINCIDENT_ORIGINS + PERPENDICULAR_AXES, cut_preference=2, planar_axis=None,
-    placement="origin at the centre of the cross, z along the revolute axis attached to this link"))
+    placement="origin at the centre of the cross, z along the revolute axis attached to this link",
+    measure=_measure_universal))
 register_joint_type(JointType(
     "S", "spherical", (VariableSpec("q_{J}_1", "rad", "Euler angle about z_ik"),
                        VariableSpec("q_{J}_2", "rad", "Euler angle about x'"),
                        VariableSpec("q_{J}_3", "rad", "Euler angle about z_jm")),
     lambda q: euler_zxz(q[0], q[1], q[2]), _spherical_rate,
     COINCIDENT_ORIGINS, cut_preference=3, planar_axis=None,
-    placement="origin at the coupling point, axes any"))
+    placement="origin at the coupling point, axes any", measure=_measure_spherical))

@@ -28,12 +28,16 @@ is reported as 0 and named in :attr:`JointReaction.undetermined`:
 from __future__ import annotations
 
 import functools
+from dataclasses import dataclass
 
 import numpy as np
 import sympy as sp
 
 from csim.linkage.constraints import KEPT, ZERO
+from csim.linkage.forces import Geometry, JointCoordinate, build_forces
+from csim.linkage.frames import Frames
 from csim.linkage.joints import JOINT_TYPES, CutGeometry
+from csim.linkage.tables import Coupling
 from csim.result import JointReaction
 
 #: units of the recorded reactions
@@ -158,3 +162,313 @@ def joint_reactions(linkage, definition, par: np.ndarray, q: np.ndarray, lam: np
         v = values[c.number]
         out.append(JointReaction(name, label, v[0], v[1], v[2], v[3], _removed(equations[c.number])))
     return out
+
+
+# ---------------------------------------------------------------------------------------
+# tree joints: Newton-Euler of the subtree beyond the joint, with the joint released
+# ---------------------------------------------------------------------------------------
+def subtree(topology, child: int) -> set[int]:
+    """The links beyond a tree joint: ``child`` and every link reached from it away from link 0."""
+    below = {child}
+    for link in topology.order:
+        edge = topology.edges.get(link)
+        if edge is not None and edge.parent in below:
+            below.add(link)
+    return below
+
+
+def _skew_num(w: np.ndarray) -> np.ndarray:
+    return np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
+
+
+def _kinematics(linkage, definition):
+    """(q, qd, qdd, par) -> ({link: (m, I (3, 3), r_C (3,), a_C (3,), A (3, 3), omega (3,),
+    alpha (3,))}, g (3,)) for every link with mass: its mass [kg] and inertia about the centre
+    of mass in its axes [kg m^2], the centre of mass and its acceleration in global axes [m,
+    m/s^2], the link's axes, its angular velocity and acceleration in its own axes [rad/s,
+    rad/s^2]; and gravity [m/s^2].
+    a_C = J qdd + d(J qd)/dq qd and alpha = d(omega)/dqd qdd + d(omega)/dq qd, by sympy."""
+    cached = getattr(linkage, "_reaction_kinematics", None)
+    if cached is not None:
+        return cached
+    from csim.linkage.model import link_angular_velocities
+
+    q, qd = list(definition.coordinates), list(definition.velocities)
+    qdd = [sp.Symbol(f"{s}_ddot", real=True) for s in q]
+    omega = link_angular_velocities(linkage.topology, linkage.frames)
+    links = [n for n, link in sorted(linkage.tables.links.items()) if n != 0 and link.has_mass]
+    rows = []
+    for n in links:
+        T = linkage.frames.links[n]
+        r_c = (T * sp.Matrix([*linkage.tables.links[n].com, 1]))[:3, 0]
+        v_c = r_c.jacobian(q) * sp.Matrix(qd)
+        a_c = v_c.jacobian(qd) * sp.Matrix(qdd) + v_c.jacobian(q) * sp.Matrix(qd)
+        w = omega[n]
+        alpha = w.jacobian(qd) * sp.Matrix(qdd) + w.jacobian(q) * sp.Matrix(qd)
+        link = linkage.tables.links[n]
+        rows += [sp.Matrix([link.mass]), sp.Matrix(link.inertia), r_c, a_c, T[:3, :3], w, alpha]
+    rows.append(sp.Matrix(linkage.tables.gravity))
+    f = sp.lambdify([q, qd, qdd, list(definition.parameter_symbols)], rows, "numpy", cse=True)
+    shapes = [(), (3, 3), (3,), (3,), (3, 3), (3,), (3,)]
+
+    def kinematics(qv, qdv, qddv, par):
+        values = [np.asarray(v, dtype=float) for v in f(list(qv), list(qdv), list(qddv), list(par))]
+        links_at = {n: tuple(values[7 * i + k].reshape(shape) for k, shape in enumerate(shapes))
+                    for i, n in enumerate(links)}
+        return links_at, values[-1].ravel()
+
+    linkage._reaction_kinematics = kinematics
+    return kinematics
+
+
+#: the six virtual motions of a released subtree: translations along, rotations about global x, y, z
+EPS = sp.symbols("eps_tx eps_ty eps_tz eps_rx eps_ry eps_rz", real=True)
+EPS_DOT = sp.symbols("eps_tx_dot eps_ty_dot eps_tz_dot eps_rx_dot eps_ry_dot eps_rz_dot", real=True)
+
+
+@dataclass
+class ReleasedGeometry(Geometry):
+    """A link-coupling geometry with the subtree beyond one tree joint given a virtual rigid
+    motion eps (6) about the joint's point r_J: p -> p + tau + rho x (p - r_J), to first order
+    in eps (only derivatives at eps = 0 are taken). The force elements built on it
+    (:func:`csim.linkage.forces.build_forces`) have potentials and directions in (q, eps).
+    Build it with :meth:`released`.
+
+    Attributes
+    ----------
+    released : Coupling
+        The tree joint.
+    below : frozenset of int
+        The links beyond it (:func:`subtree`).
+    base : Frames
+        The mechanism's own transforms (``frames`` holds the moved ones).
+    """
+
+    released: Coupling | None = None
+    below: frozenset = frozenset()
+    base: Frames | None = None
+
+    @classmethod
+    def released_at(cls, linkage, coupling: Coupling, below: set[int]) -> ReleasedGeometry:
+        """The geometry of ``linkage`` with the links ``below`` the tree joint ``coupling`` moved by eps."""
+        frames = linkage.frames
+        r_J = frames.joint_frame(coupling.j, coupling.m)[:3, 3]
+        tau, rho = sp.Matrix(EPS[:3]), sp.Matrix(EPS[3:])
+        D = sp.eye(4)  # [[E + [rho]x, tau - [rho]x r_J], [0, 1]]
+        D[:3, :3] += _skew(rho)
+        D[:3, 3] = tau - _skew(rho) * r_J
+        links = {n: (D * T if n in below else T) for n, T in frames.links.items()}
+        moved = Frames(local=frames.local, joints=frames.joints, relative=frames.relative, links=links)
+        return cls(linkage.tables, linkage.topology, moved, released=coupling, below=frozenset(below), base=frames)
+
+    @property
+    def q(self):
+        return [v.symbol for v in self.topology.variables] + list(EPS)
+
+    @property
+    def qd(self):
+        return [v.velocity for v in self.topology.variables] + list(EPS_DOT)
+
+    def omega(self, link):
+        w = super().omega(link)  # the tree's own, from the joint rates
+        if link not in self.below:
+            return w
+        return w + self.base.links[link][:3, :3].T * sp.Matrix(EPS_DOT[3:])
+
+    def joint(self, path, raw, problems, unit=None):
+        found = super().joint(path, raw, problems, unit)
+        c = self.released
+        own = [v.symbol for v in self.topology.variables_of(c)]
+        if found is None or found.value not in own:
+            return found
+        # the released joint's own variable: q plus the change eps makes in the relative
+        # motion of its two frames (the joint type's measure)
+        slot = own.index(found.value)
+        measure = JOINT_TYPES[c.type].measure
+
+        def measured(frames):
+            g = CutGeometry.from_transforms(frames.joint_frame(c.i, c.k), frames.joint_frame(c.j, c.m))
+            return measure(g, lambda e: e)[slot]
+
+        return JointCoordinate(found.value + measured(self.frames) - measured(self.base), found.unit, found.label)
+
+
+def _element_terms(linkage, definition, raw_forces, coupling, below: set[int]):
+    """What the force elements and the joint's drives do on the released subtree:
+    (q, qd, par) -> (dV/deps (6,), B_eps (6, k), D_eps (6, d)) at eps = 0, or None when there
+    are neither. V is the elements' potential, B_eps the eps rows of the loads' generalized
+    directions (in the order of ``definition.loads``), D_eps those of the joint's driven
+    variables (in the order of ``linkage.drive``)."""
+    own = {v.name for v in linkage.topology.variables_of(coupling)}
+    driven = [name for name in linkage.drive if name in own]
+    if not raw_forces and not driven:
+        return None
+    geo = ReleasedGeometry.released_at(linkage, coupling, below)
+    problems: list[str] = []
+    part = build_forces(raw_forces, geo, problems)  # checked once already, by the model's build
+    if problems or len(part.loads) != len(definition.loads):
+        raise RuntimeError(f"the force elements rebuilt for the reaction of {coupling.label} differ from the "
+                           f"model's: {'; '.join(problems) or 'another number of loads'}")
+    at_zero = {e: 0 for e in (*EPS, *EPS_DOT)}
+    m = len(definition.coordinates)
+
+    def eps_rows(expr_or_direction) -> list:
+        direction = (geo.gradient(expr_or_direction) if not isinstance(expr_or_direction, list)
+                     else expr_or_direction)
+        return [sp.sympify(d).xreplace(at_zero) for d in direction[m:]]
+
+    dV = [sp.diff(part.potential, e).xreplace(at_zero) for e in EPS]
+    B = [eps_rows(ld.direction if ld.direction is not None else ld.coordinate) for ld in part.loads]
+    D = [eps_rows(geo.joint("drive", name, problems).value) for name in driven]
+    f = sp.lambdify([list(definition.coordinates), list(definition.velocities), list(definition.parameter_symbols)],
+                    [sp.Matrix(dV), sp.Matrix(6, len(B), lambda i, k: B[k][i]),
+                     sp.Matrix(6, len(D), lambda i, k: D[k][i])], "numpy", cse=True)
+    columns = [list(linkage.drive).index(name) for name in driven]
+
+    def terms(q, qd, par):
+        dv, b, d = (np.asarray(x, dtype=float) for x in f(list(q), list(qd), list(par)))
+        return dv.ravel(), b.reshape(6, len(B)), d.reshape(6, len(D)), columns
+
+    return terms
+
+
+def _tree_frames(linkage, definition):
+    """(q, par) -> {coupling number: T_jm (4, 4), T_ik (4, 4)} of every tree joint."""
+    tree = linkage.topology.tree_joints
+    mats = [m for c in tree for m in (linkage.frames.joint_frame(c.j, c.m), linkage.frames.joint_frame(c.i, c.k))]
+    f = sp.lambdify([list(definition.coordinates), list(definition.parameter_symbols)], mats, "numpy", cse=True)
+
+    def frames(q, par):
+        values = f(list(q), list(par))
+        return {c.number: (np.asarray(values[2 * n], dtype=float), np.asarray(values[2 * n + 1], dtype=float))
+                for n, c in enumerate(tree)}
+
+    return frames
+
+
+def _inertial_wrench(at: dict, g: np.ndarray, below: set[int], r_J: np.ndarray) -> np.ndarray:
+    """[sum m (a_C - g); sum (r_C - r_J) x m (a_C - g) + A (I alpha + omega x I omega)] (6,)
+    over the links of ``below`` with mass [N, N m about r_J, global axes]."""
+    out = np.zeros(6)
+    for n, (m, inertia, r_c, a_c, A, w, alpha) in at.items():
+        if n in below:
+            f = m * (a_c - g)
+            out[:3] += f
+            out[3:] += np.cross(r_c - r_J, f) + A @ (inertia @ alpha + np.cross(w, inertia @ w))
+    return out
+
+
+def _cut_wrench(cut_reactions, cut_frames, cuts, below: set[int], r_J: np.ndarray, s: int) -> np.ndarray:
+    """The wrench the cut joints with one side in ``below`` exert on it (6,) [N, N m about r_J]."""
+    out = np.zeros(6)
+    for c, reaction in zip(cuts, cut_reactions):
+        if (c.j in below) == (c.i in below):
+            continue
+        sign = 1.0 if c.j in below else -1.0  # i on j, or (j on i) = -(i on j)
+        F, M = reaction.force_global[s], reaction.torque_global[s]
+        r_jm = cut_frames[c.number][1][:3, 3]
+        out[:3] += sign * F
+        out[3:] += sign * (M + np.cross(r_jm - r_J, F))
+    return out
+
+
+#: what a planar model does not carry at a tree joint (out-of-plane components, reported as 0)
+PLANAR_UNDETERMINED = ["force along the plane's normal, moments about in-plane axes: not carried by this (planar) "
+                       "model: the motion is in its plane"]
+
+
+def tree_reactions(linkage, definition, raw_forces, par, run, cut_reactions) -> list[JointReaction]:
+    """The reactions of every tree joint at the recorded samples, by Newton-Euler of the
+    subtree beyond the joint with the joint released (see :class:`ReleasedGeometry`).
+
+    The wrench W (force F, moment M about the origin of frame jm) that link i exerts on
+    link j, from the virtual work of a rigid virtual motion eps of the subtree S beyond the
+    joint: W_S = sum_S [m (a_C - g); (r_C - r_J) x m (a_C - g) + A (I alpha + omega x I omega)]
+    + dV/deps - B_eps u - D_eps tau - (cut-joint wrenches on S), with the elements' potential
+    V, their loads u, the joint's drive forces tau and the cut joints' reactions; W = W_S when
+    link j is in S, -W_S otherwise. Components along the joint's free directions vanish up to
+    round-off (they are the joint's equation of motion); a planar model's out-of-plane
+    components are reported as 0 and named in ``undetermined``.
+
+    Parameters
+    ----------
+    linkage : Linkage
+    definition : MechanismDefinition
+        Its model (coordinates, velocities, parameter symbols, loads).
+    raw_forces : list or None
+        ``mechanism.forces`` as written.
+    par : ndarray (n_par,)
+    run : mapping
+        ``q``, ``qd``, ``qdd`` (N, m), ``loads`` (N, k), ``drive_forces`` (N, d) or None.
+    cut_reactions : list of JointReaction
+        Of ``linkage.topology.cut_joints``, in their order.
+
+    Returns
+    -------
+    list of JointReaction, one per tree joint in table order
+    """
+    topology = linkage.topology
+    kinematics = _kinematics(linkage, definition)
+    frames = _tree_frames(linkage, definition)
+    cut_frames = _frame_functions(linkage, definition) if topology.cut_joints else (lambda q, p: {})
+    normal = _plane_normal(linkage, definition, par, run["q"])
+    q, qd, qdd, u = run["q"], run["qd"], run["qdd"], run["loads"]
+    tau = run.get("drive_forces")
+    joints = []
+    for c in topology.tree_joints:
+        below = subtree(topology, next(n for n, e in topology.edges.items() if e.coupling is c))
+        joints.append((c, below, _element_terms(linkage, definition, raw_forces, c, below)))
+    N = q.shape[0]
+    values = {c.number: np.full((4, N, 3), np.nan) for c in topology.tree_joints}  # F, M global; in frame ik
+    for s in range(N):
+        if not (np.all(np.isfinite(q[s])) and np.all(np.isfinite(qdd[s]))):
+            continue
+        at, g = kinematics(q[s], qd[s], qdd[s], par)
+        tree_at, cut_at = frames(q[s], par), cut_frames(q[s], par)
+        for c, below, terms in joints:
+            T_jm, T_ik = tree_at[c.number]
+            values[c.number][:, s] = _tree_wrench(c, below, terms, T_jm, T_ik, at, g, normal,
+                                                  (cut_reactions, cut_at, topology.cut_joints, s),
+                                                  (q[s], qd[s], par, u[s], None if tau is None else tau[s]))
+    out = []
+    for c in topology.tree_joints:
+        name = str(c.name or c.number)
+        label = (f"joint {name} ({c.type}, {linkage.tables.link_label(c.i)} on {linkage.tables.link_label(c.j)}; "
+                 f"tree joint: Newton-Euler of the links beyond it)")
+        out.append(JointReaction(name, label, *values[c.number],
+                                 list(PLANAR_UNDETERMINED) if normal is not None else []))
+    return out
+
+
+def _tree_wrench(c, below, terms, T_jm, T_ik, at, g, normal, cut, state) -> tuple:
+    """(F, M, A_ik^T F, A_ik^T M) of one tree joint at one sample (see :func:`tree_reactions`)."""
+    cut_reactions, cut_at, cuts, s = cut
+    q, qd, par, u, tau = state
+    r_J = T_jm[:3, 3]
+    W = _inertial_wrench(at, g, below, r_J) - _cut_wrench(cut_reactions, cut_at, cuts, below, r_J, s)
+    if terms is not None:
+        dV, B, D, columns = terms(q, qd, par)
+        W += dV - B @ u
+        if columns:
+            W -= D @ tau[columns]
+    if c.j not in below:
+        W = -W
+    F, M = W[:3], W[3:]
+    if normal is not None:  # the planar model's components only
+        F, M = F - (F @ normal) * normal, (M @ normal) * normal
+    A = T_ik[:3, :3]
+    return F, M, A.T @ F, A.T @ M
+
+
+def _plane_normal(linkage, definition, par, q) -> np.ndarray | None:
+    """The normal of a planar mechanism's plane (None: spatial), from the z axis of a joint
+    frame whose axis is the normal (an R joint's), at the first recorded sample."""
+    if not linkage.planar or not q.shape[0]:
+        return None
+    c = next((c for c in linkage.tables.couplings if JOINT_TYPES[c.type].planar_axis == "normal"), None)
+    if c is None:
+        return None
+    T = sp.lambdify([list(definition.coordinates), list(definition.parameter_symbols)],
+                    linkage.frames.joint_frame(c.i, c.k), "numpy")
+    z = np.asarray(T(list(q[0]), list(par)), dtype=float)[:3, 2]
+    return z / np.linalg.norm(z)

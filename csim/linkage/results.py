@@ -1,9 +1,10 @@
 """What a run of a link-coupling mechanism records beyond the generic result: the drive
-forces of driven dynamics (:mod:`csim.solver.driven`) and the reactions of the cut joints
-(:mod:`csim.linkage.reactions`), both from the multipliers after the run."""
+forces of driven dynamics (:mod:`csim.solver.driven`), the reactions of the cut joints (from
+the multipliers) and those of the tree joints (Newton-Euler of the links beyond each,
+:mod:`csim.linkage.reactions`), after the run."""
 from __future__ import annotations
 
-from csim.linkage.reactions import joint_reactions
+from csim.linkage.reactions import joint_reactions, tree_reactions
 
 #: unit of a drive's force, by the unit of its joint variable
 DRIVE_UNITS = {"rad": "N m", "m": "N"}
@@ -29,5 +30,11 @@ def linkage_outputs(case, system, trajectory, result) -> None:
 
         units = [DRIVE_UNITS.get(case.mechanism.coordinate_units[i], "") for i in linkage.driven_indices]
         record_drives(result, system, trajectory.t, trajectory.y, trajectory.mode, list(linkage.drive), units)
-    if linkage.topology.cut_joints and result.t.size:
-        result.reactions = joint_reactions(linkage, case.mechanism, system.par, result.q, result.lam)
+    if not result.t.size:
+        return
+    cut = joint_reactions(linkage, case.mechanism, system.par, result.q, result.lam) if linkage.topology.cut_joints \
+        else []
+    run = {"q": result.q, "qd": result.qd, "qdd": result.qdd, "loads": result.loads,
+           "drive_forces": result.drive_forces}
+    result.reactions = cut + tree_reactions(linkage, case.mechanism, case.data["mechanism"].get("forces"), system.par,
+                                            run, cut)

@@ -44,6 +44,9 @@ from csim.model.definition import (
     Panel,
     Parameter,
     PlanarBody,
+    SiteBody,
+    SiteJoint,
+    Sites,
 )
 
 # The test set's data (IVP test set, problem "andrews"; Hairer and Wanner, Table VII.7.1).
@@ -178,6 +181,28 @@ def definition() -> MechanismDefinition:
                                Panel(("qd:beta",), ylabel=r"crank speed $\dot\beta$"))),
         DeclaredFigure("configurations", "The mechanism during the run", snapshots=6, cycle="beta"),
     ]
+    # where force elements (mechanism.forces) may act: each body's frame as in its PlanarBody
+    sites = Sites(
+        bodies=[
+            SiteBody("ground", O, sp.Integer(0), {"O": O, "A": A, "B": B, "C": C}),
+            SiteBody("crank", O, beta, {"O": O, "F": F}),
+            SiteBody("rod", F, beta + Theta, {"F": F, "E": E2}),
+            SiteBody("triangle", B, gamma, {"B": B, "E": E3, "D": D}),
+            SiteBody("link_GE", G, Phi + delta, {"G": G, "E": E4}),
+            SiteBody("link_AG", A, delta, {"A": A, "G": G}),
+            SiteBody("link_HE", H, Omega + epsilon, {"H": H, "E": E6}),
+            SiteBody("link_AH", A, epsilon, {"A": A, "H": H}),
+        ],
+        joints=[
+            SiteJoint("O", beta, "rad", "crank on the ground: beta"),
+            SiteJoint("F", Theta, "rad", "rod on the crank: Theta"),
+            SiteJoint("B", gamma, "rad", "triangle on the ground: gamma"),
+            SiteJoint("A_G", delta, "rad", "link A-G on the ground: delta"),
+            SiteJoint("G", Phi, "rad", "link G-E on the link A-G: Phi"),
+            SiteJoint("A_H", epsilon, "rad", "link A-H on the ground: epsilon"),
+            SiteJoint("H", Omega, "rad", "link H-E on the link A-H: Omega"),
+        ],
+    )
     return MechanismDefinition(
         name="andrews",
         description="Andrews' squeezing mechanism: seven bodies, two closed loops, spring, driving torque",
@@ -196,4 +221,5 @@ def definition() -> MechanismDefinition:
         # the test set's assembly (its branch of each loop)
         default_guess={name: value for name, value in Q0.items() if name != "beta"},
         figures=figures,
+        sites=sites,
     )

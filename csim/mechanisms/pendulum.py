@@ -22,6 +22,9 @@ from csim.model.definition import (
     Panel,
     Parameter,
     PlanarBody,
+    SiteBody,
+    SiteJoint,
+    Sites,
 )
 
 PARAMETERS = [
@@ -37,6 +40,13 @@ def definition() -> MechanismDefinition:
     qd = sp.symbols("xd yd", real=True)
     m, L, g = (p.symbol for p in PARAMETERS)
     bob = PlanarBody("bob", m, sp.Integer(0), (x, y), sp.Integer(0))
+    pivot = (sp.Integer(0), sp.Integer(0))
+    angle = sp.atan2(x, -y)  # from the downward vertical, counter-clockwise
+    # where force elements (mechanism.forces) may act; the rod's frame has x along pivot -> bob
+    sites = Sites(bodies=[SiteBody("ground", pivot, sp.Integer(0), {"pivot": pivot}),
+                          SiteBody("rod", pivot, angle - sp.pi / 2, {"pivot": pivot, "bob": (x, y)})],
+                  joints=[SiteJoint("pivot", angle, "rad", "rod on the ground: angle from the downward vertical, "
+                                    "counter-clockwise")])
     return MechanismDefinition(
         name="pendulum",
         description="point-mass pendulum in Cartesian coordinates",
@@ -47,7 +57,7 @@ def definition() -> MechanismDefinition:
         kinetic_energy=bob.kinetic_energy(list(q), list(qd)),
         potential_energy=bob.potential_energy(g),
         constraints=[(x**2 + y**2 - L**2) / (2 * L)],
-        observables=[Observable("angle", sp.atan2(x, -y), "rad", "rad/s", "angle from the downward vertical")],
+        observables=[Observable("angle", angle, "rad", "rad/s", "angle from the downward vertical")],
         drawing=Drawing(points={"pivot": (sp.Integer(0), sp.Integer(0)), "bob": (x, y)},
                         links=[("pivot", "bob")], ground=["pivot"]),
         default_independent={"x": 0.5},
@@ -59,4 +69,5 @@ def definition() -> MechanismDefinition:
                                    Panel(("observable_rate:angle",), ylabel="angular velocity"))),
             DeclaredFigure("configurations", "The pendulum at six instants", snapshots=6),
         ],
+        sites=sites,
     )

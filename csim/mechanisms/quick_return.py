@@ -19,6 +19,9 @@ from csim.model.definition import (
     Panel,
     Parameter,
     PlanarBody,
+    SiteBody,
+    SiteJoint,
+    Sites,
 )
 
 PARAMETERS = [
@@ -137,6 +140,28 @@ def definition() -> MechanismDefinition:
         DeclaredFigure("configurations", "The mechanism during one crank revolution", reference="paper fig. H.7",
                        snapshots=6, cycle="q1"),
     ]
+    # where force elements (mechanism.forces) may act: the bodies' points and the joints
+    zero = sp.Integer(0)
+    sites = Sites(
+        bodies=[
+            SiteBody("ground", B, zero, {"O": O, "B": B}),
+            SiteBody("crank", O, q1, {"O": O, "A": A}),
+            SiteBody("rocker", B, q2, {"B": B, "C": C}),
+            SiteBody("rod", C, q3, {"C": C, "D": D}),
+            SiteBody("block", A, q2, {"A": A}),
+            SiteBody("ram", D, zero, {"D": D}),
+        ],
+        joints=[
+            SiteJoint("O", q1, "rad", "crank on the ground at O: the crank angle q1 from +x"),
+            SiteJoint("B", q2, "rad", "rocker on the ground at B: the rocker angle q2 from +x"),
+            SiteJoint("A", q2 - q1, "rad", "slider block on the crank pin A: block angle minus crank angle"),
+            SiteJoint("slide", (A[0] - B[0]) * sp.cos(q2) + (A[1] - B[1]) * sp.sin(q2), "m",
+                      "slider block along the rocker: distance |BA| from B"),
+            SiteJoint("C", q3 - q2, "rad", "rod on the rocker at C: rod angle minus rocker angle"),
+            SiteJoint("D", -q3, "rad", "ram on the rod at D: ram angle (0) minus rod angle"),
+            SiteJoint("ram", D[0], "m", "ram on its guide: x_D, positive along +x"),
+        ],
+    )
     return MechanismDefinition(
         name="quick_return",
         description="quick-return (shaper) mechanism: crank, rocker, rod, slider block, ram",
@@ -155,4 +180,5 @@ def definition() -> MechanismDefinition:
         # branch of the brief: rocker leaning left of A's side, cos q3 < 0
         default_guess={"q2": 2.0, "q3": 2.8},
         figures=figures,
+        sites=sites,
     )

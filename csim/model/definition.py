@@ -191,6 +191,63 @@ class Observable:
 
 
 @dataclass(frozen=True)
+class SiteBody:
+    """A body of a registered mechanism that force elements may be placed on (planar).
+
+    Its frame has its origin at ``origin`` and its x axis turned by ``angle`` from the
+    global x axis (about global z); a point ``[BODY, [x, y, z]]`` of a force element is
+    ``origin + R(angle) (x, y) + z e_z``.
+
+    Parameters
+    ----------
+    name : str
+        What ``mechanism.forces`` calls it (``[crank, A]``); ``"ground"`` for the fixed body.
+    origin : tuple of two sympy expressions
+        Global (x, y) of the frame's origin, functions of q and the parameters [m].
+    angle : sympy expression
+        Orientation of the frame [rad] (0 for a body that only translates).
+    points : dict of name -> (x, y) sympy expressions [m]
+        The named material points of the body, global positions as functions of q.
+    """
+
+    name: str
+    origin: tuple[sp.Expr, sp.Expr]
+    angle: sp.Expr
+    points: dict[str, tuple[sp.Expr, sp.Expr]]
+
+
+@dataclass(frozen=True)
+class SiteJoint:
+    """A joint of a registered mechanism: one relative coordinate an element may act on.
+
+    Parameters
+    ----------
+    name : str
+        What ``mechanism.forces`` calls it (``joint: O``).
+    value : sympy expression
+        The joint's variable as a function of q [rad or m] (the crank angle, the relative
+        angle of two bodies, a slider's travel).
+    unit : {"rad", "m"}
+    description : str
+        One line: the joint and the positive sense of its variable.
+    """
+
+    name: str
+    value: sp.Expr
+    unit: str
+    description: str
+
+
+@dataclass(frozen=True)
+class Sites:
+    """Where the force elements of ``mechanism.forces`` may act on a registered mechanism
+    (:mod:`csim.mechanisms.sites`): its bodies with their named points, and its joints."""
+
+    bodies: list[SiteBody]
+    joints: list[SiteJoint] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
 class Panel:
     """One axes of a declared figure: curves that share a y axis.
 
@@ -283,6 +340,9 @@ class MechanismDefinition:
     figures : list of DeclaredFigure
         Mechanism-specific figures of ``csim plot`` (e.g. the paper's), besides the ones
         every mechanism gets (coordinates, velocities, constraints, energy, multipliers).
+    sites : Sites or None
+        Bodies, points and joints that force elements (``mechanism.forces``) may act on;
+        None: the mechanism takes no force elements.
     recursive : callable () -> csim.model.recursive.RecursiveTerms, or None
         The same mechanism's kinematics link by link in named intermediates (a linkage
         built from tables, :mod:`csim.linkage.recursive`): when given,
@@ -307,6 +367,7 @@ class MechanismDefinition:
     default_independent_velocities: dict[str, float] = field(default_factory=dict)
     default_guess: dict[str, float] = field(default_factory=dict)
     figures: list[DeclaredFigure] = field(default_factory=list)
+    sites: Sites | None = None
     recursive: Callable | None = field(default=None, repr=False, compare=False)
 
     @property

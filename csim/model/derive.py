@@ -130,6 +130,9 @@ def _derive_recursive(definition: MechanismDefinition) -> DerivedModel:
     from csim.model.recursive import assemble, gradient
 
     terms = definition.recursive()
+    if len(terms.phi) != len(definition.constraints):  # the definition's constraints were changed since
+        raise ValueError(f"{definition.name}: {len(terms.phi)} constraint equations link by link, "
+                         f"{len(definition.constraints)} in the definition; expected the same equations")
     q = sp.Matrix(definition.coordinates)
     m = len(q)
     M, Cqd, T = assemble(terms, m)

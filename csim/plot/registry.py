@@ -67,8 +67,7 @@ def _no_loads(run: RunData) -> str | None:
 def _no_reactions(run: RunData) -> str | None:
     if run.result.run_kind == "kinematic":
         return "a kinematic analysis of prescribed motion has no forces"
-    return None if run.result.reactions else "the run records no joint reactions (no cut joints of a link-coupling " \
-                                               "mechanism)"
+    return None if run.result.reactions else "the run records no joint reactions (not a link-coupling mechanism)"
 
 
 def _no_drives(run: RunData) -> str | None:
@@ -95,7 +94,7 @@ RUN_FIGURES: dict[str, FigureKind] = {k.name: k for k in (
     FigureKind("multipliers", "Lagrange multipliers against time", rf.multipliers_figure, _no_forces),
     FigureKind("loads", "applied loads against time", rf.loads_figure, _no_loads),
     FigureKind("drive", "drive torques and forces of driven dynamics against time", rf.drive_figure, _no_drives),
-    FigureKind("reactions", "force and torque of every cut joint against time", rf.reactions_figure,
+    FigureKind("reactions", "force and torque of every joint against time", rf.reactions_figure,
                _no_reactions),
     FigureKind("mechanism", "the mechanism drawn at six instants of the run", rf.snapshots_figure, _no_drawing),
 )}

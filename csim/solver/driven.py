@@ -23,10 +23,17 @@ the torque the motor applies on the joint (positive in the sense of q_j), and it
 tau_j qd_j. The work of each drive is integrated with the motion as an extra quadrature
 state, so the energy balance T + V - T0 - V0 - W_loads - W_drives stays a check.
 
-The stabilizers act on the mechanism's constraints as configured; the drive rows are
-imposed at acceleration level (their residual q_j - f_j(t) is the integration error).
-Stabilizers that project or integrate another system, and the elimination, are not
-offered here (:func:`driven_problems`).
+The drive rows are stabilized like the mechanism's constraints: ``baumgarte`` and
+``sliding_mode`` take the stacked rows [Phi; Phi_d] with their rates
+[Phi_q qd; qd_j - f_j'(t)] (for Baumgarte the drive error e = q_j - f_j(t) then obeys
+e'' + 2 d w e' + w^2 e = 0 exactly), and ``projection`` projects onto both after every
+step. With one drive per degree of freedom the stacked Jacobian J = [Phi_q; e_j^T] is
+square and regular, so the positions go by the method's Gauss-Newton iteration on
+[Phi(q); q_j - f_j(t)] = 0 and the velocities are the one solution of
+J qd = [0; f_j'(t)]. Not offered (:func:`driven_problems`, exit 2): ``ggl`` and
+``minimal`` (they integrate a system of their own), the elimination (no coordinate is
+independent), per-constraint gain lists (the drive rows need gains too), the compiled
+kernels.
 """
 from __future__ import annotations
 
@@ -40,7 +47,10 @@ from csim.physics.linalg import as_core
 from csim.solver.system import ConstrainedSystem, Evaluation
 
 #: stabilization methods that run with drives as rheonomic constraints
-DRIVEN_METHODS = ("none", "baumgarte", "sliding_mode")
+DRIVEN_METHODS = ("none", "baumgarte", "sliding_mode", "projection")
+
+#: the gains of the methods above (one number each: they act on the drive rows too)
+GAIN_KEYS = ("d", "w", "Lambda", "K", "k")
 
 
 def driven_problems(data: dict) -> list[str]:
@@ -54,9 +64,15 @@ def driven_problems(data: dict) -> list[str]:
     problems = []
     method = data["stabilization"].get("method")
     if method not in DRIVEN_METHODS:
-        problems.append(f"stabilization.method: got {method!r} with mechanism.drive_mode 'dynamic'; the drives "
-                        f"are constraints that depend on time, which {method} does not take (it projects or "
-                        f"integrates a system of its own); expected one of {', '.join(DRIVEN_METHODS)}")
+        problems.append(f"stabilization.method: got {method!r} with mechanism.drive_mode 'dynamic'; {method} "
+                        f"integrates a system of its own in the free coordinates, and with one drive per degree of "
+                        f"freedom the drives and constraints fix q(t) and qd(t) entirely (nothing is left free "
+                        f"to integrate); expected one of {', '.join(DRIVEN_METHODS)}")
+    for key in GAIN_KEYS:
+        if method in DRIVEN_METHODS and isinstance(data["stabilization"].get(key), list):
+            problems.append(f"stabilization.{key}: got a list (one per constraint) with mechanism.drive_mode "
+                            f"'dynamic'; the drives are constraints that {method} stabilizes too; expected one "
+                            f"number")
     if data["formulation"].get("method") != "kkt":
         problems.append(f"formulation.method: got {data['formulation'].get('method')!r} with mechanism.drive_mode "
                         f"'dynamic'; with one drive per degree of freedom no coordinate is independent, so "
@@ -107,11 +123,43 @@ class DrivenSystem(ConstrainedSystem):
         phi = model.phi(q, par)
         phi_dot = np.empty(r)
         constraint_rates(as_core(phi_q), as_core(qd), phi_dot, r, self.m)
-        gamma_star = self.stabilizer.gamma_star(model.gamma(q, qd, par), phi, phi_dot) if r else np.zeros(0)
         f, fd, fdd = self.drive(t)
+        # the stacked rows [Phi; q_j - f_j(t)], their rates [Phi_q qd; qd_j - f_j'(t)] and
+        # gamma = [gamma; f_j''(t)], stabilized together
+        gamma_star = self.stabilizer.gamma_star(np.concatenate((model.gamma(q, qd, par), fdd)),
+                                                np.concatenate((phi, q[self.driven] - f)),
+                                                np.concatenate((phi_dot, qd[self.driven] - fd)))
         J = np.vstack((phi_q.reshape(r, self.m), self._rows))
-        qdd, lam = self.formulation.solve(M, J, p, np.concatenate((gamma_star, fdd)))
+        qdd, lam = self.formulation.solve(M, J, p, gamma_star)
         return qdd, lam[:r], lam[r:], phi, phi_dot, B @ u, B
+
+    def after_step(self, t: float, y: np.ndarray) -> tuple[np.ndarray, str]:
+        """Projection (``projection``) onto Phi = 0 and the drives at time t; else y as it is."""
+        if not self.projects:
+            return y, "keep"
+        q, qd, work = self.split(y)
+        view = _DriveRows(self.model, self.driven, self.drive(t))
+        q, _ = self.stabilizer.project(view, self.par, q, qd)  # Gauss-Newton on [Phi; q_j - f_j(t)]
+        # J qd = [0; f_j'(t)], J = [Phi_q; e_j^T] square and regular: its one solution
+        J = np.vstack((self.model.phi_q(q, self.par).reshape(self.r, self.m), self._rows))
+        try:
+            qd = np.linalg.solve(J, np.concatenate((np.zeros(self.r), view.rates)))
+        except np.linalg.LinAlgError:
+            raise SimulationFailure(f"driven dynamics at t = {t:.6g} s: the constraint Jacobian with the drive rows "
+                                    f"is singular (a singular position of the driven mechanism)") from None
+        return np.concatenate((q, qd, y[2 * self.m:])), "swap"
+
+    def restart(self, t: float, y: np.ndarray, mode: np.ndarray) -> np.ndarray:
+        return self.after_step(t, y)[0]
+
+    def start(self, y_full: np.ndarray) -> np.ndarray:
+        """The state to start from (runs start at t = 0): projected onto the drives at t = 0 too."""
+        return self.after_step(0.0, np.array(y_full, dtype=float))[0]
+
+    def output_state(self, y: np.ndarray) -> np.ndarray:
+        """A recorded state as integrated (a dense-output sample between two projected steps
+        is not projected: the projection onto the drives needs its time)."""
+        return np.array(y, dtype=float)
 
     def rhs(self, t: float, y: np.ndarray, mode: np.ndarray) -> np.ndarray:
         """dy/dt (n_state,): [qd, qdd, u (B^T qd), tau qd_driven]."""
@@ -133,6 +181,34 @@ class DrivenSystem(ConstrainedSystem):
         """tau (d,) = -lambda_d: the torque [N m] or force [N] each drive applies along its variable."""
         q, qd, _ = self.split(y)
         return -self._solve_driven(t, q, qd, self.load_values(t, q, qd, mode))[2]
+
+
+class _DriveRows:
+    """The model seen with the drive rows at one instant appended to its constraints, for a
+    method's projection (it reads ``n_constraints``, ``mass``, ``phi`` and ``phi_q``).
+
+    Parameters
+    ----------
+    model : NumericModel
+    driven : ndarray (d,) of int
+    values : (f, f', f'') at that instant, each (d,)
+    """
+
+    def __init__(self, model, driven: np.ndarray, values):
+        self.model, self.driven = model, driven
+        self.target, self.rates = values[0], values[1]
+        self.n_constraints = model.n_constraints + driven.size
+        self._rows = np.eye(model.n_coordinates)[driven]
+
+    def mass(self, q, par):
+        return self.model.mass(q, par)
+
+    def phi(self, q, par):
+        return np.concatenate((self.model.phi(q, par), q[self.driven] - self.target))
+
+    def phi_q(self, q, par):
+        r, m = self.model.n_constraints, self._rows.shape[1]
+        return np.vstack((np.asarray(self.model.phi_q(q, par)).reshape(r, m), self._rows))
 
 
 def record_drives(result, system: DrivenSystem, t: np.ndarray, y: np.ndarray, mode: np.ndarray,

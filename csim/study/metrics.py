@@ -11,8 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from csim.compare.metrics import constraint_errors, motion_error
-from csim.linkage.kinematics import KINEMATIC_RUN
-from csim.result import Result
+from csim.result import FAILURE_KINDS, Result, failure_kind
 
 NAN = float("nan")
 
@@ -43,36 +42,17 @@ COLUMNS = (
     Column("events", "1", "located switching events", "i8"),
 )
 
-#: why a run failed: the first reason whose phrases the message starts with, in this order
-#: (the messages of csim.physics.status, the drivers and the kinematic analysis)
-REASONS = (
-    ("invalid", ("case: ",)),
-    ("assembly", ("initial conditions", "the mechanism cannot be assembled")),
-    ("interrupted", ("interrupted",)),
-    ("blow-up", ("blow-up",)),
-    ("drift", ("constraint violation",)),
-    ("step", ("integrator rk4 failed",)),
-    ("step collapse", ("step-size collapse", "integrator ")),
-    ("max steps", ("more than simulation.max_steps",)),
-    ("chatter", ("more than simulation.max_events", "chattering load law")),
-    ("projection", ("projection: gauss-newton",)),
-    ("singular", ("singular", "projection: singular", "numerical error after t = {t}: linalgerror")),
-    ("event location", ("numerical error",)),
-    ("drive", ("mechanism.drive",)),
-)
+#: why a run failed (the kinds of :attr:`csim.result.Result.failure`)
+REASONS = FAILURE_KINDS
 
 
 def failure_reason(status: str, message: str, failure: str = "") -> str:
-    """A short name of why a run failed ("" for a success; "other" for a message not listed)."""
+    """A short name of why a run failed ("" for a success; "other" for a message not listed):
+    ``failure`` where given (a result's :attr:`~csim.result.Result.failure`), else the kind
+    its message names (:func:`csim.result.failure_kind`)."""
     if status == "success":
         return ""
-    if failure in ("assembly", "interrupted"):
-        return failure
-    text = message.lower().strip().removeprefix(f"{KINEMATIC_RUN}: ")
-    for reason, starts in REASONS:
-        if any(text.startswith(s.split("{t}")[0]) and s.split("{t}")[-1] in text for s in starts):
-            return reason
-    return "other"
+    return failure or failure_kind(message)
 
 
 def run_row(result: Result, reference: tuple[np.ndarray, np.ndarray] | None = None) -> dict:
