@@ -28,10 +28,10 @@ batch: $(STAMP)  ## the README's accuracy claims, run and checked (configs/batch
 
 bench: $(STAMP)  ## speed and accuracy benchmark, side by side in one run, then the scaling table
 	$(BIN)/python bench/run.py
-	$(BIN)/python bench/scaling.py
+	$(BIN)/python bench/scaling.py --plain-c
 
 bench-scaling: $(STAMP)  ## the scaling table alone: derive, cc, first run and per-RHS time against mechanism size
-	$(BIN)/python bench/scaling.py
+	$(BIN)/python bench/scaling.py --plain-c
 
 lint: $(STAMP)
 	$(BIN)/python -m pip install --quiet ruff

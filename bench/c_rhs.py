@@ -19,12 +19,21 @@ from sympy.printing.c import C99CodePrinter
 
 from csim.fast.codegen import TERMS
 from csim.model.derive import derive
+from csim.model.recursive import needed
+
+
+class _Printer(C99CodePrinter):
+    def _print_Integer(self, expr):
+        # an integer literal beyond 64 bits overflows in C (exact rationals of float inputs,
+        # e.g. an inertia m L^2 / 12): print it as a double, as csim.fast.ccodegen does
+        n = int(expr)
+        return super()._print_Integer(expr) if abs(n) < 2**53 else repr(float(n))
 
 
 def c_source(definition, y, par, u, n_eval: int) -> str:
     d = derive(definition)
     m, r, k = len(definition.coordinates), len(definition.constraints), len(definition.loads)
-    printer = C99CodePrinter()
+    printer = _Printer()
     exprs, offsets, off = [], {}, 0
     for attr in TERMS:
         mat = getattr(d, attr)
@@ -32,6 +41,8 @@ def c_source(definition, y, par, u, n_eval: int) -> str:
         exprs += list(mat)
         off += len(list(mat))
     temps, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("x_"), optimizations="basic")
+    # the named intermediates of a mechanism built link by link (csim.model.recursive) come first
+    temps = needed([t[1] for t in temps] + list(reduced), d.intermediates) + list(temps)
     body = []
     for i, name in enumerate(definition.coordinate_names):
         body.append(f"  const double {name} = y[{i}];")

@@ -21,7 +21,9 @@ per-mechanism cost is measured:
 (c) ``first run``: ``csim run CASE -o x.h5 --quiet --set simulation.t_end=0.1`` end to end,
     in another fresh cache (the new user's first run: derivation, cc, integration);
 (d) ``RHS``: one compiled right-hand-side evaluation (the kernels' ``rhs_repeat``, KKT,
-    stabilization none), in the cache the first run filled.
+    stabilization none), in the cache the first run filled;
+(e) with ``--plain-c``: the same right-hand side as plain C generated from the same
+    derivation (bench/c_rhs.py), and the ratio (d)/(e).
 
 Each step has a time limit (``--limit``, 120 s); a size that does not finish is shown as
 ``> limit`` and the family's larger sizes are skipped. The growth of derive and RHS time is
@@ -48,7 +50,7 @@ import yaml  # noqa: E402
 from scaling_cases import fourbar_chain, nbar_loop  # noqa: E402
 
 FAMILIES = {"chain": fourbar_chain, "loop": nbar_loop}
-DEFAULT_SIZES = {"chain": [1, 2, 4, 8, 16], "loop": [4, 5, 6, 8, 12]}
+DEFAULT_SIZES = {"chain": [1, 2, 4, 8, 16, 32], "loop": [4, 5, 6, 8, 12]}
 ENV = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])))
 
 
@@ -104,7 +106,32 @@ def worker_rhs(case_path: str) -> dict:
     return dict(rhs_ns=min(runs) * 1e9, m=system.m, r=system.r)
 
 
-WORKERS = {"derive": worker_derive, "rhs": worker_rhs}
+def worker_plain_c(case_path: str) -> dict:
+    """(e), with ``--plain-c``: ns per evaluation of the same KKT right-hand side as plain C
+    generated from the same derivation (bench/c_rhs.py), checked against the Python one."""
+    import c_rhs
+    import numpy as np
+    from run import compiled_rhs
+
+    from csim.case import load_case
+
+    system, y, mode, mod, (par, pf, pi) = compiled_rhs(load_case(case_path))
+    start = time.perf_counter()
+    mod.rhs_repeat(y, mode, par, pf, pi, 100)
+    n_eval = max(1000, int(0.3 / max((time.perf_counter() - start) / 100, 1e-9)))
+    exe, tmp = c_rhs.build(system.model.definition, y, system.par, system.loads.values(mode), n_eval)
+    try:
+        runs = [c_rhs.run(exe) for _ in range(3)]
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    qdd_py = system.rhs(0.0, y, mode)[system.m:2 * system.m]
+    diff = float(np.max(np.abs(runs[0][1] - qdd_py)))
+    if not diff <= 1e-9 * max(1.0, float(np.max(np.abs(qdd_py)))):
+        raise SystemExit(f"bench: the plain-C right-hand side differs from the Python one by {diff:.3g}")
+    return dict(plain_c_ns=min(r[0] for r in runs))
+
+
+WORKERS = {"derive": worker_derive, "rhs": worker_rhs, "plain_c": worker_plain_c}
 
 
 # ---------------------------------------------------------------------------------------
@@ -186,7 +213,7 @@ def first_run(case_path: Path, cache: Path, out: Path, limit: float) -> float | 
     return wall
 
 
-def measure(family: str, n: int, tmp: Path, installation: Path, limit: float) -> dict:
+def measure(family: str, n: int, tmp: Path, installation: Path, limit: float, plain_c: bool = False) -> dict:
     doc = FAMILIES[family](n)
     case_path = write_case(doc, tmp / f"{family}_{n}.yaml")
     row = dict(family=family, n=n, links=len(doc["mechanism"]["links"]), dof=len(doc["initial"]["q"]))
@@ -199,6 +226,8 @@ def measure(family: str, n: int, tmp: Path, installation: Path, limit: float) ->
     if row["first_run"] is None:
         return dict(row, timeout=True)
     row.update(run_worker("rhs", case_path, cache, limit) or {})
+    if plain_c:
+        row.update(run_worker("plain_c", case_path, cache, limit) or {})
     return row
 
 
@@ -220,6 +249,8 @@ def fmt(value, spec, limit=None):
 def report(rows: list[dict], limit: float) -> str:
     head = (f"{'family':<7}{'N':>4}{'links':>6}{'m':>5}{'r':>5}{'DOF':>4}  {'analyse s':>9}{'derive s':>9}"
             f"{'codegen s':>10}{'(a) total s':>12}{'(b) cc s':>9}{'(c) first run s':>16}{'(d) RHS us':>11}")
+    if any(row.get("plain_c_ns") for row in rows):
+        head += f"{'(e) plain C us':>14}{'(d)/(e)':>8}"
     lines = [head, "-" * len(head)]
     for row in rows:
         if row.get("timeout") and "derive" not in row:
@@ -227,11 +258,13 @@ def report(rows: list[dict], limit: float) -> str:
                          f"{'':>9}{'':>9}{'':>10}{fmt(None, '', limit):>12}")
             continue
         rhs = row.get("rhs_ns")
+        plain = row.get("plain_c_ns")
+        extra = "" if plain is None else f"{plain / 1e3:>13.3f}{fmt(None if rhs is None else rhs / plain, '.2f'):>7}"
         lines.append(
             f"{row['family']:<7}{row['n']:>4}{row['links']:>6}{row.get('m', '?'):>5}{row.get('r', '?'):>5}"
             f"{row['dof']:>4}  {row['analyse']:>9.2f}{row['derive_only']:>9.2f}{row['codegen']:>10.2f}"
             f"{row['derive']:>12.2f}{row['cc']:>9.2f}{fmt(row.get('first_run'), '.2f', limit):>16}"
-            f"{fmt(None if rhs is None else rhs / 1e3, '.3f'):>11}")
+            f"{fmt(None if rhs is None else rhs / 1e3, '.3f'):>11}{extra}")
     lines.append("")
     lines.append("growth, fitted as c N^p over the sizes that finished (N: loops of the chain, links of the loop):")
     for family in FAMILIES:
@@ -254,6 +287,8 @@ def main(argv=None):
                         help="numbers of links of the closed loop, ground included (default: %(default)s)")
     parser.add_argument("--limit", type=float, default=120.0, help="time limit of each step of each size [s]")
     parser.add_argument("--json", type=Path, help="also write the rows to this file")
+    parser.add_argument("--plain-c", action="store_true",
+                        help="also time (e) the same right-hand side as plain C (bench/c_rhs.py) and the ratio")
     args = parser.parse_args(argv)
     if args.worker:
         step, case_path = args.worker
@@ -269,7 +304,7 @@ def main(argv=None):
         for family, sizes in (("chain", args.chain), ("loop", args.loop)):
             for n in sorted(sizes):
                 start = time.perf_counter()
-                row = measure(family, n, tmp, installation, args.limit)
+                row = measure(family, n, tmp, installation, args.limit, args.plain_c)
                 rows.append(row)
                 print(report([row], args.limit).split("\n")[2], flush=True)
                 print(f"  {family} {n}: {'> limit' if row.get('timeout') else 'done'} "

@@ -75,9 +75,14 @@ def dims(derived) -> tuple[int, int, int, int]:
     return len(d.coordinates), len(d.constraints), len(d.loads), len(d.observables)
 
 
-def _plan(name, outputs, sources) -> Plan:
+def _plan(name, outputs, sources, intermediates=()) -> Plan:
+    """The statements of one function: the named intermediates its outputs use (in order of
+    definition, :mod:`csim.model.recursive`), then one CSE over the outputs."""
+    from csim.model.recursive import common_subexpressions, needed
+
     exprs = [e for _, e in outputs]
-    temps, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("_x"), optimizations="basic") if exprs else ([], [])
+    temps, reduced = common_subexpressions(exprs, intermediates)
+    temps = needed([t[1] for t in temps] + list(reduced), intermediates) + list(temps)
     used = set()
     for e in [t[1] for t in temps] + list(reduced):
         used |= {str(s) for s in e.free_symbols}
@@ -100,18 +105,36 @@ def plans(derived) -> list[Plan]:
         for attr in attrs:
             base = offsets[OFFSETS[attr]]
             targets += [(base + i, e) for i, e in enumerate(getattr(derived, attr))]  # row-major
-        out[fname] = _plan(fname, targets, sources)
+        out[fname] = _plan(fname, targets, sources, derived.intermediates)
     for fname, attr in SCALARS.items():
-        out[fname] = _plan(fname, [(0, getattr(derived, attr))], sources)
+        out[fname] = _plan(fname, [(0, getattr(derived, attr))], sources, derived.intermediates)
     obs = list(derived.observables) if derived.observables is not None else []
     rates = list(derived.observable_jacobian * sp.Matrix(d.velocities)) if obs else []
-    out["observe"] = _plan("observe", list(enumerate(obs + rates)), sources)
+    out["observe"] = _plan("observe", list(enumerate(obs + rates)), sources, derived.intermediates)
     return [out[name] for name in MODEL_FUNCTIONS]
 
 
 class _Printer(PythonCodePrinter):
     def _print_Symbol(self, expr):
         return str(expr)
+
+
+def _printer(derived, printer, language: str, symbol):
+    """The print function of one generated module, each distinct expression printed once: the
+    sympy ``printer``, or for a mechanism built link by link
+    (:class:`csim.model.printing.QuickPrinter`) a quick printer falling back to it."""
+    if derived.intermediates:
+        from csim.model.printing import QuickPrinter
+
+        return QuickPrinter(printer, language, symbol).doprint
+    memo: dict = {}
+
+    def doprint(expr) -> str:
+        if expr not in memo:
+            memo[expr] = printer.doprint(expr)
+        return memo[expr]
+
+    return doprint
 
 
 CFUNC_HEADER = '''"""csim model functions of {name!r} as numba cfuncs (the fallback without a C compiler),
@@ -129,14 +152,14 @@ DIMS = {dims}
 
 def cfunc_source(derived) -> str:
     """A module of numba cfuncs, one per model function (their ``.address`` is what the kernels call)."""
-    printer = _Printer()
+    doprint = _printer(derived, _Printer(), "python", str)
     chunks = [CFUNC_HEADER.format(name=derived.definition.name, dims=dims(derived))]
     args = {"y": "_y", "par": "_par", "t": "_t"}
     for plan in plans(derived):
         lines = ['@cfunc(SIGNATURE, cache=True, error_model="numpy")', f"def {plan.name}(_t, _y, _par, _w):"]
         lines += [f"    {sym} = {args[arg]}" + ("" if arg == "t" else f"[{i}]") for sym, arg, i in plan.unpack]
-        lines += [f"    {sym} = {printer.doprint(value)}" for sym, value in plan.temps]
-        lines += [f"    _w[{ix}] = {printer.doprint(value)}" for ix, value in plan.outputs]
+        lines += [f"    {sym} = {doprint(value)}" for sym, value in plan.temps]
+        lines += [f"    _w[{ix}] = {doprint(value)}" for ix, value in plan.outputs]
         lines.append("    return")
         chunks.append("\n".join(lines))
     return "\n\n\n".join(chunks) + "\n"

@@ -28,6 +28,7 @@ from csim.linkage.kinematics import residual_report, solve_positions
 from csim.linkage.tables import Coupling, Tables
 from csim.linkage.topology import JointVariable
 from csim.linkage.transforms import simplify_entry
+from csim.model.recursive import sparse_jacobian
 
 KEPT, ZERO, DEPENDENT = "kept", "identically zero", "dependent"
 
@@ -104,16 +105,21 @@ def _numeric(exprs: list[sp.Expr], q_syms: list[sp.Symbol], parameters: dict[sp.
     """phi(q) (r,) and phi_q(q) (r, n) as numpy functions at the given parameter values."""
     r, n = len(exprs), len(q_syms)
     vec = sp.Matrix(exprs) if exprs else sp.zeros(0, 1)
-    jac = vec.jacobian(q_syms) if exprs else sp.zeros(0, n)
+    jac = sparse_jacobian(exprs, q_syms)
+    # only the nonzero entries of Phi_q are generated (a long chain's is mostly zeros)
+    rows, cols = (np.array(ix, dtype=int) for ix in ([i for i in range(r) for j in range(n) if jac[i, j] != 0],
+                                                     [j for i in range(r) for j in range(n) if jac[i, j] != 0]))
     p_syms, p_vals = list(parameters), list(parameters.values())
     f = sp.lambdify([q_syms, p_syms], vec, "numpy", cse=True)
-    g = sp.lambdify([q_syms, p_syms], jac, "numpy", cse=True)
+    g = sp.lambdify([q_syms, p_syms], [jac[i, j] for i, j in zip(rows, cols)], "numpy", cse=True)
 
     def phi(q):
         return np.asarray(f(list(q), p_vals), dtype=float).reshape(r)
 
     def phi_q(q):
-        return np.asarray(g(list(q), p_vals), dtype=float).reshape(r, n)
+        out = np.zeros((r, n))
+        out[rows, cols] = np.asarray(g(list(q), p_vals), dtype=float)
+        return out
 
     return phi, phi_q
 

@@ -30,10 +30,12 @@ from csim.linkage.forces import Contribution, Geometry, build_forces
 from csim.linkage.frames import Frames, build_frames
 from csim.linkage.inertia import check_inertia
 from csim.linkage.joints import JOINT_TYPES
+from csim.linkage.recursive import recursive_terms
 from csim.linkage.tables import Coupling, Tables, parse_tables
 from csim.linkage.topology import Topology, analyse, grubler_kutzbach
 from csim.linkage.transforms import simplify_entry
 from csim.model.definition import Drawing, MechanismDefinition, Observable, Parameter
+from csim.model.recursive import sparse_jacobian
 from csim.schema import describe
 
 T = sp.Symbol("t", real=True)
@@ -194,11 +196,13 @@ def energies(tables: Tables, topology: Topology, frames: Frames) -> tuple[sp.Exp
         if omega is None:
             omega = link_angular_velocities(topology, frames)
         r_c = (frames.links[number] * sp.Matrix([*link.com, 1]))[:3, 0].applyfunc(simplify_entry)
-        v_c = r_c.jacobian(q) * qd if q else sp.zeros(3, 1)
+        v_c = sparse_jacobian(list(r_c), q) * qd if q else sp.zeros(3, 1)
         w = omega[number]
-        # contracted per link (sin^2 + cos^2 -> 1), so that the derivation starts from a short T
-        kinetic += simplify_entry(sp.Rational(1, 2) * link.mass * (v_c.T * v_c)[0]
-                                  + sp.Rational(1, 2) * (w.T * link.inertia * w)[0])
+        # left as products of sums: expanding |v_c|^2 grows with the fourth power of a link's
+        # depth in the tree (the equations of motion come from csim.linkage.recursive, not
+        # from this expression; it is what csim describe, the kinematic model and the model's
+        # cache key read)
+        kinetic += sp.Rational(1, 2) * link.mass * (v_c.T * v_c)[0] + sp.Rational(1, 2) * (w.T * link.inertia * w)[0]
         potential += -link.mass * (g.T * r_c)[0]
     return kinetic, potential
 
@@ -376,6 +380,7 @@ def _definition(linkage: Linkage) -> MechanismDefinition:
         default_independent={n: linkage.start[n] for n in independent},
         default_independent_velocities={n: 0.0 for n in independent},
         default_guess={n: linkage.start[n] for n in names if n not in independent},
+        recursive=lambda: recursive_terms(tables, topology, frames, kept),
     )
 
 
@@ -393,8 +398,9 @@ def _partition(linkage: Linkage) -> tuple[list[str], list[str]]:
     tables = linkage.tables
     subs = tables.values
     subs.update({v.symbol: linkage.start[v.name] for v in linkage.topology.variables})
-    J = np.array(sp.Matrix([e.expression for e in kept]).jacobian([v.symbol for v in linkage.topology.variables])
-                 .subs(subs).evalf(), dtype=float)
+    at = {k: sp.Float(v) for k, v in subs.items()}
+    J = np.array(sparse_jacobian([e.expression for e in kept], [v.symbol for v in linkage.topology.variables])
+                 .xreplace(at).evalf(), dtype=float)
     _, _, piv = scipy.linalg.qr(J, pivoting=True)
     dependent = set(piv[:len(kept)].tolist())
     return [n for i, n in enumerate(names) if i not in dependent], [n for i, n in enumerate(names) if i in dependent]

@@ -37,7 +37,7 @@ FUNCTIONS: dict[str, tuple[tuple[str, ...], str, str]] = {
 }
 
 #: Bump when the generated code changes shape, to invalidate old caches.
-CODEGEN_VERSION = "3"
+CODEGEN_VERSION = "4"
 
 
 def definition_key(definition: MechanismDefinition) -> str:

@@ -11,7 +11,6 @@ keyed by a hash of the symbolic definition, so the sympy derivation runs once pe
 """
 from __future__ import annotations
 
-import sympy as sp
 from sympy.printing.pycode import PythonCodePrinter
 
 from csim.model.cache import FUNCTIONS
@@ -24,14 +23,18 @@ class _Printer(PythonCodePrinter):
         return str(expr)
 
 
-def _function_source(name, args, expr, kind, unpack) -> str:
-    """Source of one function: unpack symbols, CSE temporaries, fill the output."""
-    printer = _Printer()
+def _function_source(name, args, expr, kind, unpack, intermediates=(), doprint=None) -> str:
+    """Source of one function: unpack symbols, the named intermediates it uses (in order of
+    definition, :mod:`csim.model.recursive`), CSE temporaries, fill the output."""
+    from csim.model.recursive import common_subexpressions, needed
+
+    doprint = _Printer().doprint if doprint is None else doprint
     if kind == "scalar":
         flat = [expr]
     else:
         flat = list(expr)
-    temps, reduced = sp.cse(flat, symbols=sp.numbered_symbols("_x"), optimizations="basic")
+    temps, reduced = common_subexpressions(flat, intermediates)
+    temps = needed([t[1] for t in temps] + list(reduced), intermediates) + list(temps)
     used = set()
     for e in [t[1] for t in temps] + reduced:
         used |= {str(s) for s in e.free_symbols}
@@ -41,9 +44,9 @@ def _function_source(name, args, expr, kind, unpack) -> str:
             if sym_name in used:
                 lines.append(f"    {sym_name} = {arg}[{index}]")
     for sym, value in temps:
-        lines.append(f"    {sym} = {printer.doprint(value)}")
+        lines.append(f"    {sym} = {doprint(value)}")
     if kind == "scalar":
-        lines.append(f"    return float({printer.doprint(reduced[0])})")
+        lines.append(f"    return float({doprint(reduced[0])})")
     else:
         if kind == "matrix":
             rows, cols = expr.shape
@@ -59,7 +62,7 @@ def _function_source(name, args, expr, kind, unpack) -> str:
             index = [str(i) for i in range(expr.shape[0])]
         lines.append(f"    out = np.empty({shape})")
         for ix, value in zip(index, reduced):
-            lines.append(f"    out[{ix}] = {printer.doprint(value)}")
+            lines.append(f"    out[{ix}] = {doprint(value)}")
         lines.append("    return out")
     return "\n".join(lines)
 
@@ -79,9 +82,13 @@ def generate_source(derived) -> str:
         "import numpy as np",
         "",
     ]
+    from csim.fast.codegen import _printer
+
+    doprint = _printer(derived, _Printer(), "python", str)
     for name, (args, attr, kind) in FUNCTIONS.items():
         if kind == "points":
             kind = f"points{derived.point_dim}"
-        chunks.append(_function_source(name, args, getattr(derived, attr), kind, unpack))
+        chunks.append(_function_source(name, args, getattr(derived, attr), kind, unpack, derived.intermediates,
+                                        doprint))
         chunks.append("")
     return "\n\n".join(chunks)

@@ -8,6 +8,7 @@ h, Phi_q, gamma and the load matrix B from it.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -342,6 +343,12 @@ class MechanismDefinition:
     sites : Sites or None
         Bodies, points and joints that force elements (``mechanism.forces``) may act on;
         None: the mechanism takes no force elements.
+    recursive : callable () -> csim.model.recursive.RecursiveTerms, or None
+        The same mechanism's kinematics link by link in named intermediates (a linkage
+        built from tables, :mod:`csim.linkage.recursive`): when given,
+        :func:`csim.model.derive.derive` assembles M, C qd, T, Phi, Phi_q and gamma from it
+        instead of differentiating the whole-mechanism T and Phi (same values, to round-off;
+        linear instead of steep growth with the number of links).
     """
 
     name: str
@@ -361,6 +368,7 @@ class MechanismDefinition:
     default_guess: dict[str, float] = field(default_factory=dict)
     figures: list[DeclaredFigure] = field(default_factory=list)
     sites: Sites | None = None
+    recursive: Callable | None = field(default=None, repr=False, compare=False)
 
     @property
     def coordinate_names(self) -> list[str]:

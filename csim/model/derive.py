@@ -18,12 +18,13 @@ with every term derived here from T(q, qd), V(q), Phi(q) and the load coordinate
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import sympy as sp
 
 from csim.model.definition import MechanismDefinition
 from csim.model.light import full_definition
+from csim.model.recursive import sparse_jacobian
 
 
 @dataclass
@@ -55,6 +56,10 @@ class DerivedModel:
     observable_jacobian: sp.Matrix
     points: sp.Matrix
     point_dim: int = 2
+    #: (symbol, expression) in order of definition: named intermediates that the terms
+    #: above may use (a mechanism built link by link, :mod:`csim.model.recursive`); the code
+    #: generators emit the ones a function needs before its body
+    intermediates: list = field(default_factory=list)
 
 
 #: expressions with more operations than this are left as they are: trigsimp's cost grows
@@ -94,6 +99,8 @@ def derive(definition: MechanismDefinition) -> DerivedModel:
 def _derive(definition: MechanismDefinition) -> DerivedModel:
     """:func:`derive`, every time."""
     definition = full_definition(definition)
+    if getattr(definition, "recursive", None) is not None:
+        return _derive_recursive(definition)
     q = sp.Matrix(definition.coordinates)
     qd = sp.Matrix(definition.velocities)
     T = sp.expand(definition.kinetic_energy)
@@ -112,10 +119,45 @@ def _derive(definition: MechanismDefinition) -> DerivedModel:
     Phi = sp.Matrix(definition.constraints) if definition.constraints else sp.zeros(0, 1)  # a tree: no constraints
     Phi_q = Phi.jacobian(q)
     gamma = (-(Phi_q * qd).jacobian(q) * qd).applyfunc(_simplify)
+    return _model(definition, M, Cqd, h, Phi, Phi_q, gamma, T, V)
+
+
+def _derive_recursive(definition: MechanismDefinition) -> DerivedModel:
+    """:func:`derive` of a mechanism built link by link (:mod:`csim.model.recursive`): M, C qd
+    and T from the bodies' Jacobians and bias accelerations, Phi, Phi_q and gamma by the chain
+    rule over the named intermediates; h = dV/dq, the loads, observables and points from the
+    definition's expressions as for any mechanism (no simplification: none pays at this size)."""
+    from csim.model.recursive import assemble, gradient
+
+    terms = definition.recursive()
+    if len(terms.phi) != len(definition.constraints):  # the definition's constraints were changed since
+        raise ValueError(f"{definition.name}: {len(terms.phi)} constraint equations link by link, "
+                         f"{len(definition.constraints)} in the definition; expected the same equations")
+    q = sp.Matrix(definition.coordinates)
+    m = len(q)
+    M, Cqd, T = assemble(terms, m)
+    V = definition.potential_energy
+    # h = dV/dq
+    h = gradient(V, list(q))
+    r = len(terms.phi)
+    Phi = sp.Matrix(terms.phi) if r else sp.zeros(0, 1)
+    Phi_q = sp.zeros(r, m)
+    for i, row in enumerate(terms.phi_q):
+        for j, value in row.items():
+            Phi_q[i, j] = value
+    gamma = sp.Matrix(terms.gamma) if r else sp.zeros(0, 1)
+    model = _model(definition, M, Cqd, h, Phi, Phi_q, gamma, T, V)
+    model.intermediates = terms.intermediates.items
+    return model
+
+
+def _model(definition, M, Cqd, h, Phi, Phi_q, gamma, T, V) -> DerivedModel:
+    """The :class:`DerivedModel` with the loads, observables and drawing points of ``definition``."""
+    q = sp.Matrix(definition.coordinates)
     s, S, B, f = _loads(definition, q)
     if definition.observables:
         obs = sp.Matrix([o.expression for o in definition.observables])
-        obs_q = obs.jacobian(q)
+        obs_q = sparse_jacobian(list(obs), list(q))  # = obs.jacobian(q), without the zero derivatives
     else:
         obs = sp.zeros(0, 1)
         obs_q = sp.zeros(0, len(q))
@@ -154,7 +196,7 @@ def _loads(definition: MechanismDefinition, q: sp.Matrix) -> tuple[sp.Matrix, sp
         return sp.zeros(0, 1), sp.zeros(len(q), 0), sp.zeros(len(q), 0), sp.zeros(0, 1)
     s = sp.Matrix([load.coordinate for load in loads])
     # S = ds/dq^T: the rates the switching laws watch, ds/dt = S^T qd
-    S = s.jacobian(q).T
+    S = sparse_jacobian(list(s), list(q)).T
     # B: b_k = ds_k/dq, or the load's own direction (virtual power u_k b_k . qd)
     columns = [S[:, k] if load.direction is None else sp.Matrix(list(load.direction)) for k, load in enumerate(loads)]
     for load, column in zip(loads, columns):

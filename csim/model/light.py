@@ -26,7 +26,7 @@ from csim.model.definition import MechanismDefinition, Parameter
 SNAPSHOT_VERSION = "1"
 
 #: the files every generated model depends on, beside the mechanism's own module
-MODEL_SOURCES = ("definition.py", "derive.py", "codegen.py", "cache.py", "light.py")
+MODEL_SOURCES = ("definition.py", "derive.py", "codegen.py", "cache.py", "light.py", "recursive.py")
 
 
 @dataclass(frozen=True)
