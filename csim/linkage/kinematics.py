@@ -2,15 +2,17 @@
 
 Given the driving variables u(t) (and their first two derivatives), the others v solve
 
-    Phi(u, v) = 0                         positions, Newton-Raphson (Gauss-Newton with the
-                                          minimum-norm step when Phi_v is not square)
+    Phi(u, v) = 0                         positions, Newton-Raphson along the assembly branch
     Phi_v vd  = -Phi_u ud                 velocities
     Phi_v vdd = gamma - Phi_u udd         accelerations, gamma = -(d(Phi_q qd)/dq) qd
 
-at every output time, each Newton start being the previous solution extrapolated with its
-velocity and acceleration. The result is a :class:`csim.result.Result` like a simulation's,
-with the quantities a kinematic analysis does not have (multipliers, loads, work) set to
-NaN and the run kind in its message.
+at every output time. It runs on what dynamics runs on: the mechanism's numeric model
+(:func:`csim.pipeline.numeric_model`) and the Newton solver and branch following of
+minimal coordinates (:mod:`csim.solver.newton`), with u the independent coordinates. The
+result is a :class:`csim.result.Result` like a simulation's, with the quantities a
+kinematic analysis does not have (multipliers, loads, work) set to NaN and the run kind in
+its message. :func:`solve_positions` (Gauss-Newton with minimum-norm steps) assembles a
+linkage's given configuration before any run, where the unknowns outnumber the equations.
 """
 from __future__ import annotations
 
@@ -90,15 +92,34 @@ def residual_report(labels: list[str], residual: np.ndarray) -> str:
     return "; ".join(f"{lab} = {val:.3e}" for lab, val in zip(labels, residual))
 
 
+def _drive_at(drive: Callable, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(u, ud, udd) at t, each (d,); raises ValueError naming the values when one is not finite."""
+    with np.errstate(all="ignore"):
+        u, ud, udd = (np.atleast_1d(np.asarray(x, dtype=float)) for x in drive(t))
+    if not (np.all(np.isfinite(u)) and np.all(np.isfinite(ud)) and np.all(np.isfinite(udd))):
+        raise ValueError(f"{KINEMATIC_RUN}: mechanism.drive is not finite at t = {t:.6g} s (the driving variables, "
+                         f"their rates and accelerations: {u.tolist()}, {ud.tolist()}, {udd.tolist()})")
+    return u, ud, udd
+
+
 def analyse_motion(model, par: np.ndarray, drive: Callable[[float], tuple[np.ndarray, np.ndarray, np.ndarray]],
                    driven: list[int], times: np.ndarray, q_guess: np.ndarray, labels: list[str],
                    tol: float = 1e-12, max_iter: int = 50, progress: Callable[[float], None] | None = None) -> dict:
-    """Kinematic analysis at the output times.
+    """Kinematic analysis at the output times, on the assembly branch of the start.
+
+    The driving variables u are the independent coordinates of a coordinate partition and
+    the others v the dependent ones, solved as ``stabilization.method: minimal`` solves
+    them (:mod:`csim.solver.newton` over the core :mod:`csim.physics.branch`): at the first
+    time by Newton-Raphson from ``q_guess``, then at each time along the assembly branch
+    from the previous solution (its second-order prediction, continuity checked, the way
+    cut in pieces where needed), so that the analysis never jumps to another closure.
+
+        Phi(u, v) = 0,   Phi_v vd = -Phi_u ud,   Phi_v vdd = gamma(q, qd) - Phi_u udd
 
     Parameters
     ----------
     model : csim.model.numeric.NumericModel
-        Its ``phi``, ``phi_q`` and ``gamma`` (the independent cut-joint equations).
+        The mechanism's model, as dynamics uses it (``phi``, ``phi_q``, ``gamma``).
     par : ndarray (n_par,)
     drive : callable t -> (u, ud, udd), each (d,)
         Driving variables [rad or m], their rates and second rates.
@@ -109,7 +130,7 @@ def analyse_motion(model, par: np.ndarray, drive: Callable[[float], tuple[np.nda
         Newton start at the first time (its driven entries are replaced by u(t0)).
     labels : list of str
         One per equation, for messages.
-    tol, max_iter : Newton settings.
+    tol, max_iter : Newton settings (tolerance on max |Phi|, corrections per solve).
     progress : callable t -> None, optional
 
     Returns
@@ -117,46 +138,43 @@ def analyse_motion(model, par: np.ndarray, drive: Callable[[float], tuple[np.nda
     dict with ``t`` (M,), ``q``, ``qd``, ``qdd`` (M, n), ``status``, ``message``, ``nsteps``
     (M <= N: a failure stops the analysis at the last solved time).
     """
+    from csim.solver.newton import BranchPoint, DependentSolveError, follow_branch, solve_dependent
+
     n = model.n_coordinates
-    driven = np.asarray(driven, dtype=int)
-    free = np.array([i for i in range(n) if i not in set(driven.tolist())], dtype=int)
+    ind = np.asarray(driven, dtype=int)
+    dep = np.setdiff1d(np.arange(n), ind)
     N = times.size
     q_out, qd_out, qdd_out = np.zeros((N, n)), np.zeros((N, n)), np.zeros((N, n))
     status, message = "success", f"{KINEMATIC_RUN}: prescribed drive; lambda, loads, work are NaN"
-    start = np.array(q_guess, dtype=float)
-    done = 0
+    point, done = None, 0
     for k, t in enumerate(times):
-        with np.errstate(all="ignore"):
-            u, ud, udd = (np.atleast_1d(np.asarray(x, dtype=float)) for x in drive(t))
-        if not (np.all(np.isfinite(u)) and np.all(np.isfinite(ud)) and np.all(np.isfinite(udd))):
-            status = "failed"
-            message = (f"{KINEMATIC_RUN}: mechanism.drive is not finite at t = {t:.6g} s (the driving variables, "
-                       f"their rates and accelerations: {u.tolist()}, {ud.tolist()}, {udd.tolist()})")
+        try:
+            u, ud, udd = _drive_at(drive, t)
+            if point is None:  # the start: Newton from the guess, then the branch through its solution
+                start = np.array(q_guess, dtype=float)
+                start[ind] = u
+                sol = solve_dependent(model, par, start, dep, tol, max_iter)
+                point = BranchPoint.at(sol.q, sol.phi_q, ind, dep)
+            else:
+                sol, point = follow_branch(model, par, point, u, ind, dep, tol, max_iter)
+        except ValueError as exc:
+            status, message = "failed", str(exc)
             break
-        if k > 0:
-            h = t - times[k - 1]
-            start = q_out[k - 1] + h * qd_out[k - 1] + 0.5 * h * h * qdd_out[k - 1]
-        start[driven] = u
-        sol = solve_positions(lambda q: model.phi(q, par), lambda q: model.phi_q(q, par), start, free, tol, max_iter)
-        if not sol.converged:
-            status = "failed"
-            message = (f"{KINEMATIC_RUN}: the mechanism cannot be assembled at t = {t:.6g} s (Newton-Raphson did "
-                       f"not converge in {max_iter} iterations); residuals: {residual_report(labels, sol.residual)}")
+        except DependentSolveError as exc:
+            status, message = "failed", _assembly_message(exc, t, max_iter, labels)
             break
-        q = sol.q
-        J = model.phi_q(q, par)
-        Jv, Ju = J[:, free], J[:, driven]
-        if Jv.shape[0] != Jv.shape[1] or np.linalg.cond(Jv) > 1e12:
+        q, J = sol.q, sol.phi_q
+        Jv, Ju = J[:, dep], J[:, ind]
+        if np.linalg.cond(Jv) > 1e12:
             status = "failed"
             message = (f"{KINEMATIC_RUN}: Phi_v is singular at t = {t:.6g} s: the driving variables cannot move the "
                        f"mechanism here (a singular position)")
             break
-        qd = np.zeros(n)
-        qd[driven] = ud
-        qd[free] = np.linalg.solve(Jv, -Ju @ ud)
-        qdd = np.zeros(n)
-        qdd[driven] = udd
-        qdd[free] = np.linalg.solve(Jv, model.gamma(q, qd, par) - Ju @ udd)
+        # Phi_v vd = -Phi_u ud;  Phi_v vdd = gamma(q, qd) - Phi_u udd
+        qd, qdd = np.zeros(n), np.zeros(n)
+        qd[ind], qdd[ind] = ud, udd
+        qd[dep] = np.linalg.solve(Jv, -Ju @ ud)
+        qdd[dep] = np.linalg.solve(Jv, model.gamma(q, qd, par) - Ju @ udd)
         q_out[k], qd_out[k], qdd_out[k] = q, qd, qdd
         done = k + 1
         if progress is not None:
@@ -165,69 +183,30 @@ def analyse_motion(model, par: np.ndarray, drive: Callable[[float], tuple[np.nda
                 message=message, nsteps=done)
 
 
-class KinematicModel:
-    """The terms a kinematic analysis needs, compiled straight from a MechanismDefinition.
+#: why a position solve failed (csim.solver.newton.DependentSolveError.reason), for messages
+_WHY = {
+    "singular": "Phi_v is singular on the way there: the driving variables cannot move the mechanism through this "
+                "position (a singular position, or the assembly branch folds back)",
+    "non_finite": "the constraint equations are not finite there",
+    "branch": "Newton's solution left the assembly branch of the start",
+}
 
-    Same call signatures as :class:`csim.model.numeric.NumericModel` (``phi(q, par)`` (r,),
-    ``phi_q(q, par)`` (r, m), ``gamma(q, qd, par)`` (r,), energies [J], observables), but
-    without the mass matrix and without simplification: gamma = -(d(Phi_q qd)/dq) qd is
-    lambdified with common-subexpression elimination, so that spatial loops (whose
-    equations have hundreds of terms) compile in seconds.
-    """
 
-    def __init__(self, definition):
-        import sympy as sp
-
-        self.definition = definition
-        q, qd = list(definition.coordinates), list(definition.velocities)
-        par = definition.parameter_symbols
-        phi = sp.Matrix(definition.constraints) if definition.constraints else sp.zeros(0, 1)
-        phi_q = phi.jacobian(q) if definition.constraints else sp.zeros(0, len(q))
-        gamma = -(phi_q * sp.Matrix(qd)).jacobian(q) * sp.Matrix(qd) if definition.constraints else sp.zeros(0, 1)
-        obs = sp.Matrix([o.expression for o in definition.observables]) if definition.observables else sp.zeros(0, 1)
-        obs_q = obs.jacobian(q) if definition.observables else sp.zeros(0, len(q))
-        self._phi = sp.lambdify([q, par], phi, "numpy", cse=True)
-        self._phi_q = sp.lambdify([q, par], phi_q, "numpy", cse=True)
-        self._gamma = sp.lambdify([q, qd, par], gamma, "numpy", cse=True)
-        self._T = sp.lambdify([q, qd, par], definition.kinetic_energy, "numpy", cse=True)
-        self._V = sp.lambdify([q, par], definition.potential_energy, "numpy", cse=True)
-        self._obs = sp.lambdify([q, par], obs, "numpy", cse=True)
-        self._obs_q = sp.lambdify([q, par], obs_q, "numpy", cse=True)
-        self.n_coordinates, self.n_constraints, self.n_loads = len(q), phi.shape[0], len(definition.loads)
-        self._o = obs.shape[0]
-
-    def parameter_vector(self, values: dict[str, float] | None = None) -> np.ndarray:
-        values = values or {}
-        return np.array([float(values.get(p.name, p.default)) for p in self.definition.parameters])
-
-    def phi(self, q, par):
-        return np.asarray(self._phi(list(q), list(par)), dtype=float).reshape(self.n_constraints)
-
-    def phi_q(self, q, par):
-        return np.asarray(self._phi_q(list(q), list(par)), dtype=float).reshape(self.n_constraints,
-                                                                                 self.n_coordinates)
-
-    def gamma(self, q, qd, par):
-        return np.asarray(self._gamma(list(q), list(qd), list(par)), dtype=float).reshape(self.n_constraints)
-
-    def kinetic_energy(self, q, qd, par):
-        return float(self._T(list(q), list(qd), list(par)))
-
-    def potential_energy(self, q, par):
-        return float(self._V(list(q), list(par)))
-
-    def observables(self, q, par):
-        return np.asarray(self._obs(list(q), list(par)), dtype=float).reshape(self._o)
-
-    def observable_jacobian(self, q, par):
-        return np.asarray(self._obs_q(list(q), list(par)), dtype=float).reshape(self._o, self.n_coordinates)
+def _assembly_message(exc, t: float, max_iter: int, labels: list[str]) -> str:
+    """Why the positions could not be solved at t (from a DependentSolveError), for the result's message."""
+    why = _WHY.get(exc.reason, f"Newton-Raphson did not converge in {max_iter} iterations")
+    if exc.reason == "branch":
+        why += f": {exc.detail}"
+    phi = np.asarray(exc.phi, dtype=float)
+    residuals = f"; residuals: {residual_report(labels, phi)}" if phi.size == len(labels) else ""
+    return f"{KINEMATIC_RUN}: the mechanism cannot be assembled at t = {t:.6g} s ({why}){residuals}"
 
 
 def run_kinematics(case, model=None, progress: Callable[[float], None] | None = None) -> Result:
     """Kinematic analysis of a link-coupling case with ``mechanism.drive``, as a Result.
 
-    ``model`` supplies phi, phi_q, gamma, energies and observables (default: a
-    :class:`KinematicModel` of the case's mechanism).
+    ``model`` supplies phi, phi_q, gamma, energies and observables (default: the case's
+    numeric model, the one dynamics runs on: :func:`csim.pipeline.numeric_model`).
 
     Recorded: q, qd, qdd, Phi, Phi_q qd, kinetic and potential energy (when the links have
     mass), observables. NaN: lambda, loads, work, generalized forces (a kinematic analysis
@@ -235,7 +214,10 @@ def run_kinematics(case, model=None, progress: Callable[[float], None] | None = 
     """
     start_time = time.perf_counter()
     linkage = case.linkage
-    model = model if model is not None else KinematicModel(case.mechanism)
+    if model is None:
+        from csim.pipeline import numeric_model
+
+        model = numeric_model(case)
     par = model.parameter_vector(case.parameters)
     t_end, dt = case.simulation.t_end, case.output.dt
     count = int(np.floor(t_end / dt + 1e-9)) + 1
