@@ -41,3 +41,20 @@ def inline_kernel(fn):
     as constants fix its loop lengths (the KKT solve of a right-hand side: about 0.6x the time of a
     call). Only for the few functions on the right-hand side's path: inlining costs compile time."""
     return fn if _NJIT is None else _NJIT(inline="always", **NJIT_OPTIONS)(fn)
+
+
+def jitable(fn):
+    """Decorator for a core function that evaluates the model (:mod:`csim.physics.model`): ``fn`` itself
+    to a Python caller, compiled into the compiled callers that call it.
+
+    The Python driver passes a Python model object (the functions of :mod:`csim.physics.model`
+    call its methods); the compiled kernels pass their tuple (model functions called through
+    their addresses, :mod:`csim.fast.kernels`), for which the kernels overload those functions.
+    The function is compiled as part of each compiled caller (numba's ``register_jitable``), so
+    it is cached with the caller, never on its own. It must not allocate.
+    """
+    if _NJIT is None:
+        return fn
+    from numba.extending import register_jitable
+
+    return register_jitable(error_model="numpy", _nrt=False)(fn)
