@@ -37,7 +37,7 @@ import os
 import numpy as np
 from llvmlite import ir
 from numba import njit, types
-from numba.extending import intrinsic
+from numba.extending import intrinsic, overload
 
 from csim.fast.layout import (
     F_JAC,
@@ -63,6 +63,8 @@ from csim.fast.layout import (
     PI_NO,
     PI_NQ,
     PI_NSW,
+    PI_SYS,
+    PARTITIONED,
     W_A,
     W_B,
     W_COL,
@@ -79,6 +81,7 @@ from csim.fast.layout import (
     W_M,
     W_M2,
     W_P,
+    W_PART,
     W_PD,
     W_PHI,
     W_S,
@@ -91,10 +94,13 @@ from csim.fast.layout import (
     W_X,
     W_Z,
 )
+from csim.physics import branch
 from csim.physics.events import check_chatter
 from csim.physics.jit import NJIT_OPTIONS
 from csim.physics.kkt import constraint_rates, generalized_forces, kkt_solve
 from csim.physics.loads import load_rates, load_values, mode_of, switching_functions
+from csim.physics.model import model_gamma, model_jacobian, model_mass, model_phi
+from csim.physics.partition import C_PENDING, D_HEAD, partition_sizes, partition_state
 from csim.physics.projection import at_round_off, correction, invert, max_abs
 from csim.physics.status import (
     MAX_EVENTS,
@@ -109,6 +115,7 @@ from csim.physics.status import (
     SINGULAR_MASS,
     STEP_TOO_SMALL,
 )
+
 from csim.physics.steps import all_finite, check_step
 from csim.solver.methods.baumgarte import baumgarte_gamma_star
 from csim.solver.methods.sliding_mode import sliding_mode_gamma_star
@@ -271,6 +278,145 @@ def observe(y, par, pi, out):
     _call_model(pi[PI_FN + F_OBSERVE], 0.0, y, par, out)
 
 
+# ---------------------------------------------------------------------------------------
+# the core's model handle (csim.physics.model) in the kernels: the tuple (par, pi, w, ym),
+# ym a state [q, qd, W] to call the model functions at
+# ---------------------------------------------------------------------------------------
+#: the compile options of the overloads (as the kernels', less the cache: they compile into their callers)
+CALL_OPTIONS = dict(error_model="numpy", _nrt=False)
+
+
+def _is_handle(model):
+    return isinstance(model, types.BaseTuple)
+
+
+@overload(model_phi, jit_options=CALL_OPTIONS, strict=False)
+def _model_phi(model, q, out):
+    if _is_handle(model):
+        def impl(model, q, out):
+            par, pi, w, ym = model
+            for i in range(q.size):
+                ym[i] = q[i]
+            phi_(ym, par, pi, w)
+            for i in range(out.size):
+                out[i] = w[pi[W_PHI] + i]
+        return impl
+    return None
+
+
+@overload(model_jacobian, jit_options=CALL_OPTIONS, strict=False)
+def _model_jacobian(model, q, out):
+    if _is_handle(model):
+        def impl(model, q, out):
+            par, pi, w, ym = model
+            for i in range(q.size):
+                ym[i] = q[i]
+            jac(ym, par, pi, w)
+            for i in range(out.size):
+                out[i] = w[pi[W_J] + i]
+        return impl
+    return None
+
+
+@overload(model_gamma, jit_options=CALL_OPTIONS, strict=False)
+def _model_gamma(model, q, qd, out):
+    if _is_handle(model):
+        def impl(model, q, qd, out):
+            par, pi, w, ym = model
+            m = q.size
+            for i in range(m):
+                ym[i] = q[i]
+                ym[m + i] = qd[i]
+            terms(0.0, ym, par, pi, w)
+            for i in range(out.size):
+                out[i] = w[pi[W_GAM] + i]
+        return impl
+    return None
+
+
+@overload(model_mass, jit_options=CALL_OPTIONS, strict=False)
+def _model_mass(model, q, out):
+    if _is_handle(model):
+        def impl(model, q, out):
+            par, pi, w, ym = model
+            for i in range(q.size):
+                ym[i] = q[i]
+            mass(ym, par, pi, w)
+            for i in range(out.size):
+                out[i] = w[pi[W_M] + i]
+        return impl
+    return None
+
+
+# ---------------------------------------------------------------------------------------
+# the partitioned system (minimal coordinates): its state in w and piv, the core's calls
+# ---------------------------------------------------------------------------------------
+@hot
+def _partition(pi, w, piv):
+    """The partition's state (csim.physics.partition.Partition) as views of w and piv."""
+    m, r = pi[PI_NQ], pi[PI_NC]
+    return partition_state(w[pi[W_PART]:pi[W_END]], piv[m + r:], m, r, pi[PI_NL])
+
+
+@hot
+def _partition_call(par, pf, pi, w, piv):
+    """(handle, P, r, m, k, tol, max_iter, max_condition): what every core call of csim.physics.branch takes.
+
+    The method's settings (csim.solver.methods.minimal): fpar = [tol, max_condition], ipar = [max_iter].
+    """
+    P = _partition(pi, w, piv)
+    fpar, ipar = pf[pi[PI_FPAR]:], pi[pi[PI_IPAR]:]
+    return (par, pi, w, P.ym), P, pi[PI_NC], pi[PI_NQ], pi[PI_NL], fpar[0], ipar[0], fpar[1]
+
+
+@hot
+def full_state(y, par, pf, pi, w, piv):
+    """(code, the full state [q, qd, W] of the integrated state y): y itself, or for the partitioned
+    system its dependent coordinates solved on the branch (csim.physics.branch.to_full), in P.yf."""
+    if pi[PI_SYS] != PARTITIONED:
+        return OK, y
+    model, P, r, m, k, tol, max_iter, _ = _partition_call(par, pf, pi, w, piv)
+    return branch.to_full(model, P, y, P.yf, r, m, k, tol, max_iter), P.yf
+
+
+@hot
+def _partitioned_rhs(t, y, mode, located, par, pf, pi, w, piv, f):
+    """dy/dt = [ud, udd, dW/dt] (2 n + k,) of the partitioned system: the rhs at the full state, reduced."""
+    code, yf = full_state(y, par, pf, pi, w, piv)
+    if code != OK:
+        return code
+    P = _partition(pi, w, piv)
+    code = rhs(t, yf, mode, located, par, pf, pi, w, piv, P.ff)
+    if code == OK:
+        branch.reduce(P, P.ff, f, pi[PI_NC], pi[PI_NQ], pi[PI_NL])
+    return code
+
+
+@hot
+def _partition_after_step(y, par, pf, pi, w, piv):
+    """csim.physics.branch.after_step at the accepted state y: (code, restart)."""
+    model, P, r, m, k, tol, max_iter, max_condition = _partition_call(par, pf, pi, w, piv)
+    return branch.after_step(model, P, y, r, m, k, tol, max_iter, max_condition)
+
+
+@hot
+def _repartition(y, par, pf, pi, w, piv):
+    """csim.physics.branch.repartition from the accepted state y after a breakdown; returns the code."""
+    model, P, r, m, k, tol, max_iter, _ = _partition_call(par, pf, pi, w, piv)
+    return branch.repartition(model, P, y, r, m, k, tol, max_iter)
+
+
+@hot
+def _pending(pi, w, piv):
+    """The breakdown of a full state met where no code could be returned (a switching function's value), cleared."""
+    if pi[PI_SYS] != PARTITIONED:
+        return OK
+    P = _partition(pi, w, piv)
+    code = P.count[C_PENDING]
+    P.count[C_PENDING] = OK
+    return code
+
+
 # the stabilization methods' gamma*: the built-in ones by code, any other through its address
 #: method code -> gamma* kernel (csim.fast.module.method_code reads this)
 BUILTIN_GAMMA = (baumgarte_gamma_star, sliding_mode_gamma_star)
@@ -306,11 +452,15 @@ def switching_from(y, pf, pi, w):
 
 
 @hot
-def mode_at(y, par, pf, pi, w, mode):
-    """The load-law conditions that hold at state y (switching functions left in w[W_G:])."""
-    loads_(y, par, pi, w)
-    switching_from(y, pf, pi, w)
+def mode_at(y, par, pf, pi, w, piv, mode):
+    """The load-law conditions that hold at state y (switching functions left in w[W_G:]); returns the code."""
+    code, yv = full_state(y, par, pf, pi, w, piv)
+    if code != OK:
+        return code
+    loads_(yv, par, pi, w)
+    switching_from(yv, pf, pi, w)
     mode_of(w[pi[W_G]:pi[W_G] + pi[PI_NSW]], mode)
+    return OK
 
 
 @sized
@@ -371,7 +521,10 @@ def rhs(t, y, mode, located, par, pf, pi, w, piv, f):
 @hot
 def feval(t, y, mode, located, par, pf, pi, w, piv, f, info):
     """rhs plus the driver's check of a non-finite result (info = [t, max |y|] then)."""
-    code = rhs(t, y, mode, located, par, pf, pi, w, piv, f)
+    if pi[PI_SYS] == PARTITIONED:
+        code = _partitioned_rhs(t, y, mode, located, par, pf, pi, w, piv, f)
+    else:
+        code = rhs(t, y, mode, located, par, pf, pi, w, piv, f)
     if code == OK and not all_finite(f):
         code = NONFINITE_RHS
     if code != OK:
@@ -478,23 +631,27 @@ def dense_eval(kind, tau, t_old, h, y_old, F, out):
 
 
 @hot
-def _g_at(j, tau, kind, t_old, h, y_old, F, par, pf, pi, w, ytmp):
-    """Switching function j on the dense output at tau."""
+def _g_at(j, tau, kind, t_old, h, y_old, F, par, pf, pi, w, piv, ytmp):
+    """Switching function j on the dense output at tau (NaN, and the code pending, where the full state fails)."""
     dense_eval(kind, tau, t_old, h, y_old, F, ytmp)
-    loads_(ytmp, par, pi, w)
-    switching_from(ytmp, pf, pi, w)
+    code, yv = full_state(ytmp, par, pf, pi, w, piv)
+    if code != OK:
+        _partition(pi, w, piv).count[C_PENDING] = code
+        return np.nan
+    loads_(yv, par, pi, w)
+    switching_from(yv, pf, pi, w)
     return w[pi[W_G] + j]
 
 
 @hot
-def brentq(j, xa, xb, kind, t_old, h, y_old, F, par, pf, pi, w, ytmp):
+def brentq(j, xa, xb, kind, t_old, h, y_old, F, par, pf, pi, w, piv, ytmp):
     """scipy's brentq (xtol = rtol = 4 eps, 100 iterations) on switching function j: (root, ok)."""
     xtol = 4 * EPS
     rtol = 4 * EPS
     xpre, xcur = xa, xb
     xblk, fblk, spre, scur = 0.0, 0.0, 0.0, 0.0
-    fpre = _g_at(j, xpre, kind, t_old, h, y_old, F, par, pf, pi, w, ytmp)
-    fcur = _g_at(j, xcur, kind, t_old, h, y_old, F, par, pf, pi, w, ytmp)
+    fpre = _g_at(j, xpre, kind, t_old, h, y_old, F, par, pf, pi, w, piv, ytmp)
+    fcur = _g_at(j, xcur, kind, t_old, h, y_old, F, par, pf, pi, w, piv, ytmp)
     if fpre == 0:
         return xpre, True
     if fcur == 0:
@@ -539,7 +696,7 @@ def brentq(j, xa, xb, kind, t_old, h, y_old, F, par, pf, pi, w, ytmp):
             xcur += scur
         else:
             xcur += delta if sbis > 0 else -delta
-        fcur = _g_at(j, xcur, kind, t_old, h, y_old, F, par, pf, pi, w, ytmp)
+        fcur = _g_at(j, xcur, kind, t_old, h, y_old, F, par, pf, pi, w, piv, ytmp)
     return xcur, True
 
 
@@ -758,7 +915,7 @@ def _ensure_dense(dense_ready, dense_kind, t_old, h, y_old, y, f, mode, locate, 
 # events: where a switching function leaves the sign its mode says
 # ---------------------------------------------------------------------------------------
 @hot
-def _locate(a, b, dense_kind, t_old, h, y_old, FF, mode, mode_b, par, pf, pi, w, ytmp, roots,
+def _locate(a, b, dense_kind, t_old, h, y_old, FF, mode, mode_b, par, pf, pi, w, piv, ytmp, roots,
             has_root, info):
     """Earliest zero in (a, b] of the switching functions whose mode differs at b. Returns (status, t_event).
 
@@ -769,9 +926,15 @@ def _locate(a, b, dense_kind, t_old, h, y_old, FF, mode, mode_b, par, pf, pi, w,
     for jj in range(pi[PI_NSW]):
         has_root[jj] = False
         if mode_b[jj] != mode[jj]:
-            g_old = _g_at(jj, a, dense_kind, t_old, h, y_old, FF, par, pf, pi, w, ytmp)
+            g_old = _g_at(jj, a, dense_kind, t_old, h, y_old, FF, par, pf, pi, w, piv, ytmp)
+            pending = _pending(pi, w, piv)
+            if pending != OK:
+                return pending, t_event
             if (g_old > 0) == mode[jj]:
-                root, ok = brentq(jj, a, b, dense_kind, t_old, h, y_old, FF, par, pf, pi, w, ytmp)
+                root, ok = brentq(jj, a, b, dense_kind, t_old, h, y_old, FF, par, pf, pi, w, piv, ytmp)
+                pending = _pending(pi, w, piv)
+                if pending != OK:
+                    return pending, t_event
                 if not ok:
                     info[0] = t_old + h
                     return NO_SIGN_CHANGE, t_event
@@ -807,7 +970,9 @@ def _find_event(ts_, n_interior, dense_kind, y_old, y, f_new, mode, mode_b, rmod
                 return status, False
             dense[0] = True
             dense_eval(dense_kind, b, t_old, h, y_old, FF, ytmp)
-        mode_at(ytmp, par, pf, pi, w, mode_b)
+        status = mode_at(ytmp, par, pf, pi, w, piv, mode_b)
+        if status != OK:
+            return status, False
         found = False
         for jj in range(pi[PI_NSW]):
             if mode_b[jj] != mode[jj]:
@@ -819,8 +984,8 @@ def _find_event(ts_, n_interior, dense_kind, y_old, y, f_new, mode, mode_b, rmod
                 return status, False
             dense[0] = True
             a = t_old if rep == 0 else t_old + (t - t_old) * rep / (n_interior + 1)
-            status, t_event = _locate(a, b, dense_kind, t_old, h, y_old, FF, mode, mode_b, par, pf, pi, w, ytmp, roots,
-                                      has_root, info)
+            status, t_event = _locate(a, b, dense_kind, t_old, h, y_old, FF, mode, mode_b, par, pf, pi, w, piv, ytmp,
+                                      roots, has_root, info)
             if status != OK:
                 return status, False
             ts_[T_STOP] = t_event
@@ -852,7 +1017,10 @@ def _sample(ts_, t_out, dense_kind, y_old, y, f_new, mode, rmode, locate, projec
                 return code
             copy_row(yp, ys, cs[N_REC])
         else:
-            copy_row(ytmp, ys, cs[N_REC])
+            code, yv = full_state(ytmp, par, pf, pi, w, piv)
+            if code != OK:
+                return code
+            copy_row(yv, ys, cs[N_REC])
         tr[cs[N_REC]] = t_i
         for jj in range(mode.size):
             modes[cs[N_REC], jj] = mode[jj]
@@ -911,22 +1079,48 @@ def _record_event(t, mode, roots, has_root, ev_t, ev_sw, n_ev):
 # the integration loop (csim.solver.simulate.integrate)
 # ---------------------------------------------------------------------------------------
 @hot
-def _start(y, yp, mode, projects, par, pf, pi, w, piv, tr, ys, modes, info):
-    """Project the initial state (projection), find its mode and record it. Returns the status."""
+def _max_phi(y, par, pf, pi, w, piv):
+    """(code, max |Phi|) at the integrated state y (NaN where y is not finite: the step check says so)."""
+    if not all_finite(y):
+        return OK, np.nan
+    code, yv = full_state(y, par, pf, pi, w, piv)
+    if code != OK:
+        return code, np.nan
+    phi_(yv, par, pi, w)
+    return OK, max_abs(w[pi[W_PHI]:pi[W_PHI] + pi[PI_NC]])
+
+
+@hot
+def _start(y0, y, yp, mode, projects, par, pf, pi, w, piv, tr, ys, modes, info):
+    """The integrated state y from the full initial state y0: projected (projection), partitioned and reduced
+    (minimal), else y0 itself; then its mode, and the record of it. Returns the status."""
+    if pi[PI_SYS] == PARTITIONED:
+        model, P, r, m, k, tol, max_iter, _ = _partition_call(par, pf, pi, w, piv)
+        code = branch.start(model, P, y0, y, r, m, k, tol, max_iter)
+        if code != OK:
+            return code
+    else:
+        for i in range(y.size):
+            y[i] = y0[i]
     if projects:
         code = project(y, yp, 0.0, par, pf, pi, w, piv, info)
         if code != OK:
             return code
         for i in range(y.size):
             y[i] = yp[i]
-    mode_at(y, par, pf, pi, w, mode)
+    code = mode_at(y, par, pf, pi, w, piv, mode)
+    if code != OK:
+        return code
     if projects:  # the recorded sample, projected as every recorded sample is
         code = project(y, yp, 0.0, par, pf, pi, w, piv, info)
         if code != OK:
             return code
         copy_row(yp, ys, 0)
     else:
-        copy_row(y, ys, 0)
+        code, yv = full_state(y, par, pf, pi, w, piv)
+        if code != OK:
+            return code
+        copy_row(yv, ys, 0)
     tr[0] = 0.0
     for jj in range(mode.size):
         modes[0, jj] = mode[jj]
@@ -938,9 +1132,12 @@ def _start_segment(method, ts_, y, f, t_end, rtol, atol, max_step, first_step, t
                    ytmp, f1, scl, cs, info):
     """Start the integrator at (t, y): tolerances, f(t, y), and DOP853's first step. Returns the status."""
     n = y.size
-    scale_w = max(1.0, abs(kinetic(y, par, pi, w)))  # the work states are in J: atol scaled to the energy
+    status, yv = full_state(y, par, pf, pi, w, piv)
+    if status != OK:
+        return status
+    scale_w = max(1.0, abs(kinetic(yv, par, pi, w)))  # the work states are in J: atol scaled to the energy
     for i in range(n):
-        tolv[i] = atol * scale_w if i >= 2 * pi[PI_NQ] else atol
+        tolv[i] = atol * scale_w if i >= n - pi[PI_NL] else atol
     cs[NFEV] += 1
     status = feval(ts_[T], y, rmode, locate, par, pf, pi, w, piv, f,
                    info)
@@ -982,19 +1179,31 @@ def _take_step(method, ts_, t_end, rtol, tolv, fixed_h, max_step, y, f, K, ytmp,
 
 @hot
 def _after_step(ts_, y, f, f_new, yp, projects, par, pf, pi, rmode, locate, w, piv, cs, info):
-    """Go on from the accepted step: project and hand the state back (projection), else keep f_new."""
+    """Go on from the accepted step: project and hand the state back (projection); anchor the branch and
+    maybe choose the partition again (minimal); else keep f_new. Returns (status, restart)."""
+    if pi[PI_SYS] == PARTITIONED:
+        code, restart = _partition_after_step(y, par, pf, pi, w, piv)
+        if code != OK or restart:
+            return code, restart
     if not projects:
         for i in range(y.size):
             f[i] = f_new[i]
-        return OK
+        return OK, False
     code = project(y, yp, ts_[T], par, pf, pi, w, piv, info)
     if code != OK:
-        return code
+        return code, False
     for i in range(y.size):
         y[i] = yp[i]
     cs[NFEV] += 1
-    return feval(ts_[T], y, rmode, locate, par, pf, pi, w, piv, f,
-                 info)
+    return feval(ts_[T], y, rmode, locate, par, pf, pi, w, piv, f, info), False
+
+
+@hot
+def _accept(ts_, y, ya):
+    """ya = y, the state a restart goes back to after a breakdown of the partition; returns its time."""
+    for i in range(y.size):
+        ya[i] = y[i]
+    return ts_[T]
 
 
 @njit(cache=True, error_model="numpy")
@@ -1009,25 +1218,30 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset):
     locate, n_interior, max_events, max_steps, n_chatter = iset[0] != 0, iset[1], iset[2], iset[3], iset[4]
     t_end, rtol, atol, fixed_h, max_step, first_step, max_phi, min_step = fset[0], fset[1], fset[2], fset[3], \
         fset[4], fset[5], fset[6], fset[7]
-    n, n_sw = y0.size, pi[PI_NSW]
+    partitioned = pi[PI_SYS] == PARTITIONED
+    n_free = pi[PI_NQ] - pi[PI_NC] if partitioned else pi[PI_NQ]  # the integrated state: 2 n_free + k
+    n, n_sw = 2 * n_free + pi[PI_NL], pi[PI_NSW]
     w = np.zeros(pi[W_END])
-    piv = np.zeros(pi[PI_NQ] + pi[PI_NC], np.int64)
-    tr, ys, modes = np.empty(t_out.size), np.empty((t_out.size, n)), np.zeros((t_out.size, n_sw), np.bool_)
+    # the KKT solve's pivots, then the partition's integers
+    piv = np.zeros(pi[PI_NQ] + pi[PI_NC] + partition_sizes(pi[PI_NQ], pi[PI_NC], pi[PI_NL])[1], np.int64)
+    tr, ys, modes = np.empty(t_out.size), np.empty((t_out.size, y0.size)), np.zeros((t_out.size, n_sw), np.bool_)
     ev_t, ev_sw = np.empty(16), np.zeros((16, n_sw), np.bool_)
-    info, ts_, cs = np.zeros(2), np.zeros(6), np.zeros(6, np.int64)
-    y, ytmp, yp, f, f_new, y_new, y_old = y0.copy(), np.empty(n), np.empty(n), np.empty(n), np.empty(n), \
-        np.empty(n), np.empty(n)
+    info, ts_, cs = np.zeros(2 + D_HEAD + 2 * n_free), np.zeros(6), np.zeros(6, np.int64)
+    y, ytmp, yp, f, f_new, y_new, y_old, ya = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), \
+        np.empty(n), np.empty(n), np.empty(n)
     K, F, Fh = np.empty((DOP_NX, n)), np.empty((DOP_POWER, n)), np.empty((4, n))
     tolv, scl = np.empty(n), np.empty(n)
     mode, mode_b = np.zeros(n_sw, np.bool_), np.zeros(n_sw, np.bool_)
     rmode = mode if locate else np.zeros(n_sw, np.bool_)  # the right-hand side's mode, or a scratch it overwrites
     roots, has_root, dense = np.empty(n_sw), np.zeros(n_sw, np.bool_), np.zeros(1, np.bool_)
-    status = _start(y, yp, mode, projects, par, pf, pi, w, piv, tr, ys, modes, info)
+    status = _start(y0, y, yp, mode, projects, par, pf, pi, w, piv, tr, ys, modes, info)
     cs[I_OUT] = 1
     if status == OK:
         cs[N_REC] = 1
+    t_a = 0.0
     while status == OK and ts_[T] < t_end:
         restarted = False
+        t_a = _accept(ts_, y, ya)
         status = _start_segment(method, ts_, y, f, t_end, rtol, atol, max_step, first_step, tolv, par, pf, pi, rmode,
                                 locate, w, piv, ytmp, f_new, scl, cs,
                                 info)
@@ -1050,9 +1264,10 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset):
                 y_old[i] = y[i]
                 y[i] = y_new[i]
             ts_[T] = t_new
-            phi_(y, par, pi, w)
-            status = check_step(y, max_abs(w[pi[W_PHI]:pi[W_PHI] + pi[PI_NC]]), ts_[HSTEP], t_new, t_end,
-                                method == DOP853, max_phi, min_step, info)
+            status, max_phi_now = _max_phi(y, par, pf, pi, w, piv)
+            if status != OK:
+                break
+            status = check_step(y, max_phi_now, ts_[HSTEP], t_new, t_end, method == DOP853, max_phi, min_step, info)
             if status != OK:
                 break
             if dense_kind == RK4:  # the cubic Hermite interpolant's data
@@ -1080,7 +1295,14 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset):
                                       info)
                 if status != OK:
                     break
+                t_a = _accept(ts_, y, ya)
                 ev_t, ev_sw = _record_event(ts_[T], mode, roots, has_root, ev_t, ev_sw, cs[N_EV])
+                if partitioned:  # anchor at the event state, maybe in a new partition
+                    status, _ = _partition_after_step(y, par, pf, pi, w, piv)
+                    if status != OK:
+                        for jj in range(n_sw):  # the event is not recorded (its conditions stay flipped)
+                            ev_sw[cs[N_EV], jj] = False
+                        break
                 cs[N_EV] += 1
                 status = check_chatter(ev_t, cs[N_EV], n_chatter, min_step, info)
                 if status != OK:
@@ -1091,11 +1313,27 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset):
                     break
                 restarted = True
                 break
-            status = _after_step(ts_, y, f, f_new, yp, projects, par, pf, pi, rmode, locate, w, piv, cs, info)
+            status, restart = _after_step(ts_, y, f, f_new, yp, projects, par, pf, pi, rmode, locate, w, piv, cs, info)
+            if status == OK:
+                t_a = _accept(ts_, y, ya)
+            if restart:
+                restarted = True
+                break
             if t_new >= t_end:
                 break
+        if partitioned and branch.is_breakdown(status):
+            # a stage left the region of the partition: restart from the last accepted state
+            ts_[T] = t_a
+            for i in range(n):
+                y[i] = ya[i]
+            status = _repartition(y, par, pf, pi, w, piv)
+            restarted = status == OK
         if not restarted:
             break
+    if partitioned and status != OK:  # the partition's failure details, for the message
+        detail = _partition(pi, w, piv).detail
+        for i in range(detail.size):
+            info[2 + i] = detail[i]
     return cs[N_REC], tr, ys, modes, cs[N_EV], ev_t, ev_sw, cs[NFEV], cs[NSTEPS], status, info
 
 

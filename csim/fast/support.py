@@ -46,8 +46,7 @@ def unsupported(data: dict) -> list[str]:
                        f"only (the elimination gives the same motion in exact arithmetic); use 'kkt'")
     method = data.get("stabilization", {}).get("method")
     if method is not None and method not in compiled_stabilizers():
-        why = {"ggl": "GGL is an index-2 DAE solved by the Python Radau IIA for DAEs",
-               "minimal": "coordinate partitioning re-partitions and solves Newton at every evaluation in Python"}
+        why = {"ggl": "GGL is an index-2 DAE solved by the Python Radau IIA for DAEs"}
         reasons.append(f"stabilization.method {method!r}: {why.get(method, 'not implemented in compiled code')}; "
                        f"the compiled backend supports {', '.join(compiled_stabilizers())}")
     if data.get("mechanism", {}).get("drive_mode") == "dynamic":

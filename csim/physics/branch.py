@@ -69,6 +69,13 @@ from csim.physics.steps import all_finite
 
 
 @jitable
+def is_breakdown(code):
+    """Whether a failed solve is a breakdown of the partition, which the drivers answer by choosing the partition
+    again at the last accepted state and restarting (:func:`repartition`), rather than a failure of the run."""
+    return code == DEPENDENT_SINGULAR or code == DEPENDENT_NO_CONVERGENCE or code == BRANCH_LEFT
+
+
+@jitable
 def solve_dependent(model, P, q, r, m, tol, max_iter, max_condition):
     """Newton-Raphson for v = q[P.dep] with u = q[P.ind] held, in place. Returns (code, iterations).
 

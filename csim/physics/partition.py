@@ -71,7 +71,8 @@ Partition = namedtuple("Partition", (
 ))
 
 
-def partition_sizes(m: int, r: int, k: int) -> tuple[int, int]:
+@jitable
+def partition_sizes(m, r, k):
     """(floats, integers) that :func:`partition_state` lays out for m coordinates, r constraints, k loads."""
     n, s = m - r, 2 * m + k
     floats = 6 * m + 3 * r * n + r * m + 6 * r * r + 6 * r + 10 * n + 3 * s + k + 2 * D_HEAD

@@ -29,9 +29,6 @@ DEPENDENT_NO_CONVERGENCE = 17  # Newton for v did not converge (a breakdown)
 BRANCH_LEFT = 18  # Newton's solution left the assembly branch (a breakdown)
 NO_BETTER_PARTITION = 19  # a breakdown other than BRANCH_LEFT, and no better partition at the accepted state
 BRANCH_LOST = 20  # BRANCH_LEFT again after MAX_BRANCH_RESTARTS restarts from the same accepted state
-#: the breakdowns of a partition, which the drivers answer by choosing the partition again at the
-#: last accepted state and restarting (csim.physics.branch.repartition)
-BREAKDOWNS = (DEPENDENT_SINGULAR, DEPENDENT_NO_CONVERGENCE, BRANCH_LEFT)
 
 
 def failure_message(code: int, a: float, b: float, settings, method=None, switches=(), detail=None,

@@ -26,7 +26,7 @@ import numpy as np
 from csim.errors import PartitionBreakdown, SimulationFailure
 from csim.physics import branch as core
 from csim.physics.partition import C_BRANCH_RESTARTS, C_REPARTITIONS, MAX_BRANCH_RESTARTS, block_inverse, new_partition
-from csim.physics.status import BRANCH_LEFT, BREAKDOWNS, OK, failure_message
+from csim.physics.status import BRANCH_LEFT, OK, failure_message
 from csim.solver.newton import PythonModel
 from csim.solver.system import ConstrainedSystem
 
@@ -100,7 +100,7 @@ class PartitionedSystem(ConstrainedSystem):
                                   coordinates=self.model.definition.coordinate_names)
         if code == BRANCH_LEFT:
             raise BranchChange(message)
-        if code in BREAKDOWNS:
+        if core.is_breakdown(code):
             raise PartitionBreakdown(message)
         raise SimulationFailure(message)
 
