@@ -259,7 +259,7 @@ def _one_backend(runs: _RunCases, cases: dict[tuple[str, float], Case],
                  chosen: list[str]) -> tuple[dict[tuple[str, float], Case], str]:
     """The cases on one backend, so that wall times compare methods, not backends, and why.
 
-    Under ``backend: auto``, a method without a compiled path (minimal, ggl) puts every run
+    Under ``backend: auto``, a method without a compiled path (ggl) puts every run
     on Python; the note says so ("" when the cases stay as they are).
     """
     python_only = sorted({m for (m, _), c in cases.items() if resolve_backend(c.data) == "python"}, key=chosen.index)

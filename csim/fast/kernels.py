@@ -407,6 +407,15 @@ def _repartition(y, par, pf, pi, w, piv):
 
 
 @hot
+def _failure_details(pi, w, piv, info):
+    """info[2:] = the partition's failure details, for the message (a function without reference counting:
+    the views of w must not be counted by a caller that counts, as integrate does)."""
+    detail = _partition(pi, w, piv).detail
+    for i in range(detail.size):
+        info[2 + i] = detail[i]
+
+
+@hot
 def _pending(pi, w, piv):
     """The breakdown of a full state met where no code could be returned (a switching function's value), cleared."""
     if pi[PI_SYS] != PARTITIONED:
@@ -1330,10 +1339,8 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset):
             restarted = status == OK
         if not restarted:
             break
-    if partitioned and status != OK:  # the partition's failure details, for the message
-        detail = _partition(pi, w, piv).detail
-        for i in range(detail.size):
-            info[2 + i] = detail[i]
+    if partitioned and status != OK:
+        _failure_details(pi, w, piv, info)
     return cs[N_REC], tr, ys, modes, cs[N_EV], ev_t, ev_sw, cs[NFEV], cs[NSTEPS], status, info
 
 
