@@ -48,6 +48,7 @@ from csim.fast.layout import (
     F_PHI,
     F_POTENTIAL,
     F_TERMS,
+    PARTITIONED,
     PI_FN,
     PI_FPAR,
     PI_GAINS,
@@ -64,7 +65,6 @@ from csim.fast.layout import (
     PI_NQ,
     PI_NSW,
     PI_SYS,
-    PARTITIONED,
     W_A,
     W_B,
     W_COL,
@@ -92,33 +92,33 @@ from csim.fast.layout import (
     W_WINV,
     W_WJT,
     W_X,
+    W_YM,
     W_Z,
 )
 from csim.physics import branch
 from csim.physics.events import check_chatter
-from csim.physics.jit import NJIT_OPTIONS
+from csim.physics.jit import NJIT_OPTIONS, activate
 from csim.physics.kkt import constraint_rates, generalized_forces, kkt_solve
 from csim.physics.loads import load_rates, load_values, mode_of, switching_functions
 from csim.physics.model import model_gamma, model_jacobian, model_mass, model_phi
 from csim.physics.partition import C_PENDING, D_HEAD, partition_sizes, partition_state
-from csim.physics.projection import at_round_off, correction, invert, max_abs
+from csim.physics.projection import max_abs
+from csim.physics.projection import project as project_state
 from csim.physics.status import (
     MAX_EVENTS,
     MAX_STEPS,
     NO_SIGN_CHANGE,
     NONFINITE_RHS,
     OK,
-    PROJ_NO_CONVERGENCE,
-    PROJ_SINGULAR,
     RK4_RESOLUTION,
     SINGULAR_KKT,
-    SINGULAR_MASS,
     STEP_TOO_SMALL,
 )
-
 from csim.physics.steps import all_finite, check_step
 from csim.solver.methods.baumgarte import baumgarte_gamma_star
 from csim.solver.methods.sliding_mode import sliding_mode_gamma_star
+
+activate()  # the core functions compile, and numba types them, from here on
 
 #: the decorator of every loop function that allocates nothing: compiled without numba's
 #: reference counting of arrays (NRT), which would cost two atomic operations per array
@@ -547,54 +547,26 @@ def feval(t, y, mode, located, par, pf, pi, w, piv, f, info):
 # ---------------------------------------------------------------------------------------
 @hot
 def project(y, out, t, par, pf, pi, w, piv, info):
-    """out = y at time t with (q, qd) projected; returns the status code.
+    """out = y at time t with (q, qd) projected (csim.physics.projection.project); returns the status code.
 
     On a failure info = [max |Phi| of the last iterate, t], as the status messages read them.
-
     The method's settings: fpar[0] the tolerance on max |Phi|, ipar = [mass metric (0/1),
     iteration limit].
     """
     fpar = pf[pi[PI_FPAR]:pi[PI_FPAR] + pi[PI_NFPAR]]
     ipar = pi[pi[PI_IPAR]:pi[PI_IPAR] + pi[PI_NIPAR]]
-    tol, mass_metric, max_iter = fpar[0], ipar[0] == 1, ipar[1]
     for i in range(y.size):
         out[i] = y[i]
-    nq, nc = pi[PI_NQ], pi[PI_NC]
-    Winv, J = w[pi[W_WINV]:pi[W_WINV] + nq * nq], w[pi[W_J]:pi[W_J] + nc * nq]
-    WJt, S = w[pi[W_WJT]:pi[W_WJT] + nq * nc], w[pi[W_S2]:pi[W_S2] + nc * nc]
-    z, dq = w[pi[W_Z]:pi[W_Z] + nc], w[pi[W_DQ]:pi[W_DQ] + nq]
-    if mass_metric:  # W^-1 = M^-1
-        mass(out, par, pi, w)
-        if not invert(w[pi[W_M]:pi[W_M] + nq * nq], w[pi[W_M2]:pi[W_M2] + nq * nq], piv, w[pi[W_COL]:pi[W_COL] + nq],
-                      Winv, nq):
-            return _project_failed(SINGULAR_MASS, 0.0, t, info)
-    q = out[:nq]
-    phi = w[pi[W_PHI]:pi[W_PHI] + nc]
-    converged = False
-    mx = 0.0
-    for _ in range(max_iter + 1):
-        phi_(out, par, pi, w)
-        mx = max_abs(phi)
-        if mx <= tol:
-            converged = True
-            break
-        jac(out, par, pi, w)
-        if not correction(J, Winv, mass_metric, phi, WJt, S, z, piv, dq, nc, nq):
-            return _project_failed(PROJ_SINGULAR, mx, t, info)
-        for i in range(nq):
-            q[i] -= dq[i]
-        if at_round_off(dq, q):  # |Phi| cannot go lower: its round-off grows with |q|
-            converged = True
-            break
-    if not converged:
-        return _project_failed(PROJ_NO_CONVERGENCE, mx, t, info)
-    jac(out, par, pi, w)
-    phi_dot = w[pi[W_PD]:pi[W_PD] + nc]
-    constraint_rates(J, out[nq:2 * nq], phi_dot, nc, nq)
-    if not correction(J, Winv, mass_metric, phi_dot, WJt, S, z, piv, dq, nc, nq):
-        return _project_failed(PROJ_SINGULAR, mx, t, info)
-    for i in range(nq):
-        out[nq + i] -= dq[i]
+    nq, nc, nl = pi[PI_NQ], pi[PI_NC], pi[PI_NL]
+    model = (par, pi, w, w[pi[W_YM]:pi[W_YM] + 2 * nq + nl])
+    code, mx = project_state(model, out[:nq], out[nq:2 * nq], fpar[0], ipar[0] == 1, ipar[1], nq, nc,
+                             w[pi[W_M]:pi[W_M] + nq * nq], w[pi[W_M2]:pi[W_M2] + nq * nq],
+                             w[pi[W_WINV]:pi[W_WINV] + nq * nq], piv, w[pi[W_COL]:pi[W_COL] + nq],
+                             w[pi[W_PHI]:pi[W_PHI] + nc], w[pi[W_J]:pi[W_J] + nc * nq],
+                             w[pi[W_WJT]:pi[W_WJT] + nq * nc], w[pi[W_S2]:pi[W_S2] + nc * nc],
+                             w[pi[W_Z]:pi[W_Z] + nc], w[pi[W_DQ]:pi[W_DQ] + nq], w[pi[W_PD]:pi[W_PD] + nc])
+    if code != OK:
+        return _project_failed(code, mx, t, info)
     return OK
 
 

@@ -46,6 +46,7 @@ SCRATCH = (
     ("W_COL", lambda m, r, k, n: m),  # projection: a column of the identity
     ("W_E", lambda m, r, k, n: 1),  # kinetic or potential energy
     ("W_G", lambda m, r, k, n: n),  # switching functions
+    ("W_YM", lambda m, r, k, n: 2 * m + k),  # a state to call the model functions at (csim.physics.model)
     ("W_PART", lambda m, r, k, n: _partition_sizes(m, r, k)[0]),  # minimal: the partition's floats
     ("W_END", lambda m, r, k, n: 0),  # the size of w
 )
@@ -66,7 +67,7 @@ PI_FN = 14
 PI_W = PI_FN + len(MODEL_FUNCTIONS)
 _W_NAMES = MODEL_TERMS + tuple(name for name, _ in SCRATCH)
 (W_M, W_CQD, W_H, W_PHI, W_J, W_GAM, W_S, W_B, W_SQ, W_L, W_A, W_X, W_P, W_U, W_SD, W_PD, W_GS, W_WINV, W_M2,
- W_WJT, W_S2, W_Z, W_DQ, W_COL, W_E, W_G, W_PART, W_END) = range(PI_W, PI_W + len(_W_NAMES))
+ W_WJT, W_S2, W_Z, W_DQ, W_COL, W_E, W_G, W_YM, W_PART, W_END) = range(PI_W, PI_W + len(_W_NAMES))
 #: the header's length; then sw_load (n_sw), sw_kind (n_sw), ipar (I)
 PI_HEAD = PI_W + len(_W_NAMES)
 

@@ -70,9 +70,9 @@ from csim.physics.steps import all_finite
 
 @jitable
 def is_breakdown(code):
-    """Whether a failed solve is a breakdown of the partition, which the drivers answer by choosing the partition
-    again at the last accepted state and restarting (:func:`repartition`), rather than a failure of the run."""
-    return code == DEPENDENT_SINGULAR or code == DEPENDENT_NO_CONVERGENCE or code == BRANCH_LEFT
+    """Whether a failed solve is a breakdown of the partition, which the drivers answer by choosing the
+    partition again at the last accepted state and restarting (:func:`repartition`), not a failed run."""
+    return DEPENDENT_SINGULAR <= code <= BRANCH_LEFT  # the three codes in a row (csim.physics.status)
 
 
 @jitable

@@ -24,9 +24,9 @@ from csim.physics import branch as core
 from csim.physics.partition import (  # noqa: F401 (the constants' old home)
     BRANCH_CONTINUITY,
     BRANCH_TANGENT_CHANGE,
+    D_COORD,
     MAX_PIECE_MOVE,
     MIN_PIECE,
-    D_COORD,
     Partition,
     new_partition,
 )
@@ -224,7 +224,7 @@ class BranchPoint:
 
     def predict(self, model: NumericModel, par: np.ndarray, u: np.ndarray, independent: np.ndarray,
                 dependent: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The branch's second-order prediction of q at the independent coordinates u (:func:`csim.physics.branch.predict`).
+        """The branch's second-order prediction of q at the independent coordinates u (core: ``predict``).
 
         Returns
         -------
@@ -259,7 +259,7 @@ def _followed(code: int, P: Partition) -> tuple[DependentSolution, BranchPoint]:
 
 def follow_branch(model: NumericModel, par: np.ndarray, point: BranchPoint, u: np.ndarray, independent: np.ndarray,
                   dependent: np.ndarray, tol: float, max_iter: int) -> tuple[DependentSolution, BranchPoint]:
-    """v at the independent coordinates u on the assembly branch through ``point`` (:func:`csim.physics.branch.follow_branch`).
+    """v at the independent coordinates u on the assembly branch through ``point`` (core: ``follow_branch``).
 
     Returns
     -------

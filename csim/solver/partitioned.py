@@ -133,7 +133,7 @@ class PartitionedSystem(ConstrainedSystem):
         return f
 
     def repartition(self, y: np.ndarray, cause: Exception) -> np.ndarray:
-        """Restart from the accepted state y after a breakdown at a later stage (:func:`csim.physics.branch.repartition`).
+        """Restart from the accepted state y after a breakdown at a later stage (core: ``repartition``).
 
         Returns y in the partition to go on in; raises SimulationFailure when nothing can
         carry the integration on.
