@@ -180,9 +180,9 @@ def test_unsupported_combinations_are_rejected(override, key):
 def test_auto_falls_back_to_python_for_unsupported_combinations():
     from csim.fast import resolve_backend
 
-    assert resolve_backend(qr_case("formulation.method=elimination").data) == "python"
-    assert resolve_backend(qr_case().data) == "compiled"
-    assert resolve_backend(qr_case("simulation.backend=python").data) == "python"
+    assert resolve_backend(qr_case("formulation.method=elimination")) == "python"
+    assert resolve_backend(qr_case()) == "compiled"
+    assert resolve_backend(qr_case("simulation.backend=python")) == "python"
 
 
 def test_unloadable_kernels_fall_back_under_auto_and_fail_under_compiled(monkeypatch):
@@ -335,5 +335,5 @@ def test_minimal_failures_read_the_same_on_both_backends():
 def test_auto_runs_minimal_compiled():
     from csim.fast import resolve_backend
 
-    assert resolve_backend(qr_case("stabilization.method=minimal").data) == "compiled"
-    assert resolve_backend(qr_case("stabilization.method=ggl", "simulation.integrator=Radau").data) == "python"
+    assert resolve_backend(qr_case("stabilization.method=minimal")) == "compiled"
+    assert resolve_backend(qr_case("stabilization.method=ggl", "simulation.integrator=Radau")) == "python"

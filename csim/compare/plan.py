@@ -262,7 +262,7 @@ def _one_backend(runs: _RunCases, cases: dict[tuple[str, float], Case],
     Under ``backend: auto``, a method without a compiled path (ggl) puts every run
     on Python; the note says so ("" when the cases stay as they are).
     """
-    python_only = sorted({m for (m, _), c in cases.items() if resolve_backend(c.data) == "python"}, key=chosen.index)
+    python_only = sorted({m for (m, _), c in cases.items() if resolve_backend(c) == "python"}, key=chosen.index)
     if not python_only or len(python_only) >= len(chosen):
         return cases, ""
     on_python = {(m, v): runs.make(m, v, extra=["simulation.backend=python"]) for (m, v) in cases}

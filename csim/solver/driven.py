@@ -43,22 +43,16 @@ from csim.solver.system import ConstrainedSystem, Evaluation
 DRIVEN_METHODS = ("none", "baumgarte", "sliding_mode")
 
 
-def driven_problems(data: dict) -> list[str]:
-    """Why a validated case with ``mechanism.drive_mode: dynamic`` cannot run (empty: it can).
-
-    Parameters
-    ----------
-    data : dict
-        The case with defaults filled in.
-    """
+def driven_problems(case) -> list[str]:
+    """Why a validated case (:class:`csim.case.Case`) with ``mechanism.drive_mode: dynamic`` cannot run ([]: it can)."""
     problems = []
-    method = data["stabilization"].get("method")
+    method = case.stabilization.method
     if method not in DRIVEN_METHODS:
         problems.append(f"stabilization.method: got {method!r} with mechanism.drive_mode 'dynamic'; the drives "
                         f"are constraints that depend on time, which {method} does not take (it projects or "
                         f"integrates a system of its own); expected one of {', '.join(DRIVEN_METHODS)}")
-    if data["formulation"].get("method") != "kkt":
-        problems.append(f"formulation.method: got {data['formulation'].get('method')!r} with mechanism.drive_mode "
+    if case.formulation.method != "kkt":
+        problems.append(f"formulation.method: got {case.formulation.method!r} with mechanism.drive_mode "
                         f"'dynamic'; with one drive per degree of freedom no coordinate is independent, so "
                         f"there is nothing to eliminate onto; expected 'kkt'")
     return problems
