@@ -25,6 +25,7 @@ import numpy as np
 
 from csim.physics.jit import jitable, kernel
 from csim.physics.linalg import lu_factor, lu_solve
+from csim.physics.projection import invert
 from csim.physics.status import OK
 
 #: Newton's solution may differ from the branch's prediction by at most this fraction of the
@@ -80,6 +81,12 @@ def partition_sizes(m, r, k):
 
 
 @jitable
+def _take(buf, at, size):
+    """(the view buf[at:at + size], where the next one starts)."""
+    return buf[at:at + size], at + size
+
+
+@jitable
 def partition_state(fw, iw, m, r, k):
     """The :class:`Partition` of m coordinates, r constraints and k loads as views into fw and iw.
 
@@ -87,84 +94,45 @@ def partition_state(fw, iw, m, r, k):
     builds the views at every use, for the cost of the slices).
     """
     n, s = m - r, 2 * m + k
-    a = 0
-    qa = fw[a:a + m]
-    a += m
-    Ta = fw[a:a + r * n]
-    a += r * n
-    Va = fw[a:a + r * r]
-    a += r * r
-    qp = fw[a:a + m]
-    a += m
-    Tp = fw[a:a + r * n]
-    a += r * n
-    Vp = fw[a:a + r * r]
-    a += r * r
-    qe = fw[a:a + m]
-    a += m
-    Te = fw[a:a + r * n]
-    a += r * n
-    Ve = fw[a:a + r * r]
-    a += r * r
-    q = fw[a:a + m]
-    a += m
-    phi = fw[a:a + r]
-    a += r
-    J = fw[a:a + r * m]
-    a += r * m
-    lu = fw[a:a + r * r]
-    a += r * r
-    dv = fw[a:a + r]
-    a += r
-    col = fw[a:a + r]
-    a += r
-    cinv = fw[a:a + r * r]
-    a += r * r
-    pred = fw[a:a + m]
-    a += m
-    du = fw[a:a + n]
-    a += n
-    dvl = fw[a:a + r]
-    a += r
-    dirn = fw[a:a + m]
-    a += m
-    gam = fw[a:a + r]
-    a += r
-    u0 = fw[a:a + n]
-    a += n
-    tgt = fw[a:a + n]
-    a += n
-    uu = fw[a:a + n]
-    a += n
-    ym = fw[a:a + s]
-    a += s
-    yf = fw[a:a + s]
-    a += s
-    ff = fw[a:a + s]
-    a += s
-    lost = fw[a:a + 2 * n + k]
-    a += 2 * n + k
-    basis = fw[a:a + r * r]
-    a += r * r
-    resid = fw[a:a + r]
-    a += r
-    detail = fw[a:a + D_HEAD + 2 * n]
-    a += D_HEAD + 2 * n
-    cause = fw[a:a + D_HEAD + 2 * n]
-    b = 0
-    ind = iw[b:b + n]
-    b += n
-    dep = iw[b:b + r]
-    b += r
-    piv = iw[b:b + r]
-    b += r
-    cand = iw[b:b + r]
-    b += r
-    best = iw[b:b + r]
-    b += r
-    old = iw[b:b + n]
-    b += n
-    count = iw[b:b + N_COUNT]
+    qa, a = _take(fw, 0, m)
+    Ta, a = _take(fw, a, r * n)
+    Va, a = _take(fw, a, r * r)
+    qp, a = _take(fw, a, m)
+    Tp, a = _take(fw, a, r * n)
+    Vp, a = _take(fw, a, r * r)
+    qe, a = _take(fw, a, m)
+    Te, a = _take(fw, a, r * n)
+    Ve, a = _take(fw, a, r * r)
+    q, a = _take(fw, a, m)
+    phi, a = _take(fw, a, r)
+    J, a = _take(fw, a, r * m)
+    lu, a = _take(fw, a, r * r)
+    dv, a = _take(fw, a, r)
+    col, a = _take(fw, a, r)
+    cinv, a = _take(fw, a, r * r)
+    pred, a = _take(fw, a, m)
+    du, a = _take(fw, a, n)
+    dvl, a = _take(fw, a, r)
+    dirn, a = _take(fw, a, m)
+    gam, a = _take(fw, a, r)
+    u0, a = _take(fw, a, n)
+    tgt, a = _take(fw, a, n)
+    uu, a = _take(fw, a, n)
+    ym, a = _take(fw, a, s)
+    yf, a = _take(fw, a, s)
+    ff, a = _take(fw, a, s)
+    lost, a = _take(fw, a, 2 * n + k)
+    basis, a = _take(fw, a, r * r)
+    resid, a = _take(fw, a, r)
+    detail, a = _take(fw, a, D_HEAD + 2 * n)
+    cause, a = _take(fw, a, D_HEAD + 2 * n)
+    ind, b = _take(iw, 0, n)
+    dep, b = _take(iw, b, r)
+    piv, b = _take(iw, b, r)
+    cand, b = _take(iw, b, r)
+    best, b = _take(iw, b, r)
+    old, b = _take(iw, b, n)
+    count, b = _take(iw, b, N_COUNT)
     return Partition(qa, Ta, Va, qp, Tp, Vp, qe, Te, Ve, q, phi, J, lu, dv, col, cinv, pred, du, dvl, dirn, gam, u0,
                      tgt, uu, ym, yf, ff, lost, basis, resid, detail, cause, ind, dep, piv, cand, best, old, count)
 
@@ -190,14 +158,8 @@ def block_inverse(J, dep, r, m, lu, piv, col, inv):
     for i in range(r):
         for j in range(r):
             lu[i * r + j] = J[i * m + dep[j]]
-    if not lu_factor(lu, r, piv):
+    if not invert(lu, lu, piv, col, inv, r):  # factored in place
         return np.inf
-    for c in range(r):
-        for i in range(r):
-            col[i] = 1.0 if i == c else 0.0
-        lu_solve(lu, r, piv, col)
-        for i in range(r):
-            inv[i * r + c] = col[i]
     # 1-norms: the largest absolute column sums
     norm_j = 0.0
     for j in range(m):
@@ -292,31 +254,12 @@ def _pivoted_qr_columns(J, r, m, dep, basis, resid):
                     taken = True
             if taken:
                 continue
-            norm = 0.0
-            for a in range(r):  # the column minus its projections on the basis chosen so far
-                v = J[a * m + j]
-                for b in range(c):
-                    dot = 0.0
-                    for e in range(r):
-                        dot += basis[b * r + e] * J[e * m + j]
-                    v -= dot * basis[b * r + a]
-                resid[a] = v
-                norm += v * v
+            norm = _orthogonal_part(J, r, m, j, basis, c, resid)
             if norm > big:
                 big = norm
                 pick = j
         dep[c] = pick
-        norm = 0.0
-        for a in range(r):
-            v = J[a * m + pick]
-            for b in range(c):
-                dot = 0.0
-                for e in range(r):
-                    dot += basis[b * r + e] * J[e * m + pick]
-                v -= dot * basis[b * r + a]
-            resid[a] = v
-            norm += v * v
-        norm = np.sqrt(norm)
+        norm = np.sqrt(_orthogonal_part(J, r, m, pick, basis, c, resid))
         for a in range(r):
             basis[c * r + a] = resid[a] / norm if norm > 0 else 0.0
     for i in range(1, r):  # insertion sort: few entries
@@ -326,6 +269,22 @@ def _pivoted_qr_columns(J, r, m, dep, basis, resid):
             dep[j + 1] = dep[j]
             j -= 1
         dep[j + 1] = v
+
+
+@kernel
+def _orthogonal_part(J, r, m, j, basis, c, resid):
+    """resid (r,) = column j of J minus its projections on the first c basis vectors; returns |resid|^2."""
+    norm = 0.0
+    for a in range(r):
+        v = J[a * m + j]
+        for b in range(c):
+            dot = 0.0
+            for e in range(r):
+                dot += basis[b * r + e] * J[e * m + j]
+            v -= dot * basis[b * r + a]
+        resid[a] = v
+        norm += v * v
+    return norm
 
 
 @kernel
