@@ -11,12 +11,16 @@ model functions are entries of ``pi`` (:mod:`csim.fast.layout`), and the model f
 A new mechanism costs only its own model functions.
 
 The physics is not here: the KKT solve, gamma* of each method, the switching functions,
-the load laws, the projection, the step checks and the status codes are the functions of
-:mod:`csim.physics` and of the method files (:mod:`csim.solver.methods`), the same ones the
-Python driver calls. What is here is what must be compiled: the step loops, the ports of
-scipy's ``DOP853`` (step-size control, error estimate, dense output) and ``brentq``, the
-cubic Hermite dense output of :class:`csim.solver.rk4.RK4`, and the glue that evaluates
-the model into the workspace.
+the load laws, the projection, the step checks, the minimal-coordinate method's solves on
+the assembly branch and its partition (:mod:`csim.physics.branch`) and the status codes are
+the functions of :mod:`csim.physics` and of the method files (:mod:`csim.solver.methods`),
+the same ones the Python driver calls. What is here is what must be compiled: the step
+loops, the ports of scipy's ``DOP853`` (step-size control, error estimate, dense output)
+and ``brentq``, the cubic Hermite dense output of :class:`csim.solver.rk4.RK4`, and the
+glue: the model evaluated into the workspace, the core's model handle (the tuple
+``(par, pi, w, ym)``, for which the functions of :mod:`csim.physics.model` are overloaded
+here), and the partitioned system's state y = [u, ud, W] turned into the full state where
+the loop needs it (:func:`full_state`).
 
 The problem is passed as three flat arrays, ``par`` (the parameters), ``pf`` and ``pi``
 (:func:`csim.fast.runner.pack_problem`), because numba counts a reference to every array
@@ -290,32 +294,29 @@ def _is_handle(model):
     return isinstance(model, types.BaseTuple)
 
 
-@overload(model_phi, jit_options=CALL_OPTIONS, strict=False)
-def _model_phi(model, q, out):
-    if _is_handle(model):
+def _overload_at_q(core_fn, model_fn, slot):
+    """Overload ``core_fn(model, q, out)`` for the kernels' handle: ``model_fn`` at q, then out = its term,
+    read from w at the offset pi[slot]."""
+
+    @overload(core_fn, jit_options=CALL_OPTIONS, strict=False)
+    def _typer(model, q, out):
+        if not _is_handle(model):
+            return None
+
         def impl(model, q, out):
             par, pi, w, ym = model
             for i in range(q.size):
                 ym[i] = q[i]
-            phi_(ym, par, pi, w)
+            model_fn(ym, par, pi, w)
             for i in range(out.size):
-                out[i] = w[pi[W_PHI] + i]
+                out[i] = w[pi[slot] + i]
         return impl
-    return None
+    return _typer
 
 
-@overload(model_jacobian, jit_options=CALL_OPTIONS, strict=False)
-def _model_jacobian(model, q, out):
-    if _is_handle(model):
-        def impl(model, q, out):
-            par, pi, w, ym = model
-            for i in range(q.size):
-                ym[i] = q[i]
-            jac(ym, par, pi, w)
-            for i in range(out.size):
-                out[i] = w[pi[W_J] + i]
-        return impl
-    return None
+_overload_at_q(model_phi, phi_, W_PHI)
+_overload_at_q(model_jacobian, jac, W_J)
+_overload_at_q(model_mass, mass, W_M)
 
 
 @overload(model_gamma, jit_options=CALL_OPTIONS, strict=False)
@@ -330,20 +331,6 @@ def _model_gamma(model, q, qd, out):
             terms(0.0, ym, par, pi, w)
             for i in range(out.size):
                 out[i] = w[pi[W_GAM] + i]
-        return impl
-    return None
-
-
-@overload(model_mass, jit_options=CALL_OPTIONS, strict=False)
-def _model_mass(model, q, out):
-    if _is_handle(model):
-        def impl(model, q, out):
-            par, pi, w, ym = model
-            for i in range(q.size):
-                ym[i] = q[i]
-            mass(ym, par, pi, w)
-            for i in range(out.size):
-                out[i] = w[pi[W_M] + i]
         return impl
     return None
 
