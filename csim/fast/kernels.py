@@ -387,8 +387,10 @@ def _partition_after_step(y, par, pf, pi, w, piv):
 
 
 @hot
-def _repartition(y, par, pf, pi, w, piv):
-    """csim.physics.branch.repartition from the accepted state y after a breakdown; returns the code."""
+def _repartition(ya, y, par, pf, pi, w, piv):
+    """y = the accepted state ya, then csim.physics.branch.repartition from it after a breakdown; returns the code."""
+    for i in range(y.size):
+        y[i] = ya[i]
     model, P, r, m, k, tol, max_iter, _ = _partition_call(par, pf, pi, w, piv)
     return branch.repartition(model, P, y, r, m, k, tol, max_iter)
 
@@ -1167,6 +1169,54 @@ def _after_step(ts_, y, f, f_new, yp, projects, par, pf, pi, rmode, locate, w, p
 
 
 @hot
+def _accept_step(ts_, t_new, dense_kind, y, y_old, y_new, f, f_new, Fh, dense, t_end, adaptive, max_phi, min_step, par,
+                 pf, pi, w, piv, info):
+    """Take the step to (t_new, y_new) (y_old keeps the state before it) and check it (csim.physics.steps);
+    the cubic Hermite data of an RK4 step into Fh. Returns the status."""
+    n = y.size
+    for i in range(n):
+        y_old[i] = y[i]
+        y[i] = y_new[i]
+    ts_[T] = t_new
+    status, max_phi_now = _max_phi(y, par, pf, pi, w, piv)
+    if status != OK:
+        return status
+    status = check_step(y, max_phi_now, ts_[HSTEP], t_new, t_end, adaptive, max_phi, min_step, info)
+    if status != OK:
+        return status
+    if dense_kind == RK4:  # the cubic Hermite interpolant's data
+        for i in range(n):
+            Fh[0, i] = y_old[i]
+            Fh[1, i] = f[i]
+            Fh[2, i] = y[i]
+            Fh[3, i] = f_new[i]
+    dense[0] = False
+    ts_[T_STOP] = t_new
+    return OK
+
+
+@hot
+def _after_event(ts_, y, ev_t, ev_sw, n_chatter, max_events, min_step, par, pf, pi, w, piv, cs, info):
+    """After an event recorded at index cs[N_EV]: anchor the partitioned system at the event state (maybe in a
+    new partition; on a failure the event is not counted, its conditions stay flipped, as the Python driver
+    leaves them), count the event, and check for chatter and too many events. Returns the status."""
+    if pi[PI_SYS] == PARTITIONED:
+        status, _ = _partition_after_step(y, par, pf, pi, w, piv)
+        if status != OK:
+            for jj in range(ev_sw.shape[1]):
+                ev_sw[cs[N_EV], jj] = False
+            return status
+    cs[N_EV] += 1
+    status = check_chatter(ev_t, cs[N_EV], n_chatter, min_step, info)
+    if status != OK:
+        return status
+    if cs[N_EV] > max_events:
+        info[0] = ts_[T]
+        return MAX_EVENTS
+    return OK
+
+
+@hot
 def _accept(ts_, y, ya):
     """ya = y, the state a restart goes back to after a breakdown of the partition; returns its time."""
     for i in range(y.size):
@@ -1228,24 +1278,10 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset):
                 status = STEP_TOO_SMALL if method == DOP853 else RK4_RESOLUTION
                 info[0] = ts_[T]
                 break
-            for i in range(n):  # the step is accepted
-                y_old[i] = y[i]
-                y[i] = y_new[i]
-            ts_[T] = t_new
-            status, max_phi_now = _max_phi(y, par, pf, pi, w, piv)
+            status = _accept_step(ts_, t_new, dense_kind, y, y_old, y_new, f, f_new, Fh, dense, t_end,
+                                  method == DOP853, max_phi, min_step, par, pf, pi, w, piv, info)
             if status != OK:
                 break
-            status = check_step(y, max_phi_now, ts_[HSTEP], t_new, t_end, method == DOP853, max_phi, min_step, info)
-            if status != OK:
-                break
-            if dense_kind == RK4:  # the cubic Hermite interpolant's data
-                for i in range(n):
-                    Fh[0, i] = y_old[i]
-                    Fh[1, i] = f[i]
-                    Fh[2, i] = y[i]
-                    Fh[3, i] = f_new[i]
-            dense[0] = False
-            ts_[T_STOP] = t_new
             event = False
             if locate:
                 status, event = _find_event(ts_, n_interior, dense_kind, y_old, y, f_new, mode, mode_b, rmode, locate,
@@ -1265,21 +1301,9 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset):
                     break
                 t_a = _accept(ts_, y, ya)
                 ev_t, ev_sw = _record_event(ts_[T], mode, roots, has_root, ev_t, ev_sw, cs[N_EV])
-                if partitioned:  # anchor at the event state, maybe in a new partition
-                    status, _ = _partition_after_step(y, par, pf, pi, w, piv)
-                    if status != OK:
-                        for jj in range(n_sw):  # the event is not recorded (its conditions stay flipped)
-                            ev_sw[cs[N_EV], jj] = False
-                        break
-                cs[N_EV] += 1
-                status = check_chatter(ev_t, cs[N_EV], n_chatter, min_step, info)
-                if status != OK:
-                    break
-                if cs[N_EV] > max_events:
-                    status = MAX_EVENTS
-                    info[0] = ts_[T]
-                    break
-                restarted = True
+                status = _after_event(ts_, y, ev_t, ev_sw, n_chatter, max_events, min_step, par, pf, pi, w, piv, cs,
+                                      info)
+                restarted = status == OK
                 break
             status, restart = _after_step(ts_, y, f, f_new, yp, projects, par, pf, pi, rmode, locate, w, piv, cs, info)
             if status == OK:
@@ -1292,9 +1316,7 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset):
         if partitioned and branch.is_breakdown(status):
             # a stage left the region of the partition: restart from the last accepted state
             ts_[T] = t_a
-            for i in range(n):
-                y[i] = ya[i]
-            status = _repartition(y, par, pf, pi, w, piv)
+            status = _repartition(ya, y, par, pf, pi, w, piv)
             restarted = status == OK
         if not restarted:
             break
