@@ -63,12 +63,15 @@ def test_a_lazy_kernel_compiles_on_first_call_and_is_typed_in_compiled_callers()
     def twice(x):
         return 2.0 * x
 
-    assert isinstance(twice, LazyKernel) and twice(1.5) == 3.0
+    # lazy until numba loads; a dispatcher once it has (so that numba inlines and resolves it statically)
+    assert isinstance(twice, LazyKernel) or hasattr(twice, "signatures")
+    assert twice(1.5) == 3.0
 
     @njit
     def caller(x):
         return twice(x) + 1.0
 
     assert caller(2.0) == 5.0
-    assert hasattr(twice.compiled(), "signatures") and twice.compiled().signatures  # a numba dispatcher
+    compiled = twice.compiled() if isinstance(twice, LazyKernel) else twice
+    assert compiled.signatures  # a numba dispatcher
     assert np.isclose(twice(np.float64(0.25)), 0.5)

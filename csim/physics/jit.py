@@ -47,7 +47,21 @@ def activate():
     _NUMBA["njit"] = njit
     for fn in _JITABLES:
         _register_jitable(fn)
+    _bind_dispatchers()
     return njit
+
+
+def _bind_dispatchers():
+    """Replace every LazyKernel bound in a loaded csim module by its dispatcher: numba inlines an
+    ``inline_kernel`` (and resolves a call statically) only where the global it sees is a dispatcher."""
+    import sys
+
+    for name, module in list(sys.modules.items()):
+        if not name.startswith("csim") or module is None:
+            continue
+        for key, value in list(vars(module).items()):
+            if isinstance(value, LazyKernel):
+                setattr(module, key, value.compiled())
 
 
 def compiled() -> bool:
@@ -81,14 +95,20 @@ class LazyKernel:
 
 def kernel(fn):
     """Decorator: ``fn`` compiled by numba (njit, cached on disk, numpy's error model) on first use, or plain."""
-    return LazyKernel(fn, NJIT_OPTIONS)
+    return _lazy(fn, NJIT_OPTIONS)
+
+
+def _lazy(fn, options):
+    """A LazyKernel, or the dispatcher itself once numba is loaded."""
+    lazy = LazyKernel(fn, options)
+    return lazy.compiled() if _NUMBA["njit"] is not None else lazy
 
 
 def inline_kernel(fn):
     """:func:`kernel`, and inlined into compiled callers in numba's IR, so that the sizes they pass
     as constants fix its loop lengths (the KKT solve of a right-hand side: about 0.6x the time of a
     call). Only for the few functions on the right-hand side's path: inlining costs compile time."""
-    return LazyKernel(fn, dict(inline="always", **NJIT_OPTIONS))
+    return _lazy(fn, dict(inline="always", **NJIT_OPTIONS))
 
 
 def jitable(fn):
