@@ -437,21 +437,21 @@ def validate_case(data: dict, source: str = "<dict>") -> Case:
     _validate_formulation(out, mech, problems)
     _validate_gains(out, mech, problems)
     _validate_resolution(out, problems)
-    _validate_combination(out, problems)
+    case = Case(data=out, mechanism=mech, source=source, linkage=linkage)  # typed sections for the checks below
+    _validate_combination(case, problems)
     if problems:
         raise CaseError(problems)
-    return Case(data=out, mechanism=mech, source=source, linkage=linkage, warnings=_stability_warnings(out))
+    case.warnings = _stability_warnings(case)
+    return case
 
 
-def _stability_warnings(out: dict) -> list[str]:
+def _stability_warnings(case: Case) -> list[str]:
     """Stabilizer gains times a fixed step at or beyond the integrator's stability region
     (:func:`csim.solver.stability.stability_warnings`)."""
-    from csim.solver.methods import make_stabilizer
+    from csim.solver.methods import stabilizer_from
     from csim.solver.stability import stability_warnings
 
-    stab, sim = out["stabilization"], out["simulation"]
-    method = make_stabilizer(stab["method"], {k: v for k, v in stab.items() if k != "method"})
-    return stability_warnings(method, sim["integrator"], sim["step"])
+    return stability_warnings(stabilizer_from(case.stabilization), case.simulation.integrator, case.simulation.step)
 
 
 #: Keys of ``mechanism`` that belong to a link-coupling description.
@@ -487,11 +487,8 @@ def _build_linkage(out: dict, problems: list[str]) -> Linkage:
         mech.default_independent_velocities = at_start["qd"]
         if out["mechanism"].get("drive_mode") is None:
             out["mechanism"]["drive_mode"] = "kinematic"
-        if out["mechanism"]["drive_mode"] == "dynamic":
-            from csim.solver.driven import driven_problems
-
-            problems += driven_problems(out)
-        elif out["mechanism"].get("forces"):
+        # drive_mode dynamic: its combinations are checked on the typed case (_validate_combination)
+        if out["mechanism"]["drive_mode"] != "dynamic" and out["mechanism"].get("forces"):
             problems.append("mechanism.forces: given with mechanism.drive and mechanism.drive_mode 'kinematic'; a "
                             "kinematic analysis prescribes the motion and computes no forces; expected "
                             "mechanism.drive_mode: dynamic (driven dynamics: the drive torques under these forces), "
@@ -639,10 +636,10 @@ def _validate_resolution(out, problems):
                         f"{MAX_FIXED_STEPS:.0e} fixed steps), or a shorter simulation.t_end")
 
 
-def _validate_combination(out, problems):
-    """Reject method combinations that cannot work, saying why."""
-    method, integrator = out["stabilization"].get("method"), out["simulation"].get("integrator")
-    formulation = out["formulation"].get("method")
+def _validate_combination(case: Case, problems):
+    """Reject method combinations that cannot work, saying why (on the typed sections of the case being validated)."""
+    method, integrator = case.stabilization.method, case.simulation.integrator
+    formulation = case.formulation.method
     if method == "ggl" and integrator is not None and integrator not in DAE_INTEGRATORS:
         problems.append(f"simulation.integrator: got {describe(integrator)} with stabilization.method 'ggl'; the GGL "
                         f"equations are an index-2 DAE (Phi = 0 and Phi_q qd = 0 are equations, not derivatives), "
@@ -651,10 +648,14 @@ def _validate_combination(out, problems):
         problems.append("formulation.method: got 'elimination' (string) with stabilization.method 'ggl'; GGL solves "
                         "for the multipliers as unknowns of its DAE, so there is no ODE for the elimination to "
                         "form; expected 'kkt'")
-    if out["simulation"].get("backend") == "compiled":
+    if case.driven:
+        from csim.solver.driven import driven_problems
+
+        problems += driven_problems(case)
+    if case.simulation.backend == "compiled":
         from csim.fast.support import unsupported
 
-        for reason in unsupported(out):
+        for reason in unsupported(case):
             problems.append(f"simulation.backend: got 'compiled' (string) with {reason}; or set "
                             f"simulation.backend to 'python' or 'auto'")
     if method == "projection" and integrator == "LSODA":

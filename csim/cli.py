@@ -324,7 +324,7 @@ def _keep_interrupted(c, result, out: Path, quiet: bool) -> NoReturn:
         result = Result.empty(
             m.name, m.coordinate_names, [ld.name for ld in m.loads], [ob.name for ob in m.observables],
             m.n_constraints, c.to_yaml(), message="interrupted by the user (Ctrl-C) before the run returned samples",
-            run_kind="kinematic" if c.kinematic else "simulation", backend=resolve_backend(c.data))
+            run_kind="kinematic" if c.kinematic else "simulation", backend=resolve_backend(c))
     result.status, result.failure = "failed", "interrupted"
     if not result.message.startswith("interrupted"):
         result.message = f"interrupted by the user (Ctrl-C); {result.message}"

@@ -17,7 +17,7 @@ from csim.model.numeric import NumericModel, build_numeric_model
 from csim.result import Result
 from csim.solver.formulations import make_formulation
 from csim.solver.initial import consistent_initial_state
-from csim.solver.methods import make_stabilizer
+from csim.solver.methods import stabilizer_from
 from csim.solver.settings import Trajectory
 from csim.solver.system import ConstrainedSystem
 
@@ -44,8 +44,7 @@ def build_system(case: Case) -> ConstrainedSystem:
             independent=None if form.independent is None else [names.index(n) for n in form.independent],
             max_condition=form.max_condition,
         )
-    stab = {k: v for k, v in case.data["stabilization"].items() if k != "method"}  # every method's settings
-    stabilizer = make_stabilizer(case.stabilization.method, stab)
+    stabilizer = stabilizer_from(case.stabilization)
     if case.driven:  # drives as rheonomic constraints (csim.solver.driven)
         from csim.solver.driven import DrivenSystem
 
@@ -101,7 +100,7 @@ def run_case(case: Case, progress: Callable[[float], None] | None = None) -> Res
         failed = assemble_result(case, system, empty, time.perf_counter() - start)
         failed.failure = "assembly"  # the initial state cannot be assembled: bad input (csim run exits 2)
         return failed
-    backend, why, load_time = resolve_backend(case.data), "", 0.0
+    backend, why, load_time = resolve_backend(case), "", 0.0
     if backend == "compiled":
         loading = time.perf_counter()
         backend, why = _load_compiled(case, system, y0, settings)
@@ -130,7 +129,7 @@ def run_case(case: Case, progress: Callable[[float], None] | None = None) -> Res
     if backend == "python" and case.simulation.backend == "auto":  # why auto fell back (run summary)
         from csim.fast.support import numba_available, unsupported
 
-        result.backend_reason = why or "; ".join(unsupported(case.data)) or (
+        result.backend_reason = why or "; ".join(unsupported(case)) or (
             "" if numba_available() else "numba is not installed")
     return result
 

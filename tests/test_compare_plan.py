@@ -116,10 +116,19 @@ def test_bad_options_are_reported_together():
                                                 "reference method"]
 
 
-def test_one_backend_for_every_run():
-    p = plan(methods=["none", "minimal"])
+def test_one_backend_for_every_run(monkeypatch):
+    import csim.compare.plan as plan_module
+
+    real = plan_module.resolve_backend  # a method the compiled backend could run but does not
+    monkeypatch.setattr(plan_module, "resolve_backend",
+                        lambda case: "python" if case.stabilization.method == "baumgarte" else real(case))
+    p = plan(methods=["none", "baumgarte"])
     assert {simulation(c)["backend"] for _, c in p.run_cases()} == {"python"}
-    assert p.backend_note.startswith("python for every run (minimal has no compiled path")
+    assert p.backend_note.startswith("python for every run (baumgarte has no compiled path")
+    monkeypatch.undo()
+    p = plan(methods=["none", "ggl:Radau"])  # an integrator only Python has: that method alone runs there
+    assert {simulation(c)["backend"] for _, c in p.run_cases()} == {"auto"}
+    assert p.backend_note.startswith("python for ggl:Radau (no compiled path for its integrator)")
     assert simulation(p.reference_case)["backend"] == "auto"  # the reference runs on its own
     p = plan(methods=["none", "baumgarte"])
     assert {simulation(c)["backend"] for _, c in p.run_cases()} == {"auto"} and p.backend_note == ""

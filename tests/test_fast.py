@@ -9,8 +9,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import qr_case
+from conftest import CONFIGS, qr_case
 
+from csim.case import load_case
 from csim.errors import CaseError
 from csim.fast.module import load_module
 from csim.fast.runner import pack_problem
@@ -166,7 +167,7 @@ def test_chatter_fails_fast_and_alike_on_both_backends(overrides):
 
 @pytest.mark.parametrize("override, key", [
     ("formulation.method=elimination", "formulation.method 'elimination'"),
-    ("stabilization.method=minimal", "stabilization.method 'minimal'"),
+    ("stabilization.method=ggl", "stabilization.method 'ggl'"),
     ("simulation.integrator=Radau", "simulation.integrator 'Radau'"),
 ])
 def test_unsupported_combinations_are_rejected(override, key):
@@ -179,9 +180,9 @@ def test_unsupported_combinations_are_rejected(override, key):
 def test_auto_falls_back_to_python_for_unsupported_combinations():
     from csim.fast import resolve_backend
 
-    assert resolve_backend(qr_case("formulation.method=elimination").data) == "python"
-    assert resolve_backend(qr_case().data) == "compiled"
-    assert resolve_backend(qr_case("simulation.backend=python").data) == "python"
+    assert resolve_backend(qr_case("formulation.method=elimination")) == "python"
+    assert resolve_backend(qr_case()) == "compiled"
+    assert resolve_backend(qr_case("simulation.backend=python")) == "python"
 
 
 def test_unloadable_kernels_fall_back_under_auto_and_fail_under_compiled(monkeypatch):
@@ -258,3 +259,81 @@ def test_compiled_sample_evaluation_equals_python_evaluation(overrides):
         a, b = getattr(fast, name), getattr(slow, name)
         assert a.shape == b.shape and np.isfinite(a).all(), name
         np.testing.assert_allclose(a, b, rtol=1e-11, atol=1e-9 * max(1.0, np.max(np.abs(b))), err_msg=name)
+
+
+# --- minimal coordinates (coordinate partitioning): the same core functions on both backends -------
+
+
+def _both(case):
+    """(compiled, python) trajectories of a case, each from a fresh system (the partition is state)."""
+    from csim.fast import integrate_compiled
+
+    settings = case.integration_settings()
+    system = build_system(case)
+    fast = integrate_compiled(system, initial_state(case, system), settings)
+    system = build_system(case)
+    return fast, integrate(system, initial_state(case, system), settings), system
+
+
+def _assert_same_run(fast, ref, m, atol):
+    assert fast.status == ref.status and fast.message == ref.message
+    assert fast.nfev == ref.nfev and fast.nsteps == ref.nsteps
+    assert np.array_equal(fast.t, ref.t) and np.array_equal(fast.mode, ref.mode)
+    assert fast.event_labels == ref.event_labels
+    assert fast.event_times == pytest.approx(ref.event_times, abs=1e-12)
+    scale = np.maximum(1.0, np.max(np.abs(ref.y[:, :2 * m]), axis=0))
+    assert np.max(np.abs(fast.y[:, :2 * m] - ref.y[:, :2 * m]) / scale) < atol
+
+
+@pytest.mark.parametrize("overrides", [
+    ("simulation.t_end=3", "simulation.rtol=1e-9", "simulation.atol=1e-9"),
+    ("simulation.integrator=RK4", "simulation.step=1e-3", "simulation.t_end=1"),
+])
+def test_compiled_minimal_run_equals_python_run(overrides):
+    """The quick-return with its events: same steps, evaluations, events and samples; q, qd to 1e-10."""
+    fast, ref, system = _both(qr_case("stabilization.method=minimal", *overrides))
+    assert fast.status == "success" and len(fast.event_times) > 10
+    _assert_same_run(fast, ref, system.m, 1e-10)  # measured 1.3e-11 (DOP853, 1 s), 1.2e-12 (RK4, 2 s)
+
+
+def test_compiled_minimal_keeps_the_assembly_of_andrews_mechanism():
+    """Andrews' mechanism at rtol = 1e-8, where trial stages far ahead need the branch check (issue 15)."""
+    from test_andrews import Q_END
+
+    case = load_case(CONFIGS / "andrews.yaml", ["stabilization.method=minimal", "simulation.rtol=1e-8",
+                                                 "simulation.atol=1e-8"])
+    fast, ref, system = _both(case)
+    assert fast.status == "success"
+    # velocities up to 1.4e3 rad/s: relative to each coordinate's scale; measured 2.1e-10
+    _assert_same_run(fast, ref, system.m, 1e-9)
+    np.testing.assert_allclose(fast.y[-1, :system.m], Q_END, rtol=0, atol=5e-6)
+    assert np.max(np.abs(np.diff(fast.y[:, 2:system.m], axis=0))) < 0.3  # no change of closure
+
+
+def test_compiled_minimal_repartitions_as_python_does():
+    """A pendulum over the top: x and y each stop determining the other twice a turn."""
+    case = load_case(CONFIGS / "pendulum.yaml", ["stabilization.method=minimal", "initial.q={x: 0.0}",
+                                                  "initial.qd={x: 7.0}", "initial.q_offset={}", "simulation.t_end=3",
+                                                  "simulation.rtol=1e-10", "simulation.atol=1e-10"])
+    fast, ref, system = _both(case)
+    assert fast.status == "success" and system.repartitions >= 6
+    _assert_same_run(fast, ref, system.m, 1e-10)
+
+
+def test_minimal_failures_read_the_same_on_both_backends():
+    fast = run_case(load_case(CONFIGS / "pendulum.yaml", ["stabilization.method=minimal", "simulation.backend=compiled",
+                                                          "stabilization.minimal_tol=1e-300",
+                                                          "stabilization.minimal_max_iter=1"]))
+    slow = run_case(load_case(CONFIGS / "pendulum.yaml", ["stabilization.method=minimal", "simulation.backend=python",
+                                                          "stabilization.minimal_tol=1e-300",
+                                                          "stabilization.minimal_max_iter=1"]))
+    assert fast.backend == "compiled" and fast.status == slow.status == "failed"
+    assert "Newton-Raphson for the dependent coordinates" in fast.message and "x = 0.5" in fast.message
+    assert fast.message == slow.message
+
+
+def test_auto_runs_minimal_compiled():
+    from csim.fast import resolve_backend
+
+    assert resolve_backend(qr_case("stabilization.method=minimal")) == "compiled"
+    assert resolve_backend(qr_case("stabilization.method=ggl", "simulation.integrator=Radau")) == "python"

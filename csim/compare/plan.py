@@ -29,6 +29,7 @@ from csim.compare.specs import (
 )
 from csim.errors import CaseError
 from csim.fast import resolve_backend
+from csim.fast.support import INTEGRATORS as COMPILED_INTEGRATORS
 from csim.solver.integrators import INTEGRATORS
 
 #: a case as :func:`csim.compare.compare` takes it: a file, a dict as read from YAML, or a Case
@@ -259,15 +260,24 @@ def _one_backend(runs: _RunCases, cases: dict[tuple[str, float], Case],
                  chosen: list[str]) -> tuple[dict[tuple[str, float], Case], str]:
     """The cases on one backend, so that wall times compare methods, not backends, and why.
 
-    Under ``backend: auto``, a method without a compiled path (minimal, ggl) puts every run
-    on Python; the note says so ("" when the cases stay as they are).
+    Under ``backend: auto``, a method that the compiled backend could run but does not (no
+    compiled path for it with a compiled integrator) puts every run on Python; the note says
+    so. A method whose own integrator only Python has (``ggl:Radau``, an implicit DAE solver)
+    runs there alone, and the note says that its wall time is the Python path's. The note is
+    "" when every run is on one backend as it is.
     """
-    python_only = sorted({m for (m, _), c in cases.items() if resolve_backend(c.data) == "python"}, key=chosen.index)
-    if not python_only or len(python_only) >= len(chosen):
+    on_python = {m for (m, _), c in cases.items() if resolve_backend(c) == "python"}
+    own = sorted({m for (m, _), c in cases.items() if m in on_python and c.simulation.integrator not in
+                  COMPILED_INTEGRATORS}, key=chosen.index)
+    python_only = sorted(on_python - set(own), key=chosen.index)
+    if len(on_python) >= len(chosen) or not on_python:
         return cases, ""
-    on_python = {(m, v): runs.make(m, v, extra=["simulation.backend=python"]) for (m, v) in cases}
-    return on_python, (f"python for every run ({', '.join(python_only)} has no compiled path; one backend keeps "
-                       f"the wall times comparable)")
+    if not python_only:
+        return cases, (f"python for {', '.join(own)} (no compiled path for its integrator), compiled for the "
+                       f"others: compare wall times within one backend")
+    moved = {(m, v): runs.make(m, v, extra=["simulation.backend=python"]) for (m, v) in cases}
+    return moved, (f"python for every run ({', '.join(python_only)} has no compiled path; one backend keeps "
+                   f"the wall times comparable)")
 
 
 def _reference_case(case: CaseInput, overrides: list[str], reference: ReferenceSettings) -> Case:

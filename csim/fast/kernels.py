@@ -11,12 +11,16 @@ model functions are entries of ``pi`` (:mod:`csim.fast.layout`), and the model f
 A new mechanism costs only its own model functions.
 
 The physics is not here: the KKT solve, gamma* of each method, the switching functions,
-the load laws, the projection, the step checks and the status codes are the functions of
-:mod:`csim.physics` and of the method files (:mod:`csim.solver.methods`), the same ones the
-Python driver calls. What is here is what must be compiled: the step loops, the ports of
-scipy's ``DOP853`` (step-size control, error estimate, dense output) and ``brentq``, the
-cubic Hermite dense output of :class:`csim.solver.rk4.RK4`, and the glue that evaluates
-the model into the workspace.
+the load laws, the projection, the step checks, the minimal-coordinate method's solves on
+the assembly branch and its partition (:mod:`csim.physics.branch`) and the status codes are
+the functions of :mod:`csim.physics` and of the method files (:mod:`csim.solver.methods`),
+the same ones the Python driver calls. What is here is what must be compiled: the step
+loops, the ports of scipy's ``DOP853`` (step-size control, error estimate, dense output)
+and ``brentq``, the cubic Hermite dense output of :class:`csim.solver.rk4.RK4`, and the
+glue: the model evaluated into the workspace, the core's model handle (the tuple
+``(par, pi, w, ym)``, for which the functions of :mod:`csim.physics.model` are overloaded
+here), and the partitioned system's state y = [u, ud, W] turned into the full state where
+the loop needs it (:func:`full_state`).
 
 The problem is passed as three flat arrays, ``par`` (the parameters), ``pf`` and ``pi``
 (:func:`csim.fast.runner.pack_problem`), because numba counts a reference to every array
@@ -37,7 +41,7 @@ import os
 import numpy as np
 from llvmlite import ir
 from numba import njit, types
-from numba.extending import intrinsic
+from numba.extending import intrinsic, overload
 
 from csim.fast.layout import (
     F_JAC,
@@ -48,6 +52,7 @@ from csim.fast.layout import (
     F_PHI,
     F_POTENTIAL,
     F_TERMS,
+    PARTITIONED,
     PI_FN,
     PI_FPAR,
     PI_GAINS,
@@ -63,6 +68,7 @@ from csim.fast.layout import (
     PI_NO,
     PI_NQ,
     PI_NSW,
+    PI_SYS,
     W_A,
     W_B,
     W_COL,
@@ -79,6 +85,7 @@ from csim.fast.layout import (
     W_M,
     W_M2,
     W_P,
+    W_PART,
     W_PD,
     W_PHI,
     W_S,
@@ -89,29 +96,33 @@ from csim.fast.layout import (
     W_WINV,
     W_WJT,
     W_X,
+    W_YM,
     W_Z,
 )
+from csim.physics import branch
 from csim.physics.events import check_chatter
-from csim.physics.jit import NJIT_OPTIONS
+from csim.physics.jit import NJIT_OPTIONS, activate
 from csim.physics.kkt import constraint_rates, generalized_forces, kkt_solve
 from csim.physics.loads import load_rates, load_values, mode_of, switching_functions
-from csim.physics.projection import at_round_off, correction, invert, max_abs
+from csim.physics.model import model_gamma, model_jacobian, model_mass, model_phi
+from csim.physics.partition import C_PENDING, D_HEAD, partition_sizes, partition_state
+from csim.physics.projection import max_abs
+from csim.physics.projection import project as project_state
 from csim.physics.status import (
     MAX_EVENTS,
     MAX_STEPS,
     NO_SIGN_CHANGE,
     NONFINITE_RHS,
     OK,
-    PROJ_NO_CONVERGENCE,
-    PROJ_SINGULAR,
     RK4_RESOLUTION,
     SINGULAR_KKT,
-    SINGULAR_MASS,
     STEP_TOO_SMALL,
 )
 from csim.physics.steps import all_finite, check_step
 from csim.solver.methods.baumgarte import baumgarte_gamma_star
 from csim.solver.methods.sliding_mode import sliding_mode_gamma_star
+
+activate()  # the core functions compile, and numba types them, from here on
 
 #: the decorator of every loop function that allocates nothing: compiled without numba's
 #: reference counting of arrays (NRT), which would cost two atomic operations per array
@@ -271,6 +282,139 @@ def observe(y, par, pi, out):
     _call_model(pi[PI_FN + F_OBSERVE], 0.0, y, par, out)
 
 
+# ---------------------------------------------------------------------------------------
+# the core's model handle (csim.physics.model) in the kernels: the tuple (par, pi, w, ym),
+# ym a state [q, qd, W] to call the model functions at
+# ---------------------------------------------------------------------------------------
+#: the compile options of the overloads (as the kernels', less the cache: they compile into their callers)
+CALL_OPTIONS = dict(error_model="numpy", _nrt=False)
+
+
+def _is_handle(model):
+    return isinstance(model, types.BaseTuple)
+
+
+def _overload_at_q(core_fn, model_fn, slot):
+    """Overload ``core_fn(model, q, out)`` for the kernels' handle: ``model_fn`` at q, then out = its term,
+    read from w at the offset pi[slot]."""
+
+    @overload(core_fn, jit_options=CALL_OPTIONS, strict=False)
+    def _typer(model, q, out):
+        if not _is_handle(model):
+            return None
+
+        def impl(model, q, out):
+            par, pi, w, ym = model
+            for i in range(q.size):
+                ym[i] = q[i]
+            model_fn(ym, par, pi, w)
+            for i in range(out.size):
+                out[i] = w[pi[slot] + i]
+        return impl
+    return _typer
+
+
+_overload_at_q(model_phi, phi_, W_PHI)
+_overload_at_q(model_jacobian, jac, W_J)
+_overload_at_q(model_mass, mass, W_M)
+
+
+@overload(model_gamma, jit_options=CALL_OPTIONS, strict=False)
+def _model_gamma(model, q, qd, out):
+    if _is_handle(model):
+        def impl(model, q, qd, out):
+            par, pi, w, ym = model
+            m = q.size
+            for i in range(m):
+                ym[i] = q[i]
+                ym[m + i] = qd[i]
+            terms(0.0, ym, par, pi, w)
+            for i in range(out.size):
+                out[i] = w[pi[W_GAM] + i]
+        return impl
+    return None
+
+
+# ---------------------------------------------------------------------------------------
+# the partitioned system (minimal coordinates): its state in w and piv, the core's calls
+# ---------------------------------------------------------------------------------------
+@hot
+def _partition(pi, w, piv):
+    """The partition's state (csim.physics.partition.Partition) as views of w and piv."""
+    m, r = pi[PI_NQ], pi[PI_NC]
+    return partition_state(w[pi[W_PART]:pi[W_END]], piv[m + r:], m, r, pi[PI_NL])
+
+
+@hot
+def _partition_call(par, pf, pi, w, piv):
+    """(handle, P, r, m, k, tol, max_iter, max_condition): what every core call of csim.physics.branch takes.
+
+    The method's settings (csim.solver.methods.minimal): fpar = [tol, max_condition], ipar = [max_iter].
+    """
+    P = _partition(pi, w, piv)
+    fpar, ipar = pf[pi[PI_FPAR]:], pi[pi[PI_IPAR]:]
+    return (par, pi, w, P.ym), P, pi[PI_NC], pi[PI_NQ], pi[PI_NL], fpar[0], ipar[0], fpar[1]
+
+
+@hot
+def full_state(y, par, pf, pi, w, piv):
+    """(code, the full state [q, qd, W] of the integrated state y): y itself, or for the partitioned
+    system its dependent coordinates solved on the branch (csim.physics.branch.to_full), in P.yf."""
+    if pi[PI_SYS] != PARTITIONED:
+        return OK, y
+    model, P, r, m, k, tol, max_iter, _ = _partition_call(par, pf, pi, w, piv)
+    return branch.to_full(model, P, y, P.yf, r, m, k, tol, max_iter), P.yf
+
+
+@hot
+def _partitioned_rhs(t, y, mode, located, par, pf, pi, w, piv, f):
+    """dy/dt = [ud, udd, dW/dt] (2 n + k,) of the partitioned system: the rhs at the full state, reduced."""
+    code, yf = full_state(y, par, pf, pi, w, piv)
+    if code != OK:
+        return code
+    P = _partition(pi, w, piv)
+    code = rhs(t, yf, mode, located, par, pf, pi, w, piv, P.ff)
+    if code == OK:
+        branch.reduce(P, P.ff, f, pi[PI_NC], pi[PI_NQ], pi[PI_NL])
+    return code
+
+
+@hot
+def _partition_after_step(y, par, pf, pi, w, piv):
+    """csim.physics.branch.after_step at the accepted state y: (code, restart)."""
+    model, P, r, m, k, tol, max_iter, max_condition = _partition_call(par, pf, pi, w, piv)
+    return branch.after_step(model, P, y, r, m, k, tol, max_iter, max_condition)
+
+
+@hot
+def _repartition(ya, y, par, pf, pi, w, piv):
+    """y = the accepted state ya, then csim.physics.branch.repartition from it after a breakdown; returns the code."""
+    for i in range(y.size):
+        y[i] = ya[i]
+    model, P, r, m, k, tol, max_iter, _ = _partition_call(par, pf, pi, w, piv)
+    return branch.repartition(model, P, y, r, m, k, tol, max_iter)
+
+
+@hot
+def _failure_details(pi, w, piv, info):
+    """info[2:] = the partition's failure details, for the message (a function without reference counting:
+    the views of w must not be counted by a caller that counts, as integrate does)."""
+    detail = _partition(pi, w, piv).detail
+    for i in range(detail.size):
+        info[2 + i] = detail[i]
+
+
+@hot
+def _pending(pi, w, piv):
+    """The breakdown of a full state met where no code could be returned (a switching function's value), cleared."""
+    if pi[PI_SYS] != PARTITIONED:
+        return OK
+    P = _partition(pi, w, piv)
+    code = P.count[C_PENDING]
+    P.count[C_PENDING] = OK
+    return code
+
+
 # the stabilization methods' gamma*: the built-in ones by code, any other through its address
 #: method code -> gamma* kernel (csim.fast.module.method_code reads this)
 BUILTIN_GAMMA = (baumgarte_gamma_star, sliding_mode_gamma_star)
@@ -306,11 +450,15 @@ def switching_from(y, pf, pi, w):
 
 
 @hot
-def mode_at(y, par, pf, pi, w, mode):
-    """The load-law conditions that hold at state y (switching functions left in w[W_G:])."""
-    loads_(y, par, pi, w)
-    switching_from(y, pf, pi, w)
+def mode_at(y, par, pf, pi, w, piv, mode):
+    """The load-law conditions that hold at state y (switching functions left in w[W_G:]); returns the code."""
+    code, yv = full_state(y, par, pf, pi, w, piv)
+    if code != OK:
+        return code
+    loads_(yv, par, pi, w)
+    switching_from(yv, pf, pi, w)
     mode_of(w[pi[W_G]:pi[W_G] + pi[PI_NSW]], mode)
+    return OK
 
 
 @sized
@@ -371,7 +519,10 @@ def rhs(t, y, mode, located, par, pf, pi, w, piv, f):
 @hot
 def feval(t, y, mode, located, par, pf, pi, w, piv, f, info):
     """rhs plus the driver's check of a non-finite result (info = [t, max |y|] then)."""
-    code = rhs(t, y, mode, located, par, pf, pi, w, piv, f)
+    if pi[PI_SYS] == PARTITIONED:
+        code = _partitioned_rhs(t, y, mode, located, par, pf, pi, w, piv, f)
+    else:
+        code = rhs(t, y, mode, located, par, pf, pi, w, piv, f)
     if code == OK and not all_finite(f):
         code = NONFINITE_RHS
     if code != OK:
@@ -385,54 +536,26 @@ def feval(t, y, mode, located, par, pf, pi, w, piv, f, info):
 # ---------------------------------------------------------------------------------------
 @hot
 def project(y, out, t, par, pf, pi, w, piv, info):
-    """out = y at time t with (q, qd) projected; returns the status code.
+    """out = y at time t with (q, qd) projected (csim.physics.projection.project); returns the status code.
 
     On a failure info = [max |Phi| of the last iterate, t], as the status messages read them.
-
     The method's settings: fpar[0] the tolerance on max |Phi|, ipar = [mass metric (0/1),
     iteration limit].
     """
     fpar = pf[pi[PI_FPAR]:pi[PI_FPAR] + pi[PI_NFPAR]]
     ipar = pi[pi[PI_IPAR]:pi[PI_IPAR] + pi[PI_NIPAR]]
-    tol, mass_metric, max_iter = fpar[0], ipar[0] == 1, ipar[1]
     for i in range(y.size):
         out[i] = y[i]
-    nq, nc = pi[PI_NQ], pi[PI_NC]
-    Winv, J = w[pi[W_WINV]:pi[W_WINV] + nq * nq], w[pi[W_J]:pi[W_J] + nc * nq]
-    WJt, S = w[pi[W_WJT]:pi[W_WJT] + nq * nc], w[pi[W_S2]:pi[W_S2] + nc * nc]
-    z, dq = w[pi[W_Z]:pi[W_Z] + nc], w[pi[W_DQ]:pi[W_DQ] + nq]
-    if mass_metric:  # W^-1 = M^-1
-        mass(out, par, pi, w)
-        if not invert(w[pi[W_M]:pi[W_M] + nq * nq], w[pi[W_M2]:pi[W_M2] + nq * nq], piv, w[pi[W_COL]:pi[W_COL] + nq],
-                      Winv, nq):
-            return _project_failed(SINGULAR_MASS, 0.0, t, info)
-    q = out[:nq]
-    phi = w[pi[W_PHI]:pi[W_PHI] + nc]
-    converged = False
-    mx = 0.0
-    for _ in range(max_iter + 1):
-        phi_(out, par, pi, w)
-        mx = max_abs(phi)
-        if mx <= tol:
-            converged = True
-            break
-        jac(out, par, pi, w)
-        if not correction(J, Winv, mass_metric, phi, WJt, S, z, piv, dq, nc, nq):
-            return _project_failed(PROJ_SINGULAR, mx, t, info)
-        for i in range(nq):
-            q[i] -= dq[i]
-        if at_round_off(dq, q):  # |Phi| cannot go lower: its round-off grows with |q|
-            converged = True
-            break
-    if not converged:
-        return _project_failed(PROJ_NO_CONVERGENCE, mx, t, info)
-    jac(out, par, pi, w)
-    phi_dot = w[pi[W_PD]:pi[W_PD] + nc]
-    constraint_rates(J, out[nq:2 * nq], phi_dot, nc, nq)
-    if not correction(J, Winv, mass_metric, phi_dot, WJt, S, z, piv, dq, nc, nq):
-        return _project_failed(PROJ_SINGULAR, mx, t, info)
-    for i in range(nq):
-        out[nq + i] -= dq[i]
+    nq, nc, nl = pi[PI_NQ], pi[PI_NC], pi[PI_NL]
+    model = (par, pi, w, w[pi[W_YM]:pi[W_YM] + 2 * nq + nl])
+    code, mx = project_state(model, out[:nq], out[nq:2 * nq], fpar[0], ipar[0] == 1, ipar[1], nq, nc,
+                             w[pi[W_M]:pi[W_M] + nq * nq], w[pi[W_M2]:pi[W_M2] + nq * nq],
+                             w[pi[W_WINV]:pi[W_WINV] + nq * nq], piv, w[pi[W_COL]:pi[W_COL] + nq],
+                             w[pi[W_PHI]:pi[W_PHI] + nc], w[pi[W_J]:pi[W_J] + nc * nq],
+                             w[pi[W_WJT]:pi[W_WJT] + nq * nc], w[pi[W_S2]:pi[W_S2] + nc * nc],
+                             w[pi[W_Z]:pi[W_Z] + nc], w[pi[W_DQ]:pi[W_DQ] + nq], w[pi[W_PD]:pi[W_PD] + nc])
+    if code != OK:
+        return _project_failed(code, mx, t, info)
     return OK
 
 
@@ -478,23 +601,27 @@ def dense_eval(kind, tau, t_old, h, y_old, F, out):
 
 
 @hot
-def _g_at(j, tau, kind, t_old, h, y_old, F, par, pf, pi, w, ytmp):
-    """Switching function j on the dense output at tau."""
+def _g_at(j, tau, kind, t_old, h, y_old, F, par, pf, pi, w, piv, ytmp):
+    """Switching function j on the dense output at tau (NaN, and the code pending, where the full state fails)."""
     dense_eval(kind, tau, t_old, h, y_old, F, ytmp)
-    loads_(ytmp, par, pi, w)
-    switching_from(ytmp, pf, pi, w)
+    code, yv = full_state(ytmp, par, pf, pi, w, piv)
+    if code != OK:
+        _partition(pi, w, piv).count[C_PENDING] = code
+        return np.nan
+    loads_(yv, par, pi, w)
+    switching_from(yv, pf, pi, w)
     return w[pi[W_G] + j]
 
 
 @hot
-def brentq(j, xa, xb, kind, t_old, h, y_old, F, par, pf, pi, w, ytmp):
+def brentq(j, xa, xb, kind, t_old, h, y_old, F, par, pf, pi, w, piv, ytmp):
     """scipy's brentq (xtol = rtol = 4 eps, 100 iterations) on switching function j: (root, ok)."""
     xtol = 4 * EPS
     rtol = 4 * EPS
     xpre, xcur = xa, xb
     xblk, fblk, spre, scur = 0.0, 0.0, 0.0, 0.0
-    fpre = _g_at(j, xpre, kind, t_old, h, y_old, F, par, pf, pi, w, ytmp)
-    fcur = _g_at(j, xcur, kind, t_old, h, y_old, F, par, pf, pi, w, ytmp)
+    fpre = _g_at(j, xpre, kind, t_old, h, y_old, F, par, pf, pi, w, piv, ytmp)
+    fcur = _g_at(j, xcur, kind, t_old, h, y_old, F, par, pf, pi, w, piv, ytmp)
     if fpre == 0:
         return xpre, True
     if fcur == 0:
@@ -539,7 +666,7 @@ def brentq(j, xa, xb, kind, t_old, h, y_old, F, par, pf, pi, w, ytmp):
             xcur += scur
         else:
             xcur += delta if sbis > 0 else -delta
-        fcur = _g_at(j, xcur, kind, t_old, h, y_old, F, par, pf, pi, w, ytmp)
+        fcur = _g_at(j, xcur, kind, t_old, h, y_old, F, par, pf, pi, w, piv, ytmp)
     return xcur, True
 
 
@@ -758,7 +885,7 @@ def _ensure_dense(dense_ready, dense_kind, t_old, h, y_old, y, f, mode, locate, 
 # events: where a switching function leaves the sign its mode says
 # ---------------------------------------------------------------------------------------
 @hot
-def _locate(a, b, dense_kind, t_old, h, y_old, FF, mode, mode_b, par, pf, pi, w, ytmp, roots,
+def _locate(a, b, dense_kind, t_old, h, y_old, FF, mode, mode_b, par, pf, pi, w, piv, ytmp, roots,
             has_root, info):
     """Earliest zero in (a, b] of the switching functions whose mode differs at b. Returns (status, t_event).
 
@@ -769,9 +896,15 @@ def _locate(a, b, dense_kind, t_old, h, y_old, FF, mode, mode_b, par, pf, pi, w,
     for jj in range(pi[PI_NSW]):
         has_root[jj] = False
         if mode_b[jj] != mode[jj]:
-            g_old = _g_at(jj, a, dense_kind, t_old, h, y_old, FF, par, pf, pi, w, ytmp)
+            g_old = _g_at(jj, a, dense_kind, t_old, h, y_old, FF, par, pf, pi, w, piv, ytmp)
+            pending = _pending(pi, w, piv)
+            if pending != OK:
+                return pending, t_event
             if (g_old > 0) == mode[jj]:
-                root, ok = brentq(jj, a, b, dense_kind, t_old, h, y_old, FF, par, pf, pi, w, ytmp)
+                root, ok = brentq(jj, a, b, dense_kind, t_old, h, y_old, FF, par, pf, pi, w, piv, ytmp)
+                pending = _pending(pi, w, piv)
+                if pending != OK:
+                    return pending, t_event
                 if not ok:
                     info[0] = t_old + h
                     return NO_SIGN_CHANGE, t_event
@@ -807,7 +940,9 @@ def _find_event(ts_, n_interior, dense_kind, y_old, y, f_new, mode, mode_b, rmod
                 return status, False
             dense[0] = True
             dense_eval(dense_kind, b, t_old, h, y_old, FF, ytmp)
-        mode_at(ytmp, par, pf, pi, w, mode_b)
+        status = mode_at(ytmp, par, pf, pi, w, piv, mode_b)
+        if status != OK:
+            return status, False
         found = False
         for jj in range(pi[PI_NSW]):
             if mode_b[jj] != mode[jj]:
@@ -819,8 +954,8 @@ def _find_event(ts_, n_interior, dense_kind, y_old, y, f_new, mode, mode_b, rmod
                 return status, False
             dense[0] = True
             a = t_old if rep == 0 else t_old + (t - t_old) * rep / (n_interior + 1)
-            status, t_event = _locate(a, b, dense_kind, t_old, h, y_old, FF, mode, mode_b, par, pf, pi, w, ytmp, roots,
-                                      has_root, info)
+            status, t_event = _locate(a, b, dense_kind, t_old, h, y_old, FF, mode, mode_b, par, pf, pi, w, piv, ytmp,
+                                      roots, has_root, info)
             if status != OK:
                 return status, False
             ts_[T_STOP] = t_event
@@ -852,7 +987,10 @@ def _sample(ts_, t_out, dense_kind, y_old, y, f_new, mode, rmode, locate, projec
                 return code
             copy_row(yp, ys, cs[N_REC])
         else:
-            copy_row(ytmp, ys, cs[N_REC])
+            code, yv = full_state(ytmp, par, pf, pi, w, piv)
+            if code != OK:
+                return code
+            copy_row(yv, ys, cs[N_REC])
         tr[cs[N_REC]] = t_i
         for jj in range(mode.size):
             modes[cs[N_REC], jj] = mode[jj]
@@ -911,22 +1049,48 @@ def _record_event(t, mode, roots, has_root, ev_t, ev_sw, n_ev):
 # the integration loop (csim.solver.simulate.integrate)
 # ---------------------------------------------------------------------------------------
 @hot
-def _start(y, yp, mode, projects, par, pf, pi, w, piv, tr, ys, modes, info):
-    """Project the initial state (projection), find its mode and record it. Returns the status."""
+def _max_phi(y, par, pf, pi, w, piv):
+    """(code, max |Phi|) at the integrated state y (NaN where y is not finite: the step check says so)."""
+    if not all_finite(y):
+        return OK, np.nan
+    code, yv = full_state(y, par, pf, pi, w, piv)
+    if code != OK:
+        return code, np.nan
+    phi_(yv, par, pi, w)
+    return OK, max_abs(w[pi[W_PHI]:pi[W_PHI] + pi[PI_NC]])
+
+
+@hot
+def _start(y0, y, yp, mode, projects, par, pf, pi, w, piv, tr, ys, modes, info):
+    """The integrated state y from the full initial state y0: projected (projection), partitioned and reduced
+    (minimal), else y0 itself; then its mode, and the record of it. Returns the status."""
+    if pi[PI_SYS] == PARTITIONED:
+        model, P, r, m, k, tol, max_iter, _ = _partition_call(par, pf, pi, w, piv)
+        code = branch.start(model, P, y0, y, r, m, k, tol, max_iter)
+        if code != OK:
+            return code
+    else:
+        for i in range(y.size):
+            y[i] = y0[i]
     if projects:
         code = project(y, yp, 0.0, par, pf, pi, w, piv, info)
         if code != OK:
             return code
         for i in range(y.size):
             y[i] = yp[i]
-    mode_at(y, par, pf, pi, w, mode)
+    code = mode_at(y, par, pf, pi, w, piv, mode)
+    if code != OK:
+        return code
     if projects:  # the recorded sample, projected as every recorded sample is
         code = project(y, yp, 0.0, par, pf, pi, w, piv, info)
         if code != OK:
             return code
         copy_row(yp, ys, 0)
     else:
-        copy_row(y, ys, 0)
+        code, yv = full_state(y, par, pf, pi, w, piv)
+        if code != OK:
+            return code
+        copy_row(yv, ys, 0)
     tr[0] = 0.0
     for jj in range(mode.size):
         modes[0, jj] = mode[jj]
@@ -938,9 +1102,12 @@ def _start_segment(method, ts_, y, f, t_end, rtol, atol, max_step, first_step, t
                    ytmp, f1, scl, cs, info):
     """Start the integrator at (t, y): tolerances, f(t, y), and DOP853's first step. Returns the status."""
     n = y.size
-    scale_w = max(1.0, abs(kinetic(y, par, pi, w)))  # the work states are in J: atol scaled to the energy
+    status, yv = full_state(y, par, pf, pi, w, piv)
+    if status != OK:
+        return status
+    scale_w = max(1.0, abs(kinetic(yv, par, pi, w)))  # the work states are in J: atol scaled to the energy
     for i in range(n):
-        tolv[i] = atol * scale_w if i >= 2 * pi[PI_NQ] else atol
+        tolv[i] = atol * scale_w if i >= n - pi[PI_NL] else atol
     cs[NFEV] += 1
     status = feval(ts_[T], y, rmode, locate, par, pf, pi, w, piv, f,
                    info)
@@ -982,19 +1149,79 @@ def _take_step(method, ts_, t_end, rtol, tolv, fixed_h, max_step, y, f, K, ytmp,
 
 @hot
 def _after_step(ts_, y, f, f_new, yp, projects, par, pf, pi, rmode, locate, w, piv, cs, info):
-    """Go on from the accepted step: project and hand the state back (projection), else keep f_new."""
+    """Go on from the accepted step: project and hand the state back (projection); anchor the branch and
+    maybe choose the partition again (minimal); else keep f_new. Returns (status, restart)."""
+    if pi[PI_SYS] == PARTITIONED:
+        code, restart = _partition_after_step(y, par, pf, pi, w, piv)
+        if code != OK or restart:
+            return code, restart
     if not projects:
         for i in range(y.size):
             f[i] = f_new[i]
-        return OK
+        return OK, False
     code = project(y, yp, ts_[T], par, pf, pi, w, piv, info)
     if code != OK:
-        return code
+        return code, False
     for i in range(y.size):
         y[i] = yp[i]
     cs[NFEV] += 1
-    return feval(ts_[T], y, rmode, locate, par, pf, pi, w, piv, f,
-                 info)
+    return feval(ts_[T], y, rmode, locate, par, pf, pi, w, piv, f, info), False
+
+
+@hot
+def _accept_step(ts_, t_new, dense_kind, y, y_old, y_new, f, f_new, Fh, dense, t_end, adaptive, max_phi, min_step, par,
+                 pf, pi, w, piv, info):
+    """Take the step to (t_new, y_new) (y_old keeps the state before it) and check it (csim.physics.steps);
+    the cubic Hermite data of an RK4 step into Fh. Returns the status."""
+    n = y.size
+    for i in range(n):
+        y_old[i] = y[i]
+        y[i] = y_new[i]
+    ts_[T] = t_new
+    status, max_phi_now = _max_phi(y, par, pf, pi, w, piv)
+    if status != OK:
+        return status
+    status = check_step(y, max_phi_now, ts_[HSTEP], t_new, t_end, adaptive, max_phi, min_step, info)
+    if status != OK:
+        return status
+    if dense_kind == RK4:  # the cubic Hermite interpolant's data
+        for i in range(n):
+            Fh[0, i] = y_old[i]
+            Fh[1, i] = f[i]
+            Fh[2, i] = y[i]
+            Fh[3, i] = f_new[i]
+    dense[0] = False
+    ts_[T_STOP] = t_new
+    return OK
+
+
+@hot
+def _after_event(ts_, y, ev_t, ev_sw, n_chatter, max_events, min_step, par, pf, pi, w, piv, cs, info):
+    """After an event recorded at index cs[N_EV]: anchor the partitioned system at the event state (maybe in a
+    new partition; on a failure the event is not counted, its conditions stay flipped, as the Python driver
+    leaves them), count the event, and check for chatter and too many events. Returns the status."""
+    if pi[PI_SYS] == PARTITIONED:
+        status, _ = _partition_after_step(y, par, pf, pi, w, piv)
+        if status != OK:
+            for jj in range(ev_sw.shape[1]):
+                ev_sw[cs[N_EV], jj] = False
+            return status
+    cs[N_EV] += 1
+    status = check_chatter(ev_t, cs[N_EV], n_chatter, min_step, info)
+    if status != OK:
+        return status
+    if cs[N_EV] > max_events:
+        info[0] = ts_[T]
+        return MAX_EVENTS
+    return OK
+
+
+@hot
+def _accept(ts_, y, ya):
+    """ya = y, the state a restart goes back to after a breakdown of the partition; returns its time."""
+    for i in range(y.size):
+        ya[i] = y[i]
+    return ts_[T]
 
 
 @njit(cache=True, error_model="numpy")
@@ -1009,25 +1236,30 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset):
     locate, n_interior, max_events, max_steps, n_chatter = iset[0] != 0, iset[1], iset[2], iset[3], iset[4]
     t_end, rtol, atol, fixed_h, max_step, first_step, max_phi, min_step = fset[0], fset[1], fset[2], fset[3], \
         fset[4], fset[5], fset[6], fset[7]
-    n, n_sw = y0.size, pi[PI_NSW]
+    partitioned = pi[PI_SYS] == PARTITIONED
+    n_free = pi[PI_NQ] - pi[PI_NC] if partitioned else pi[PI_NQ]  # the integrated state: 2 n_free + k
+    n, n_sw = 2 * n_free + pi[PI_NL], pi[PI_NSW]
     w = np.zeros(pi[W_END])
-    piv = np.zeros(pi[PI_NQ] + pi[PI_NC], np.int64)
-    tr, ys, modes = np.empty(t_out.size), np.empty((t_out.size, n)), np.zeros((t_out.size, n_sw), np.bool_)
+    # the KKT solve's pivots, then the partition's integers
+    piv = np.zeros(pi[PI_NQ] + pi[PI_NC] + partition_sizes(pi[PI_NQ], pi[PI_NC], pi[PI_NL])[1], np.int64)
+    tr, ys, modes = np.empty(t_out.size), np.empty((t_out.size, y0.size)), np.zeros((t_out.size, n_sw), np.bool_)
     ev_t, ev_sw = np.empty(16), np.zeros((16, n_sw), np.bool_)
-    info, ts_, cs = np.zeros(2), np.zeros(6), np.zeros(6, np.int64)
-    y, ytmp, yp, f, f_new, y_new, y_old = y0.copy(), np.empty(n), np.empty(n), np.empty(n), np.empty(n), \
-        np.empty(n), np.empty(n)
+    info, ts_, cs = np.zeros(2 + D_HEAD + 2 * n_free), np.zeros(6), np.zeros(6, np.int64)
+    y, ytmp, yp, f, f_new, y_new, y_old, ya = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), \
+        np.empty(n), np.empty(n), np.empty(n)
     K, F, Fh = np.empty((DOP_NX, n)), np.empty((DOP_POWER, n)), np.empty((4, n))
     tolv, scl = np.empty(n), np.empty(n)
     mode, mode_b = np.zeros(n_sw, np.bool_), np.zeros(n_sw, np.bool_)
     rmode = mode if locate else np.zeros(n_sw, np.bool_)  # the right-hand side's mode, or a scratch it overwrites
     roots, has_root, dense = np.empty(n_sw), np.zeros(n_sw, np.bool_), np.zeros(1, np.bool_)
-    status = _start(y, yp, mode, projects, par, pf, pi, w, piv, tr, ys, modes, info)
+    status = _start(y0, y, yp, mode, projects, par, pf, pi, w, piv, tr, ys, modes, info)
     cs[I_OUT] = 1
     if status == OK:
         cs[N_REC] = 1
+    t_a = 0.0
     while status == OK and ts_[T] < t_end:
         restarted = False
+        t_a = _accept(ts_, y, ya)
         status = _start_segment(method, ts_, y, f, t_end, rtol, atol, max_step, first_step, tolv, par, pf, pi, rmode,
                                 locate, w, piv, ytmp, f_new, scl, cs,
                                 info)
@@ -1046,23 +1278,10 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset):
                 status = STEP_TOO_SMALL if method == DOP853 else RK4_RESOLUTION
                 info[0] = ts_[T]
                 break
-            for i in range(n):  # the step is accepted
-                y_old[i] = y[i]
-                y[i] = y_new[i]
-            ts_[T] = t_new
-            phi_(y, par, pi, w)
-            status = check_step(y, max_abs(w[pi[W_PHI]:pi[W_PHI] + pi[PI_NC]]), ts_[HSTEP], t_new, t_end,
-                                method == DOP853, max_phi, min_step, info)
+            status = _accept_step(ts_, t_new, dense_kind, y, y_old, y_new, f, f_new, Fh, dense, t_end,
+                                  method == DOP853, max_phi, min_step, par, pf, pi, w, piv, info)
             if status != OK:
                 break
-            if dense_kind == RK4:  # the cubic Hermite interpolant's data
-                for i in range(n):
-                    Fh[0, i] = y_old[i]
-                    Fh[1, i] = f[i]
-                    Fh[2, i] = y[i]
-                    Fh[3, i] = f_new[i]
-            dense[0] = False
-            ts_[T_STOP] = t_new
             event = False
             if locate:
                 status, event = _find_event(ts_, n_interior, dense_kind, y_old, y, f_new, mode, mode_b, rmode, locate,
@@ -1080,22 +1299,29 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset):
                                       info)
                 if status != OK:
                     break
+                t_a = _accept(ts_, y, ya)
                 ev_t, ev_sw = _record_event(ts_[T], mode, roots, has_root, ev_t, ev_sw, cs[N_EV])
-                cs[N_EV] += 1
-                status = check_chatter(ev_t, cs[N_EV], n_chatter, min_step, info)
-                if status != OK:
-                    break
-                if cs[N_EV] > max_events:
-                    status = MAX_EVENTS
-                    info[0] = ts_[T]
-                    break
+                status = _after_event(ts_, y, ev_t, ev_sw, n_chatter, max_events, min_step, par, pf, pi, w, piv, cs,
+                                      info)
+                restarted = status == OK
+                break
+            status, restart = _after_step(ts_, y, f, f_new, yp, projects, par, pf, pi, rmode, locate, w, piv, cs, info)
+            if status == OK:
+                t_a = _accept(ts_, y, ya)
+            if restart:
                 restarted = True
                 break
-            status = _after_step(ts_, y, f, f_new, yp, projects, par, pf, pi, rmode, locate, w, piv, cs, info)
             if t_new >= t_end:
                 break
+        if partitioned and branch.is_breakdown(status):
+            # a stage left the region of the partition: restart from the last accepted state
+            ts_[T] = t_a
+            status = _repartition(ya, y, par, pf, pi, w, piv)
+            restarted = status == OK
         if not restarted:
             break
+    if partitioned and status != OK:
+        _failure_details(pi, w, piv, info)
     return cs[N_REC], tr, ys, modes, cs[N_EV], ev_t, ev_sw, cs[NFEV], cs[NSTEPS], status, info
 
 

@@ -46,6 +46,8 @@ SCRATCH = (
     ("W_COL", lambda m, r, k, n: m),  # projection: a column of the identity
     ("W_E", lambda m, r, k, n: 1),  # kinetic or potential energy
     ("W_G", lambda m, r, k, n: n),  # switching functions
+    ("W_YM", lambda m, r, k, n: 2 * m + k),  # a state to call the model functions at (csim.physics.model)
+    ("W_PART", lambda m, r, k, n: _partition_sizes(m, r, k)[0]),  # minimal: the partition's floats
     ("W_END", lambda m, r, k, n: 0),  # the size of w
 )
 
@@ -56,15 +58,29 @@ PI_MK, PI_NSW, PI_IPAR, PI_NIPAR, PI_FPAR, PI_NFPAR, PI_GAINS, PI_NGAINS = range
 PI_NQ, PI_NC, PI_NL, PI_NO = range(8, 12)
 #: the address of the gamma* of a method outside the kernels' own dispatch (0: none)
 PI_GAMMA_FN = 12
+#: what is integrated: CONSTRAINED ([q, qd, W]) or PARTITIONED ([u, ud, W], csim.physics.branch)
+PI_SYS = 13
+CONSTRAINED, PARTITIONED = 0, 1
 #: the addresses of the model functions (MODEL_FUNCTIONS)
-PI_FN = 13
+PI_FN = 14
 #: the workspace offsets (MODEL_TERMS, then SCRATCH)
 PI_W = PI_FN + len(MODEL_FUNCTIONS)
 _W_NAMES = MODEL_TERMS + tuple(name for name, _ in SCRATCH)
 (W_M, W_CQD, W_H, W_PHI, W_J, W_GAM, W_S, W_B, W_SQ, W_L, W_A, W_X, W_P, W_U, W_SD, W_PD, W_GS, W_WINV, W_M2,
- W_WJT, W_S2, W_Z, W_DQ, W_COL, W_E, W_G, W_END) = range(PI_W, PI_W + len(_W_NAMES))
+ W_WJT, W_S2, W_Z, W_DQ, W_COL, W_E, W_G, W_YM, W_PART, W_END) = range(PI_W, PI_W + len(_W_NAMES))
 #: the header's length; then sw_load (n_sw), sw_kind (n_sw), ipar (I)
 PI_HEAD = PI_W + len(_W_NAMES)
+
+
+def _partition_sizes(m: int, r: int, k: int) -> tuple[int, int]:
+    from csim.physics.partition import partition_sizes
+
+    return partition_sizes(m, r, k)
+
+
+def int_workspace(m: int, r: int, k: int) -> int:
+    """The size of the kernels' integer workspace: the pivots of the KKT solve (m + r), then the partition's."""
+    return m + r + _partition_sizes(m, r, k)[1]
 
 
 def model_offsets(m: int, r: int, k: int) -> tuple[dict[str, int], int]:

@@ -9,10 +9,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from csim.fast.layout import PI_HEAD, workspace
+from csim.fast.layout import CONSTRAINED, PARTITIONED, PI_HEAD, workspace
 from csim.fast.module import kernels_compiled, load_kernels, load_model, method_dispatch
 from csim.physics.events import chattering_switches
 from csim.physics.status import OK, failure_message
+from csim.solver.partitioned import PartitionedSystem
 from csim.solver.settings import IntegrationSettings, Trajectory, output_times
 from csim.solver.system import ConstrainedSystem
 
@@ -23,8 +24,8 @@ def pack_problem(system: ConstrainedSystem) -> tuple[np.ndarray, np.ndarray, np.
     """``(par, pf, pi)``: the problem as the flat arrays of :mod:`csim.fast.kernels`.
 
     pf = [magnitudes (k), sw_value (n_sw), fpar (F), gains (G * r)];
-    pi = [mk, n_sw, at(ipar), I, at(fpar), F, at(gains), G * r, m, r, k, o, gamma* address, model function
-    addresses, workspace offsets, sw_load (n_sw), sw_kind (n_sw), ipar (I)] (:mod:`csim.fast.layout`),
+    pi = [mk, n_sw, at(ipar), I, at(fpar), F, at(gains), G * r, m, r, k, o, gamma* address, system kind,
+    model function addresses, workspace offsets, sw_load (n_sw), sw_kind (n_sw), ipar (I)] (:mod:`csim.fast.layout`),
     where mk is the method's dispatch code and ``at(x)`` where x starts in pi or pf. The load
     laws are :class:`csim.loads.LoadSet`'s packing, the method's settings
     :meth:`csim.solver.methods.base.Method.pack`'s. Builds the model functions on the first
@@ -40,8 +41,9 @@ def pack_problem(system: ConstrainedSystem) -> tuple[np.ndarray, np.ndarray, np.
     n_sw = loads.n_switches
     at_ipar, at_fpar = PI_HEAD + 2 * n_sw, k + n_sw
     code, gamma_fn = method_dispatch(method)
+    kind = PARTITIONED if isinstance(system, PartitionedSystem) else CONSTRAINED
     header = [code, n_sw, at_ipar, ipar.size, at_fpar, fpar.size, at_fpar + fpar.size, gains.size, m, r, k, o,
-              gamma_fn, *model.addresses, *workspace(m, r, k, n_sw)]
+              gamma_fn, kind, *model.addresses, *workspace(m, r, k, n_sw)]
     pf = np.concatenate((loads.magnitudes, loads.sw_value, fpar, gains)).astype(float)
     pi = np.concatenate((header, loads.sw_load, loads.sw_kind, ipar)).astype(np.int64)
     return np.ascontiguousarray(system.par, dtype=float), pf, pi
@@ -98,7 +100,8 @@ def integrate_compiled(system: ConstrainedSystem, y0: np.ndarray, settings: Inte
     if code != OK:
         status = "failed"
         message = failure_message(int(code), float(info[0]), float(info[1]), settings, system.stabilizer,
-                                  switches=_chattering_labels(ev_sw, n_ev, settings.chatter_events, labels))
+                                  switches=_chattering_labels(ev_sw, n_ev, settings.chatter_events, labels),
+                                  detail=info[2:], coordinates=system.model.definition.coordinate_names)
     return Trajectory(
         t=ts[:n_rec].copy(), y=ys[:n_rec].copy(), mode=modes[:n_rec].copy(),
         status=status, message=message, nfev=int(nfev), njev=0, nlu=0, nsteps=int(nsteps),

@@ -34,27 +34,26 @@ def compiled_stabilizers() -> list[str]:
     return [name for name, cls in STABILIZERS.items() if cls.compiled]
 
 
-def unsupported(data: dict) -> list[str]:
-    """Why the compiled backend cannot run a (validated) case: [] when it can.
+def unsupported(case) -> list[str]:
+    """Why the compiled backend cannot run a (validated) case (:class:`csim.case.Case`): [] when it can.
 
     Each entry names the key, the value and the reason.
     """
     reasons = []
-    formulation = data.get("formulation", {}).get("method")
-    if formulation is not None and formulation not in FORMULATIONS:
+    formulation = case.formulation.method
+    if formulation not in FORMULATIONS:
         reasons.append(f"formulation.method {formulation!r}: the compiled backend implements the KKT formulation "
                        f"only (the elimination gives the same motion in exact arithmetic); use 'kkt'")
-    method = data.get("stabilization", {}).get("method")
-    if method is not None and method not in compiled_stabilizers():
-        why = {"ggl": "GGL is an index-2 DAE solved by the Python Radau IIA for DAEs",
-               "minimal": "coordinate partitioning re-partitions and solves Newton at every evaluation in Python"}
+    method = case.stabilization.method
+    if method not in compiled_stabilizers():
+        why = {"ggl": "GGL is an index-2 DAE solved by the Python Radau IIA for DAEs"}
         reasons.append(f"stabilization.method {method!r}: {why.get(method, 'not implemented in compiled code')}; "
                        f"the compiled backend supports {', '.join(compiled_stabilizers())}")
-    if data.get("mechanism", {}).get("drive_mode") == "dynamic":
+    if case.driven:
         reasons.append("mechanism.drive_mode 'dynamic': the drives are constraints that depend on time, which the "
                        "compiled kernels do not evaluate (csim.solver.driven runs on the Python path)")
-    integrator = data.get("simulation", {}).get("integrator")
-    if integrator is not None and integrator not in INTEGRATORS:
+    integrator = case.simulation.integrator
+    if integrator not in INTEGRATORS:
         reasons.append(f"simulation.integrator {integrator!r}: the compiled backend implements "
                        f"{' and '.join(INTEGRATORS)} (scipy's {integrator} runs on the Python path)")
     return reasons
@@ -64,11 +63,11 @@ def numba_available() -> bool:
     return importlib.util.find_spec("numba") is not None
 
 
-def resolve_backend(data: dict) -> str:
-    """``"compiled"`` or ``"python"``: the backend that runs a validated case."""
-    backend = data.get("simulation", {}).get("backend", "auto")
+def resolve_backend(case) -> str:
+    """``"compiled"`` or ``"python"``: the backend that runs a validated case (:class:`csim.case.Case`)."""
+    backend = case.simulation.backend
     if backend == "python":
         return "python"
     if backend == "compiled":
         return "compiled"
-    return "compiled" if not unsupported(data) and numba_available() else "python"
+    return "compiled" if not unsupported(case) and numba_available() else "python"

@@ -1,43 +1,133 @@
-"""``kernel``: compile a core function with numba when numba loads, else leave it as Python.
+"""``kernel``: compile a core function with numba on first use, else leave it as Python.
 
 The functions of :mod:`csim.physics` are called both from Python (the reference driver)
 and from inside compiled loops. Compiled, the Python driver calls the machine code (a
 dispatcher call costs about a microsecond); without numba the same source runs as plain
 Python, slower but identical in what it computes. ``CSIM_PURE_PYTHON=1`` forces the
 latter (for debugging, and to test that the core never depends on numba).
+
+numba is imported on the first call of a core function, or when the compiled kernels load
+(:func:`activate`), never at import: a command that only reads a case (``csim describe``,
+``csim schema``, ``csim plot``, the validation) does not pay its 0.3 s. Until then a core
+function is a :class:`LazyKernel`, which numba types as the dispatcher it becomes.
 """
 from __future__ import annotations
 
+import functools
 import os
 
 #: no function here allocates, so none needs numba's reference counting of arrays (NRT): without
 #: it a call costs no atomic operations per array argument or slice (half of an evaluation's time)
 NJIT_OPTIONS = dict(cache=True, error_model="numpy", _nrt=False)
 
+#: numba's njit once imported (None: not yet, or pure Python), and whether the import was tried
+_NUMBA = {"njit": None, "tried": False}
+#: the :func:`jitable` functions, registered with numba when it loads
+_JITABLES: list = []
 
-def _numba_njit():
+
+def activate():
+    """Import numba (once) and make the core compilable; returns its njit, or None for pure Python."""
+    if _NUMBA["tried"]:
+        return _NUMBA["njit"]
+    _NUMBA["tried"] = True
     if os.environ.get("CSIM_PURE_PYTHON", "") not in ("", "0"):
         return None
     try:
         from numba import njit
+        from numba.core.typing.typeof import typeof
+        from numba.extending import typeof_impl
     except Exception:  # numba missing or broken: the Python driver still runs
         return None
+
+    @typeof_impl.register(LazyKernel)
+    def _typeof_lazy(value, context):  # a compiled caller sees the dispatcher
+        return typeof(value.compiled(), context.purpose)
+
+    _NUMBA["njit"] = njit
+    for fn in _JITABLES:
+        _register_jitable(fn)
+    _bind_dispatchers()
     return njit
 
 
-_NJIT = _numba_njit()
+def _bind_dispatchers():
+    """Replace every LazyKernel bound in a loaded csim module by its dispatcher: numba inlines an
+    ``inline_kernel`` (and resolves a call statically) only where the global it sees is a dispatcher."""
+    import sys
 
-#: whether core functions are compiled in this process
-COMPILED = _NJIT is not None
+    for name, module in list(sys.modules.items()):
+        if not name.startswith("csim") or module is None:
+            continue
+        for key, value in list(vars(module).items()):
+            if isinstance(value, LazyKernel):
+                setattr(module, key, value.compiled())
+
+
+def compiled() -> bool:
+    """Whether the core functions are compiled in this process (imports numba)."""
+    return activate() is not None
+
+
+class LazyKernel:
+    """A core function, compiled by numba (njit with ``options``) on its first call; the plain function without numba.
+
+    Attributes
+    ----------
+    py_func : function
+        The Python function.
+    """
+
+    def __init__(self, fn, options: dict):
+        functools.update_wrapper(self, fn)
+        self.py_func, self._options, self._compiled = fn, options, None
+
+    def compiled(self):
+        """The numba dispatcher (or the plain function where numba does not load)."""
+        if self._compiled is None:
+            njit = activate()
+            self._compiled = self.py_func if njit is None else njit(**self._options)(self.py_func)
+        return self._compiled
+
+    def __call__(self, *args):
+        return (self._compiled or self.compiled())(*args)
 
 
 def kernel(fn):
-    """Decorator: ``fn`` compiled by numba (njit, cached on disk, numpy's error model), or ``fn`` itself."""
-    return fn if _NJIT is None else _NJIT(**NJIT_OPTIONS)(fn)
+    """Decorator: ``fn`` compiled by numba (njit, cached on disk, numpy's error model) on first use, or plain."""
+    return _lazy(fn, NJIT_OPTIONS)
+
+
+def _lazy(fn, options):
+    """A LazyKernel, or the dispatcher itself once numba is loaded."""
+    lazy = LazyKernel(fn, options)
+    return lazy.compiled() if _NUMBA["njit"] is not None else lazy
 
 
 def inline_kernel(fn):
     """:func:`kernel`, and inlined into compiled callers in numba's IR, so that the sizes they pass
     as constants fix its loop lengths (the KKT solve of a right-hand side: about 0.6x the time of a
     call). Only for the few functions on the right-hand side's path: inlining costs compile time."""
-    return fn if _NJIT is None else _NJIT(inline="always", **NJIT_OPTIONS)(fn)
+    return _lazy(fn, dict(inline="always", **NJIT_OPTIONS))
+
+
+def jitable(fn):
+    """Decorator for a core function that evaluates the model (:mod:`csim.physics.model`): ``fn`` itself
+    to a Python caller, compiled into the compiled callers that call it.
+
+    The Python driver passes a Python model object (the functions of :mod:`csim.physics.model`
+    call its methods); the compiled kernels pass their tuple (model functions called through
+    their addresses, :mod:`csim.fast.kernels`), for which the kernels overload those functions.
+    The function is compiled as part of each compiled caller (numba's ``register_jitable``), so
+    it is cached with the caller, never on its own. It must not allocate.
+    """
+    _JITABLES.append(fn)
+    if _NUMBA["njit"] is not None:
+        _register_jitable(fn)
+    return fn
+
+
+def _register_jitable(fn):
+    from numba.extending import register_jitable
+
+    register_jitable(error_model="numpy", _nrt=False)(fn)

@@ -8,11 +8,16 @@ With the metric W (the identity, or the mass matrix M), one correction of a resi
 the smallest step in the W-norm that removes res to first order. Positions iterate
 q <- q - dq until max |Phi| <= tol or dq is down to the round-off of q; velocities need
 one correction (the velocity constraint is linear in qd). Matrices are flat, row-major.
+:func:`project` is the whole projection, which both backends run with their model handle
+(:mod:`csim.physics.model`).
 """
 from __future__ import annotations
 
-from csim.physics.jit import kernel
+from csim.physics.jit import jitable, kernel
+from csim.physics.kkt import constraint_rates
 from csim.physics.linalg import lu_factor, lu_solve
+from csim.physics.model import model_jacobian, model_mass, model_phi
+from csim.physics.status import OK, PROJ_NO_CONVERGENCE, PROJ_SINGULAR, SINGULAR_MASS
 
 EPS = 2.220446049250313e-16
 
@@ -107,3 +112,52 @@ def correction(J, Winv, mass_metric, res, WJt, S, z, piv, dq, r, m):
             v += WJt[i * r + c] * z[c]
         dq[i] = v
     return True
+
+
+@jitable
+def project(model, q, qd, tol, mass_metric, max_iter, m, r, M, LU, Winv, piv, col, phi, J, WJt, S, z, dq, phi_dot):
+    """Project (q, qd) (m,) in place onto Phi = 0 and Phi_q qd = 0. Returns (code, max |Phi| of the last iterate).
+
+    Positions by Gauss-Newton until max |Phi| <= ``tol`` or the correction is down to the
+    round-off of q (at most ``max_iter`` corrections), then velocities by one correction,
+    both in the metric W = M (``mass_metric``) or the identity. Codes: OK, SINGULAR_MASS,
+    PROJ_SINGULAR (J W^-1 J^T singular), PROJ_NO_CONVERGENCE.
+
+    Parameters
+    ----------
+    M, LU, Winv : ndarray (m * m,)
+        Scratch: the mass matrix, its LU factors, M^-1 (read only with the mass metric).
+    piv, col : ndarray (>= max(m, r),) int, (m,)
+        Scratch.
+    phi, J, WJt, S, z, dq, phi_dot : ndarray (r,), (r * m,), (m * r,), (r * r,), (r,), (m,), (r,)
+        Scratch (Phi, Phi_q and the correction's).
+    """
+    if mass_metric:  # W^-1 = M^-1
+        model_mass(model, q, M)
+        if not invert(M, LU, piv, col, Winv, m):
+            return SINGULAR_MASS, 0.0
+    converged = False
+    mx = 0.0
+    for _ in range(max_iter + 1):
+        model_phi(model, q, phi)
+        mx = max_abs(phi)
+        if mx <= tol:
+            converged = True
+            break
+        model_jacobian(model, q, J)
+        if not correction(J, Winv, mass_metric, phi, WJt, S, z, piv, dq, r, m):
+            return PROJ_SINGULAR, mx
+        for i in range(m):
+            q[i] -= dq[i]
+        if at_round_off(dq, q):  # |Phi| cannot go lower: its round-off grows with |q|
+            converged = True
+            break
+    if not converged:
+        return PROJ_NO_CONVERGENCE, mx
+    model_jacobian(model, q, J)
+    constraint_rates(J, qd, phi_dot, r, m)
+    if not correction(J, Winv, mass_metric, phi_dot, WJt, S, z, piv, dq, r, m):
+        return PROJ_SINGULAR, mx
+    for i in range(m):
+        qd[i] -= dq[i]
+    return OK, mx

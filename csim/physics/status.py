@@ -22,9 +22,17 @@ RK4_RESOLUTION = 11  # a: t
 SINGULAR_MASS = 12  # b: t
 NO_SIGN_CHANGE = 13  # a: t
 CHATTER = 14  # a: t, b: span of the last simulation.chatter_events events [s] (csim.physics.events)
+# minimal coordinates (csim.physics.branch): the details are the partition's (csim.physics.partition, D_*)
+DEPENDENT_NONFINITE = 15  # non-finite Phi or q in the Newton solve of the dependent coordinates
+DEPENDENT_SINGULAR = 16  # Phi_v singular (a breakdown: choose the partition again)
+DEPENDENT_NO_CONVERGENCE = 17  # Newton for v did not converge (a breakdown)
+BRANCH_LEFT = 18  # Newton's solution left the assembly branch (a breakdown)
+NO_BETTER_PARTITION = 19  # a breakdown other than BRANCH_LEFT, and no better partition at the accepted state
+BRANCH_LOST = 20  # BRANCH_LEFT again after MAX_BRANCH_RESTARTS restarts from the same accepted state
 
 
-def failure_message(code: int, a: float, b: float, settings, method=None, switches=()) -> str:
+def failure_message(code: int, a: float, b: float, settings, method=None, switches=(), detail=None,
+                    coordinates=()) -> str:
     """What went wrong, for status ``code`` with details ``a``, ``b``.
 
     Parameters
@@ -41,6 +49,11 @@ def failure_message(code: int, a: float, b: float, settings, method=None, switch
         :func:`csim.solver.stability.stability_cause`).
     switches : sequence of str, optional
         Labels of the switching functions involved (CHATTER names them).
+    detail : ndarray, optional
+        The failure details of a partitioned integration (:mod:`csim.physics.partition`),
+        for the codes from DEPENDENT_NONFINITE on.
+    coordinates : sequence of str, optional
+        The coordinates' names (those codes name them).
     """
     s = settings
     if code in (NONFINITE_RHS, NONFINITE_STATE, MAX_PHI):
@@ -73,6 +86,8 @@ def failure_message(code: int, a: float, b: float, settings, method=None, switch
         return f"numerical error after t = {a:.6g} s: ValueError: f(a) and f(b) must have different signs"
     if code == CHATTER:
         return _chatter_message(a, b, settings, switches)
+    if DEPENDENT_NONFINITE <= code <= BRANCH_LOST:
+        return _partition_message(code, detail, method, coordinates)
     return f"integration failed with status {code}"
 
 
@@ -110,3 +125,41 @@ def _divergence(code: int, a: float, b: float, settings, method) -> str:
     if unstable is None:
         return text
     return f"{text}: {unstable}, so the stabilizer drives the constraint error up (lower simulation.step)"
+
+
+def _partition_message(code: int, detail, method, names) -> str:
+    """The message of a failed solve of the dependent coordinates, or of a run that could not go on after one."""
+    from csim.physics.partition import D_CODE, D_COORD, D_HEAD, D_PHI, D_PRED, D_SOLVED
+
+    if code == NO_BETTER_PARTITION:
+        return (f"{_partition_message(int(detail[D_CODE]), detail, method, names)} (no better coordinate partition "
+                f"exists at the last accepted state)")
+    if code == BRANCH_LOST:
+        from csim.physics.partition import MAX_BRANCH_RESTARTS
+
+        return (f"{_partition_message(BRANCH_LEFT, detail, method, names)} (again after {MAX_BRANCH_RESTARTS} "
+                f"restarts from the last accepted state, and no better coordinate partition exists there)")
+    n = (detail.size - D_HEAD) // 2
+    u = ", ".join(f"{names[int(i)]} = {v:.6g}" for v, i in zip(detail[D_HEAD:D_HEAD + n], detail[D_HEAD + n:]))
+    if code == DEPENDENT_NONFINITE:
+        return f"blow-up: non-finite constraint residual at the independent coordinates {u}"
+    if code == DEPENDENT_SINGULAR:
+        return f"minimal: the dependent block Phi_v is singular at the independent coordinates {u}"
+    if code == DEPENDENT_NO_CONVERGENCE:
+        return (f"minimal: Newton-Raphson for the dependent coordinates did not reach max |Phi| <= {method.tol:g} in "
+                f"{method.max_iter} iterations (max |Phi| = {detail[D_PHI]:.3e}); the mechanism cannot be assembled "
+                f"at the independent coordinates {u}")
+    lands = branch_test_text(detail)
+    return (f"minimal: the assembly branch changes between the last accepted state and the independent coordinates "
+            f"{u}, even in the shortest pieces of the way: Newton's solution for the dependent coordinates lands "
+            f"{lands} ({names[int(detail[D_COORD])]}: {detail[D_PRED]:.6g} predicted, {detail[D_SOLVED]:.6g} solved)")
+
+
+def branch_test_text(detail) -> str:
+    """Which branch test a solution failed, with its numbers (csim.physics.partition.same_branch's details)."""
+    from csim.physics.partition import BRANCH_JUMP, D_BOUND, D_TEST, D_VALUE
+
+    value, bound = detail[D_VALUE], detail[D_BOUND]
+    if detail[D_TEST] == BRANCH_JUMP:
+        return f"{value:.3g} from the branch's prediction (at most {bound:.3g} on the branch)"
+    return f"with its slope dv/du changed by {value:.3g} (at most {bound:.3g} on the branch)"

@@ -53,28 +53,22 @@ DRIVEN_METHODS = ("none", "baumgarte", "sliding_mode", "projection")
 GAIN_KEYS = ("d", "w", "Lambda", "K", "k")
 
 
-def driven_problems(data: dict) -> list[str]:
-    """Why a validated case with ``mechanism.drive_mode: dynamic`` cannot run (empty: it can).
-
-    Parameters
-    ----------
-    data : dict
-        The case with defaults filled in.
-    """
+def driven_problems(case) -> list[str]:
+    """Why a validated case (:class:`csim.case.Case`) with ``mechanism.drive_mode: dynamic`` cannot run ([]: it can)."""
     problems = []
-    method = data["stabilization"].get("method")
+    method = case.stabilization.method
     if method not in DRIVEN_METHODS:
         problems.append(f"stabilization.method: got {method!r} with mechanism.drive_mode 'dynamic'; {method} "
                         f"integrates a system of its own in the free coordinates, and with one drive per degree of "
                         f"freedom the drives and constraints fix q(t) and qd(t) entirely (nothing is left free "
                         f"to integrate); expected one of {', '.join(DRIVEN_METHODS)}")
     for key in GAIN_KEYS:
-        if method in DRIVEN_METHODS and isinstance(data["stabilization"].get(key), list):
+        if method in DRIVEN_METHODS and isinstance(getattr(case.stabilization, key, None), list | tuple):
             problems.append(f"stabilization.{key}: got a list (one per constraint) with mechanism.drive_mode "
                             f"'dynamic'; the drives are constraints that {method} stabilizes too; expected one "
                             f"number")
-    if data["formulation"].get("method") != "kkt":
-        problems.append(f"formulation.method: got {data['formulation'].get('method')!r} with mechanism.drive_mode "
+    if case.formulation.method != "kkt":
+        problems.append(f"formulation.method: got {case.formulation.method!r} with mechanism.drive_mode "
                         f"'dynamic'; with one drive per degree of freedom no coordinate is independent, so "
                         f"there is nothing to eliminate onto; expected 'kkt'")
     return problems

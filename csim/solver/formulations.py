@@ -9,14 +9,12 @@ paper's eqs. 8-10) premultiplies by the null-space matrix R and solves an m x m 
 """
 from __future__ import annotations
 
-import itertools
-import math
-
 import numpy as np
 
 from csim.errors import SimulationFailure
 from csim.physics.kkt import kkt_solve
 from csim.physics.linalg import as_core
+from csim.physics.partition import block_inverse, choose_partition
 from csim.physics.status import SINGULAR_KKT, failure_message
 
 
@@ -66,44 +64,34 @@ class KKT(Formulation):
         return x[:m], x[m:]
 
 
-#: above this many candidate partitions, choose by pivoted QR instead of trying them all
-MAX_ENUMERATED_PARTITIONS = 500
-
-
 def choose_independent(phi_q: np.ndarray) -> np.ndarray:
     """Indices of the independent coordinates u for a Jacobian ``phi_q`` (r, m).
 
     The dependent block Phi_v is the one with the smallest condition
     :func:`dependent_block_inverse`, found by trying every choice of r of the m columns
-    when there are at most :data:`MAX_ENUMERATED_PARTITIONS` of them. Beyond that, QR with
-    column pivoting (which orders the columns by how much each adds to the rank) picks its
-    first r pivots, a good block though not always the best.
+    when there are at most :data:`csim.physics.partition.MAX_ENUMERATED_PARTITIONS` of them,
+    else by QR with column pivoting (:func:`csim.physics.partition.choose_partition`, the
+    choice the minimal-coordinate method makes too).
     """
     r, m = phi_q.shape
-    if math.comb(m, r) <= MAX_ENUMERATED_PARTITIONS:
-        best = min(itertools.combinations(range(m), r),
-                   key=lambda v: dependent_block_inverse(phi_q, list(v))[1])
-        return np.setdiff1d(np.arange(m), best)
-    import scipy.linalg  # only for mechanisms with more than 500 partitions
-
-    _, _, piv = scipy.linalg.qr(phi_q, pivoting=True, mode="economic")
-    return np.sort(piv[r:])
+    ind, dep = np.empty(m - r, np.int64), np.empty(r, np.int64)
+    choose_partition(as_core(phi_q), r, m, ind, dep, np.empty(r, np.int64), np.empty(r, np.int64), np.empty(r * r),
+                     np.empty(r, np.int64), np.empty(r), np.empty(r * r), np.empty(r * r), np.empty(r))
+    return ind
 
 
-def dependent_block_inverse(phi_q: np.ndarray, dependent: np.ndarray) -> tuple[np.ndarray | None, float]:
-    """Phi_v^-1 (r, r) and how badly Phi_v determines v, ||Phi_q||_1 ||Phi_v^-1||_1.
+def dependent_block_inverse(phi_q: np.ndarray, dependent) -> tuple[np.ndarray | None, float]:
+    """Phi_v^-1 (r, r) and how badly Phi_v determines v, ||Phi_q||_1 ||Phi_v^-1||_1 (core: ``block_inverse``).
 
     The condition is measured against the whole Jacobian, not Phi_v alone, so that it also
-    grows for a single constraint (a 1 x 1 block, whose own condition number is always 1):
-    it is 1 for the best-placed block of an orthogonal Jacobian and infinite (with no
-    inverse, None) where Phi_v is singular.
+    grows for a single constraint: it is 1 for the best-placed block of an orthogonal Jacobian
+    and infinite (with no inverse, None) where Phi_v is singular.
     """
-    try:
-        inv = np.linalg.inv(phi_q[:, dependent])
-    except np.linalg.LinAlgError:
-        return None, np.inf
-    # 1-norm: the largest absolute column sum
-    return inv, float(np.abs(phi_q).sum(axis=0).max() * np.abs(inv).sum(axis=0).max())
+    r, m = phi_q.shape
+    inv = np.empty(r * r)
+    cond = block_inverse(as_core(phi_q), np.asarray(dependent, dtype=np.int64), r, m, np.empty(r * r),
+                         np.empty(r, np.int64), np.empty(r), inv)
+    return (None, np.inf) if cond == np.inf else (inv.reshape(r, r), float(cond))
 
 
 class Elimination(Formulation):

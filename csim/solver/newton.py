@@ -1,27 +1,17 @@
-"""Newton-Raphson for the dependent coordinates of a partition q = (u, v).
+"""Newton-Raphson for the dependent coordinates of a partition q = (u, v), from Python.
 
-With the independent coordinates u held fixed, the dependent ones v solve Phi(u, v) = 0:
+The numerics are the core's (:mod:`csim.physics.branch`, :mod:`csim.physics.partition`),
+which the compiled kernels run too; this module gives them a Python interface over a
+:class:`csim.model.numeric.NumericModel` (:class:`PythonModel`) and turns their status codes
+into exceptions:
 
-    Phi_v(q_i) (v_{i+1} - v_i) = -Phi(q_i),
-
-and the dependent velocities follow from Phi_q qd = 0 by one linear solve,
-
-    Phi_v vd = -Phi_u ud.
+    Phi_v(q_i) (v_{i+1} - v_i) = -Phi(q_i)        (:func:`solve_dependent`)
+    Phi_v vd = -Phi_u ud                          (:func:`dependent_velocities`)
 
 The consistent initial state and the minimal-coordinate method both use it; each turns a
-:class:`DependentSolveError` into its own message.
-
-A closed loop has several assemblies for the same u (a four-bar's two closures), and Newton
-converges to whichever its start is nearest in its own sense. The minimal-coordinate method
-must stay on the assembly it started on, so it solves with :func:`follow_branch`: Newton
-from the branch's Taylor polynomial at a point (u_a, v_a) known to be on the branch,
-
-    v_pred = v_a + (dv/du)_a du + 1/2 Phi_v^-1 gamma(q_a, [du, (dv/du)_a du]),
-    (dv/du)_a = -Phi_v^-1 Phi_u  at (u_a, v_a),   du = u - u_a,
-
-the solution accepted only where :func:`same_branch` finds it continuous with the branch
-(close to the prediction, with a similar slope dv/du); otherwise the way from u_a to u is
-cut into shorter pieces and the branch followed along them.
+:class:`DependentSolveError` into its own message. :func:`follow_branch` keeps the solution
+on the assembly branch through a known point (:class:`BranchPoint`), as the module
+docstring of :mod:`csim.physics.branch` explains.
 """
 from __future__ import annotations
 
@@ -30,10 +20,40 @@ from dataclasses import dataclass
 import numpy as np
 
 from csim.model.numeric import NumericModel
-from csim.physics.projection import at_round_off
+from csim.physics import branch as core
+from csim.physics.partition import (  # noqa: F401 (the constants' old home)
+    BRANCH_CONTINUITY,
+    BRANCH_TANGENT_CHANGE,
+    D_COORD,
+    MAX_PIECE_MOVE,
+    MIN_PIECE,
+    Partition,
+    new_partition,
+)
+from csim.physics.partition import branch_tangent as _tangent_core
+from csim.physics.projection import at_round_off  # noqa: F401 (re-exported)
+from csim.physics.status import BRANCH_LEFT, DEPENDENT_NONFINITE, DEPENDENT_SINGULAR, OK, branch_test_text
 
-EPS = np.finfo(float).eps
-SQRT_EPS = float(np.sqrt(EPS))
+_REASONS = {DEPENDENT_NONFINITE: "non_finite", DEPENDENT_SINGULAR: "singular"}
+
+
+class PythonModel:
+    """The model evaluations of :mod:`csim.physics.model` for the Python driver: a NumericModel at ``par``."""
+
+    def __init__(self, model: NumericModel, par: np.ndarray):
+        self.model, self.par = model, np.asarray(par, dtype=float)
+
+    def phi(self, q, out):
+        out[:] = self.model.phi(q, self.par)
+
+    def jacobian(self, q, out):
+        out[:] = np.ravel(self.model.phi_q(q, self.par))
+
+    def gamma(self, q, qd, out):
+        out[:] = self.model.gamma(q, qd, self.par)
+
+    def mass(self, q, out):
+        out[:] = np.ravel(self.model.mass(q, self.par))
 
 
 @dataclass
@@ -63,7 +83,7 @@ class DependentSolveError(Exception):
 
     Attributes
     ----------
-    reason : {"singular", "no_convergence", "non_finite"}
+    reason : {"singular", "no_convergence", "non_finite", "branch"}
     q : ndarray (m,)
         The last iterate.
     phi : ndarray (r,)
@@ -87,67 +107,58 @@ class BranchLeftError(DependentSolveError):
     predicted : ndarray (m,)
         The branch's prediction it was started from.
     coordinate : int
-        Index in q of the dependent coordinate that moved most from the prediction.
+        Index in q of the coordinate that moved most from the prediction.
     detail : str
-        Which test of :func:`same_branch` failed, with its numbers.
+        Which branch test failed, with its numbers.
     """
 
-    def __init__(self, q: np.ndarray, phi: np.ndarray, predicted: np.ndarray, detail: str):
+    def __init__(self, q: np.ndarray, phi: np.ndarray, predicted: np.ndarray, detail: str, coordinate: int):
         super().__init__("branch", q, phi)
-        self.predicted, self.detail = predicted, detail
-        self.coordinate = int(np.argmax(np.abs(q - predicted)))
+        self.predicted, self.detail, self.coordinate = predicted, detail, coordinate
+
+
+def _partition(model: NumericModel, independent, dependent) -> Partition:
+    P = new_partition(model.n_coordinates, model.n_constraints, 0)
+    P.ind[:] = independent
+    P.dep[:] = dependent
+    return P
+
+
+def _error(code: int, P: Partition) -> DependentSolveError:
+    """The exception of a failed core solve (the iterate of a Newton failure, the solution of a branch one)."""
+    if code == BRANCH_LEFT:
+        return BranchLeftError(P.qe.copy(), P.phi.copy(), P.pred.copy(), branch_test_text(P.detail),
+                               int(P.detail[D_COORD]))
+    return DependentSolveError(_REASONS.get(code, "no_convergence"), P.q.copy(), P.phi.copy())
+
+
+def _solution(P: Partition, q: np.ndarray, iterations: int) -> DependentSolution:
+    return DependentSolution(q.copy(), P.J.reshape(P.phi.size, q.size).copy(), iterations, float(np.max(
+        np.abs(P.phi), initial=0.0)))
 
 
 def solve_dependent(model: NumericModel, par: np.ndarray, q: np.ndarray, dependent: np.ndarray, tol: float,
                     max_iter: int, max_condition: float = np.inf) -> DependentSolution:
-    """Solve Phi(u, v) = 0 for v = q[dependent], starting from ``q``.
+    """Solve Phi(u, v) = 0 for v = q[dependent], starting from ``q`` (not modified).
 
-    Converged when max |Phi| <= ``tol``, or when a correction is down to the round-off of q
-    (:func:`at_round_off`).
-
-    Parameters
-    ----------
-    model : NumericModel
-    par : ndarray (n_par,)
-    q : ndarray (m,)
-        Start: u as given, v the first guess. Not modified.
-    dependent : ndarray of int (r,)
-        Indices of v in q.
-    tol : float
-        Tolerance on max |Phi| [unit of Phi].
-    max_iter : int
-        Newton corrections at most.
-    max_condition : float
-        Phi_v counts as singular when its 2-norm condition number exceeds this (the default,
-        inf, checks only for an exactly singular matrix and saves the SVD).
+    Converged when max |Phi| <= ``tol``, or when a correction is down to the round-off of q.
+    Phi_v counts as singular where it is, or where its condition ||Phi_v||_1 ||Phi_v^-1||_1
+    exceeds ``max_condition``.
 
     Raises
     ------
     DependentSolveError
     """
+    m = model.n_coordinates
+    dependent = np.asarray(dependent, dtype=np.int64)
+    P = _partition(model, np.setdiff1d(np.arange(m), dependent), dependent)
     q = np.array(q, dtype=float)
-    for iteration in range(max_iter + 1):
-        phi = model.phi(q, par)
-        if not np.all(np.isfinite(phi)) or not np.all(np.isfinite(q)):
-            raise DependentSolveError("non_finite", q, phi)
-        phi_q = model.phi_q(q, par)
-        residual = float(np.max(np.abs(phi), initial=0.0))
-        if residual <= tol:
-            return DependentSolution(q, phi_q, iteration, residual)
-        if iteration == max_iter:
-            raise DependentSolveError("no_convergence", q, phi)
-        phi_v = phi_q[:, dependent]
-        if np.isfinite(max_condition) and np.linalg.cond(phi_v) > max_condition:
-            raise DependentSolveError("singular", q, phi)
-        try:
-            dv = np.linalg.solve(phi_v, phi)
-        except np.linalg.LinAlgError:
-            raise DependentSolveError("singular", q, phi) from None
-        q[dependent] -= dv
-        if at_round_off(dv, q):  # converged to the round-off of Phi at these coordinates
-            phi = model.phi(q, par)
-            return DependentSolution(q, model.phi_q(q, par), iteration + 1, float(np.max(np.abs(phi), initial=0.0)))
-    raise AssertionError("unreachable")  # the loop returns or raises at iteration == max_iter
+    code, iterations = core.solve_dependent(PythonModel(model, par), P, q, dependent.size, m, tol, max_iter,
+                                            float(max_condition))
+    if code != OK:
+        P.q[:] = q
+        raise _error(code, P)
+    return _solution(P, q, iterations)
 
 
 def dependent_velocities(phi_q: np.ndarray, qd: np.ndarray, dependent: np.ndarray) -> np.ndarray:
@@ -164,69 +175,21 @@ def dependent_velocities(phi_q: np.ndarray, qd: np.ndarray, dependent: np.ndarra
     return out
 
 
-# --- following an assembly branch ------------------------------------------------------------
-
-#: Newton's solution may differ from the branch's prediction by at most this fraction of the
-#: predicted (first-order) move (:func:`continuity_bound`)
-BRANCH_CONTINUITY = 0.25
-#: ... and dv/du there from dv/du at the start of the piece by at most this fraction of
-#: max(1, max |dv/du|) at the start (:func:`same_branch`)
-BRANCH_TANGENT_CHANGE = 1.0
-#: the way from the known point to the target is cut in pieces no shorter than this fraction of
-#: the longest piece
-MIN_PIECE = 2.0**-12
-#: ... and no piece moves a coordinate by more than this (rad, or m), by the linear prediction:
-#: over a longer move (a trial stage half a turn of a crank ahead) the prediction can lie
-#: nearer another assembly than its own, and Newton's solution there pass both tests
-MAX_PIECE_MOVE = 0.5
-
-
-def _amax(x: np.ndarray) -> float:
-    """max |x| (0 for an empty array), without np.max's keyword overhead (called at every evaluation)."""
-    return float(np.abs(x).max()) if x.size else 0.0
-
-
 def branch_tangent(phi_q: np.ndarray, independent: np.ndarray, dependent: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """dv/du = -Phi_v^-1 Phi_u (r, n), how the dependent coordinates move with the independent ones, and Phi_v^-1.
+    """dv/du = -Phi_v^-1 Phi_u (r, n) and Phi_v^-1 (r, r) (:func:`csim.physics.partition.branch_tangent`).
 
     Raises
     ------
     DependentSolveError
         ``"singular"`` where Phi_v is singular (the branch folds back: v is no function of u).
     """
-    try:
-        inverse = np.linalg.inv(phi_q[:, dependent])
-    except np.linalg.LinAlgError:
-        inverse = np.full((dependent.size, dependent.size), np.nan)
-    tangent = -inverse @ phi_q[:, independent]
-    if not (np.all(np.isfinite(inverse)) and np.all(np.isfinite(tangent))):
-        raise DependentSolveError("singular", np.full(phi_q.shape[1], np.nan), np.full(phi_q.shape[0], np.nan))
-    return tangent, inverse
-
-
-def continuity_bound(du: np.ndarray, dv_linear: np.ndarray, v: np.ndarray) -> float:
-    """Largest max |v - v_pred| of a Newton solution that counts as the same branch.
-
-    On the branch, v(u) - v_pred is the remainder of the prediction, of third order in the
-    move; another assembly lies a finite distance away whatever the move. A solution counts
-    as continuous when
-
-        max |v - v_pred| <= BRANCH_CONTINUITY max(max |du|, max |dv_lin|) + sqrt(eps) max(1, max |v|),
-
-    i.e. Newton corrected the prediction by less than a quarter of the predicted first-order
-    move (in the coordinates' units, rad or m), plus a floor at the resolution of v for a
-    move of zero.
-
-    Parameters
-    ----------
-    du : ndarray (n,)
-        Move of the independent coordinates, u - u_a.
-    dv_linear : ndarray (r,)
-        Predicted move of the dependent ones, (dv/du)_a du.
-    v : ndarray (r,)
-        The predicted dependent coordinates.
-    """
-    return BRANCH_CONTINUITY * max(_amax(du), _amax(dv_linear)) + SQRT_EPS * max(1.0, _amax(v))
+    r, m = phi_q.shape
+    independent, dependent = np.asarray(independent, np.int64), np.asarray(dependent, np.int64)
+    V, T = np.empty(r * r), np.empty(r * (m - r))
+    if not _tangent_core(np.ascontiguousarray(phi_q, dtype=float).ravel(), independent, dependent, r, m,
+                         np.empty(r * r), np.empty(r, np.int64), np.empty(r), V, T):
+        raise DependentSolveError("singular", np.full(m, np.nan), np.full(r, np.nan))
+    return T.reshape(r, m - r), V.reshape(r, r)
 
 
 @dataclass
@@ -252,15 +215,16 @@ class BranchPoint:
         """The branch point at coordinates q with Jacobian phi_q (raises DependentSolveError if Phi_v is singular)."""
         return cls(np.array(q, dtype=float), *branch_tangent(phi_q, independent, dependent))
 
+    def state(self, model: NumericModel, independent, dependent) -> Partition:
+        """A core Partition anchored here, in the partition (independent, dependent)."""
+        P = _partition(model, independent, dependent)
+        P.qa[:], P.Ta[:], P.Va[:] = self.q, self.tangent.ravel(), self.phi_v_inv.ravel()
+        P.qp[:], P.Tp[:], P.Vp[:] = P.qa, P.Ta, P.Va
+        return P
+
     def predict(self, model: NumericModel, par: np.ndarray, u: np.ndarray, independent: np.ndarray,
                 dependent: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The branch's second-order prediction of q at the independent coordinates u.
-
-        Along the straight line u(s) = u_a + s du (u'' = 0), Phi(q(s)) = 0 twice differentiated
-        gives Phi_v v'' = gamma(q, q') with q' = [du, (dv/du) du], the model's acceleration-level
-        right-hand side, so that
-
-            v_pred = v_a + (dv/du)_a du + 1/2 Phi_v^-1 gamma(q_a, q'),    du = u - u_a.
+        """The branch's second-order prediction of q at the independent coordinates u (core: ``predict``).
 
         Returns
         -------
@@ -269,112 +233,47 @@ class BranchPoint:
         dv_linear : ndarray (r,)
             (dv/du)_a du, the first-order move.
         """
-        du = u - self.q[independent]
-        direction = np.empty(self.q.size)
-        direction[independent] = du
-        direction[dependent] = dv_linear = self.tangent @ du
-        predicted = self.q.copy()
-        predicted[independent] = u
-        predicted[dependent] += dv_linear + 0.5 * (self.phi_v_inv @ model.gamma(self.q, direction, par))
-        return predicted, du, dv_linear
-
-
-def same_branch(start: BranchPoint, predicted: np.ndarray, end: BranchPoint, du: np.ndarray, dv_linear: np.ndarray,
-                dependent: np.ndarray) -> tuple[bool, str]:
-    """Whether Newton's solution ``end`` continues the branch from ``start``, and if not, why.
-
-    Two tests, which a solution on another assembly fails unless the move is so large that
-    the prediction lies nearer that assembly than its own (a four-bar's crank moved by 2 rad
-    and more: :func:`follow_branch` cuts moves to MAX_PIECE_MOVE):
-
-    * ``max |v - v_pred| <= continuity_bound`` (the prediction was good);
-    * ``max |(dv/du)_end - (dv/du)_start| <= BRANCH_TANGENT_CHANGE max(1, max |(dv/du)_start|)``
-      (the branch turned by less than its own slope: another closure has another slope).
-
-    Returns
-    -------
-    ok : bool
-    reason : str
-        Empty when ``ok``; otherwise the test that failed, with its numbers.
-    """
-    jump = _amax(end.q[dependent] - predicted[dependent])
-    bound = continuity_bound(du, dv_linear, predicted[dependent])
-    if jump > bound:
-        return False, f"{jump:.3g} from the branch's prediction (at most {bound:.3g} on the branch)"
-    turn = _amax(end.tangent - start.tangent)
-    turn_bound = BRANCH_TANGENT_CHANGE * max(1.0, _amax(start.tangent))
-    if turn > turn_bound:
-        return False, f"with its slope dv/du changed by {turn:.3g} (at most {turn_bound:.3g} on the branch)"
-    return True, ""
+        P = self.state(model, independent, dependent)
+        core.predict(PythonModel(model, par), P, np.asarray(u, dtype=float), P.dep.size, P.qa.size)
+        return P.pred.copy(), P.du.copy(), P.dvl.copy()
 
 
 def _predicted_solve(model, par, point: BranchPoint, u: np.ndarray, independent, dependent, tol, max_iter):
-    """Newton from the branch's prediction at ``point`` (:meth:`BranchPoint.predict`), checked by :func:`same_branch`.
+    """Newton from the branch's prediction at ``point``, checked for continuity with the branch.
 
     Returns the solution and its BranchPoint; raises BranchLeftError if it lands on another branch.
     """
-    predicted, du, dv_linear = point.predict(model, par, u, independent, dependent)
-    solution = solve_dependent(model, par, predicted, dependent, tol, max_iter)
-    end = BranchPoint.at(solution.q, solution.phi_q, independent, dependent)
-    ok, reason = same_branch(point, predicted, end, du, dv_linear, dependent)
-    if not ok:
-        raise BranchLeftError(solution.q, model.phi(solution.q, par), predicted, reason)
-    return solution, end
+    P = point.state(model, independent, dependent)
+    code = core.predicted_solve(PythonModel(model, par), P, np.asarray(u, dtype=float), P.dep.size, P.qa.size, tol,
+                                max_iter)
+    return _followed(code, P)
+
+
+def _followed(code: int, P: Partition) -> tuple[DependentSolution, BranchPoint]:
+    if code != OK:
+        raise _error(code, P)
+    r, m = P.dep.size, P.qe.size
+    end = BranchPoint(P.qe.copy(), P.Te.reshape(r, m - r).copy(), P.Ve.reshape(r, r).copy())
+    return _solution(P, P.qe, 0), end
 
 
 def follow_branch(model: NumericModel, par: np.ndarray, point: BranchPoint, u: np.ndarray, independent: np.ndarray,
                   dependent: np.ndarray, tol: float, max_iter: int) -> tuple[DependentSolution, BranchPoint]:
-    """v at the independent coordinates u on the assembly branch through ``point``.
-
-    Newton starts from the branch's prediction (module docstring) and its solution
-    must pass :func:`same_branch`. Where it does not (or Newton fails), the way from u_a to
-    u is cut in half, the branch followed to the midpoint, and the rest taken from there,
-    the pieces growing again after each success: a continuation along the straight line
-    from u_a to u. A move the first solve accepts costs one Newton solve and one tangent.
-
-    Parameters
-    ----------
-    model, par
-        The numeric model and its parameters.
-    point : BranchPoint
-        Where the branch is known (the last accepted state).
-    u : ndarray (n,)
-        The independent coordinates to solve at.
-    independent, dependent : ndarray of int (n,), (r,)
-        The partition.
-    tol, max_iter
-        Newton tolerance on max |Phi| and iteration limit, as in :func:`solve_dependent`.
+    """v at the independent coordinates u on the assembly branch through ``point`` (core: ``follow_branch``).
 
     Returns
     -------
     solution : DependentSolution
     end : BranchPoint
-        The solution with its tangent (to start later solves from, once accepted).
+        The solution with its tangent.
 
     Raises
     ------
     DependentSolveError
-        Of the last failed piece when a piece would have to be shorter than
-        :data:`MIN_PIECE` of the longest (the branch folds back or ends before u, or
-        Newton cannot converge); a :class:`BranchLeftError` when that piece's solution was
-        on another branch. ``"non_finite"`` at once.
+        Of the last failed piece (a :class:`BranchLeftError` when its solution was on
+        another branch).
     """
-    u = np.asarray(u, dtype=float)
-    u0 = point.q[independent]
-    # the longest piece, as a fraction of the way: its predicted move at most MAX_PIECE_MOVE
-    move = max(_amax(u - u0), _amax(point.tangent @ (u - u0)))
-    longest = 1.0 if move <= MAX_PIECE_MOVE else MAX_PIECE_MOVE / move
-    done, piece = 0.0, longest
-    while True:
-        reach = min(1.0, done + piece)
-        target = u if reach == 1.0 else u0 + reach * (u - u0)
-        try:
-            solution, end = _predicted_solve(model, par, point, target, independent, dependent, tol, max_iter)
-        except DependentSolveError as exc:
-            if exc.reason == "non_finite" or piece / 2 < MIN_PIECE * longest:
-                raise
-            piece /= 2
-            continue
-        if reach == 1.0:
-            return solution, end
-        point, done, piece = end, reach, min(2 * piece, longest)
+    P = point.state(model, independent, dependent)
+    code = core.follow_branch(PythonModel(model, par), P, np.asarray(u, dtype=float), P.dep.size, P.qa.size, tol,
+                              max_iter)
+    return _followed(code, P)

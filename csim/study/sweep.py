@@ -183,7 +183,7 @@ def _warm_up(plan: SweepPlan) -> None:
 
     try:
         system = build_system(plan.case)
-        if resolve_backend(plan.case.data) == "compiled":
+        if resolve_backend(plan.case) == "compiled":
             prepare_compiled(system, initial_state(plan.case, system), plan.case.integration_settings())
     except Exception:  # each run reports its own failure
         pass

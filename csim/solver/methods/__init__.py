@@ -57,6 +57,15 @@ def make_stabilizer(name: str, settings: dict | None = None) -> Method:
     return cls(**{k: v for k, v in (settings or {}).items() if k in own})
 
 
+def stabilizer_from(section) -> Method:
+    """The method a case's typed ``stabilization`` section names (:attr:`csim.case.Case.stabilization`),
+    built from its own settings only (the section's attributes of the same names)."""
+    cls = STABILIZERS.get(section.method)
+    if cls is None:
+        raise KeyError(f"unknown stabilization method {section.method!r}; valid names: {', '.join(STABILIZERS)}")
+    return cls(**{f.name: getattr(section, f.name) for f in cls.option_fields()})
+
+
 _TYPES = {float: "number", int: "integer", str: "string", bool: "boolean"}
 
 #: what :func:`~csim.solver.methods.base.positive_gains` accepts, as JSON Schema
@@ -101,4 +110,4 @@ def settings_table() -> str:
     return "\n".join(rows)
 
 
-__all__ = ["STABILIZERS", "Method", "make_stabilizer", "register", "schema_fields", "settings_table"]
+__all__ = ["STABILIZERS", "Method", "make_stabilizer", "register", "schema_fields", "settings_table", "stabilizer_from"]

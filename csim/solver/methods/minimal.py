@@ -3,7 +3,9 @@
 The independent coordinates u and their rates are integrated; at every evaluation the
 dependent coordinates v are solved from Phi(u, v) = 0 by Newton-Raphson and their rates
 from Phi_v vd = -Phi_u ud, so the constraints hold to the Newton tolerance by
-construction (:class:`csim.solver.partitioned.PartitionedSystem`).
+construction (:class:`csim.solver.partitioned.PartitionedSystem`). The Newton solve, the
+branch check and the choice of the partition are core functions (:mod:`csim.physics.branch`)
+that the compiled kernels run too.
 """
 from __future__ import annotations
 
@@ -43,6 +45,7 @@ class Minimal(Method):
     name = "minimal"
     rank = 50
     Options = MinimalOptions
+    compiled = True
 
     def __init__(self, minimal_tol=1e-13, minimal_max_iter=20, minimal_max_condition=20.0):
         super().__init__(minimal_tol=minimal_tol, minimal_max_iter=minimal_max_iter,
@@ -50,6 +53,10 @@ class Minimal(Method):
         self.tol = float(minimal_tol)
         self.max_iter = int(minimal_max_iter)
         self.max_condition = float(minimal_max_condition)
+
+    def parameters(self):
+        """fpar = [tol, max_condition], ipar = [max_iter] (the kernels' csim.fast.kernels._partition_call)."""
+        return [self.tol, self.max_condition], [self.max_iter]
 
     @classmethod
     def system_class(cls):

@@ -17,9 +17,7 @@ import numpy as np
 
 from csim.errors import SimulationFailure
 from csim.physics import projection as core
-from csim.physics.kkt import constraint_rates
-from csim.physics.linalg import as_core
-from csim.physics.status import PROJ_NO_CONVERGENCE, PROJ_SINGULAR, failure_message
+from csim.physics.status import OK, SINGULAR_MASS, failure_message
 from csim.solver.methods.base import Method, option
 
 METRICS = ("minimum_norm", "mass")
@@ -63,32 +61,21 @@ class Projection(Method):
         return [self.tol], [int(self.metric == "mass"), self.max_iter]
 
     def project(self, model, par, q, qd):
-        """Projected (q, qd); raises SimulationFailure when Gauss-Newton does not converge."""
+        """Projected (q, qd) (:func:`csim.physics.projection.project`); raises SimulationFailure when Gauss-Newton
+        does not converge or the Jacobian has lost rank, numpy's LinAlgError for a singular mass matrix."""
+        from csim.solver.newton import PythonModel
+
         m, r = q.size, model.n_constraints
-        mass_metric = self.metric == "mass"
-        # the core functions' scratch; matrices flat and row-major
-        Winv, WJt, S, z, dq = np.zeros(m * m), np.empty(m * r), np.empty(r * r), np.empty(r), np.empty(m)
-        piv = np.zeros(max(m, r), np.int64)
-        if mass_metric and not core.invert(as_core(model.mass(q, par)), np.empty(m * m), piv, np.empty(m), Winv, m):
+        q, qd = np.array(q, dtype=float), np.array(qd, dtype=float)
+        code, max_phi = core.project(PythonModel(model, par), q, qd, self.tol, self.metric == "mass", self.max_iter, m,
+                                     r, np.empty(m * m), np.empty(m * m), np.zeros(m * m),
+                                     np.zeros(max(m, r), np.int64), np.empty(m), np.empty(r), np.empty(r * m),
+                                     np.empty(m * r), np.empty(r * r), np.empty(r), np.empty(m), np.empty(r))
+        if code == SINGULAR_MASS:
             raise np.linalg.LinAlgError("Singular matrix")  # the driver says when
-        q = np.array(q, dtype=float)
-        for _ in range(self.max_iter + 1):
-            phi = model.phi(q, par)
-            if core.max_abs(phi) <= self.tol:
-                break
-            if not core.correction(as_core(model.phi_q(q, par)), Winv, mass_metric, phi, WJt, S, z, piv, dq, r, m):
-                raise SimulationFailure(_failure(PROJ_SINGULAR, self))
-            q -= dq
-            if core.at_round_off(dq, q):  # |Phi| cannot go lower: its round-off grows with |q|
-                break
-        else:
-            raise SimulationFailure(_failure(PROJ_NO_CONVERGENCE, self, core.max_abs(phi)))
-        phi_q = as_core(model.phi_q(q, par))
-        phi_dot = np.empty(r)
-        constraint_rates(phi_q, qd, phi_dot, r, m)
-        if not core.correction(phi_q, Winv, mass_metric, phi_dot, WJt, S, z, piv, dq, r, m):
-            raise SimulationFailure(_failure(PROJ_SINGULAR, self))
-        return q, qd - dq
+        if code != OK:
+            raise SimulationFailure(_failure(code, self, max_phi))
+        return q, qd
 
 
 def _failure(code: int, method: Projection, a: float = 0.0) -> str:

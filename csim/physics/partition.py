@@ -1,0 +1,388 @@
+"""Coordinate partitioning: the state of a partition, its choice and its linear algebra.
+
+The m coordinates q split into n = m - r independent ones u (``ind``) and r dependent ones
+v (``dep``). This module holds what needs no model evaluation:
+
+* :class:`Partition`, the state of a partitioned integration as views into one float and
+  one integer array (:func:`partition_state`): the partition, the branch point anchored at
+  the last accepted state, the Newton scratch, the failure details. The Python driver
+  (:class:`csim.solver.partitioned.PartitionedSystem`) and the compiled kernels lay it out
+  with the same function;
+* the condition of a dependent block, ||Phi_q||_1 ||Phi_v^-1||_1 (:func:`block_condition`);
+* the choice of the partition (:func:`choose_partition`): the best-conditioned block by
+  trying every one, or QR with column pivoting for mechanisms with many candidates;
+* the branch tangent dv/du = -Phi_v^-1 Phi_u (:func:`branch_tangent`) and the test that a
+  Newton solution continues the branch (:func:`same_branch`).
+
+The solves that evaluate the model are in :mod:`csim.physics.branch`. Matrices are flat and
+row-major: Phi_q (r * m), dv/du (r * n), Phi_v^-1 (r * r).
+"""
+from __future__ import annotations
+
+from collections import namedtuple
+
+import numpy as np
+
+from csim.physics.jit import jitable, kernel
+from csim.physics.linalg import lu_factor, lu_solve
+from csim.physics.projection import invert
+from csim.physics.status import OK
+
+#: Newton's solution may differ from the branch's prediction by at most this fraction of the
+#: predicted (first-order) move (:func:`same_branch`)
+BRANCH_CONTINUITY = 0.25
+#: ... and dv/du there from dv/du at the start of the piece by at most this fraction of
+#: max(1, max |dv/du|) at the start
+BRANCH_TANGENT_CHANGE = 1.0
+#: the way from the known point to the target is cut in pieces no shorter than this fraction of
+#: the longest piece (:func:`csim.physics.branch.follow_branch`)
+MIN_PIECE = 2.0**-12
+#: ... and no piece moves a coordinate by more than this (rad, or m), by the linear prediction:
+#: over a longer move (a trial stage half a turn of a crank ahead) the prediction can lie
+#: nearer another assembly than its own, and Newton's solution there pass both tests
+MAX_PIECE_MOVE = 0.5
+#: restarts from one accepted state, after the branch was lost, before the run fails
+MAX_BRANCH_RESTARTS = 2
+#: above this many candidate partitions, choose by pivoted QR instead of trying them all
+MAX_ENUMERATED_PARTITIONS = 500
+SQRT_EPS = 1.4901161193847656e-08
+#: the test of :func:`same_branch` a solution failed
+BRANCH_JUMP, BRANCH_TURN = 1, 2
+
+# ---- the failure details (Partition.detail), read by csim.physics.status.failure_message ----
+#: [cause code, branch test (BRANCH_JUMP/BRANCH_TURN), coordinate, predicted, solved, measure, bound, max |Phi|],
+#: then u (n) at the failed solve, then the independent coordinates' indices (n)
+D_CODE, D_TEST, D_COORD, D_PRED, D_SOLVED, D_VALUE, D_BOUND, D_PHI = range(8)
+D_HEAD = 8
+# ---- the counters (Partition.count) ----
+C_REPARTITIONS, C_BRANCH_RESTARTS, C_LOST_RESTARTS, C_LOST_SET, C_PENDING = range(5)
+N_COUNT = 5
+
+#: the state of a partitioned integration (see :func:`partition_state` for each field)
+Partition = namedtuple("Partition", (
+    "qa", "Ta", "Va",  # the branch point at the last accepted state: q (m), dv/du (r n), Phi_v^-1 (r r)
+    "qp", "Tp", "Vp",  # the branch point a piece of the way starts from
+    "qe", "Te", "Ve",  # the last solution and its tangent (the anchor once accepted)
+    "q", "phi", "J", "lu", "dv", "col", "cinv",  # Newton: iterate (m), Phi (r), Phi_q (r m), LU (r r), scratch
+    "pred", "du", "dvl", "dirn", "gam", "u0", "tgt", "uu",  # the prediction and the pieces of the way
+    "ym", "yf", "ff", "lost",  # model-call state, full state, its rate (2 m + k each); lost-at state (2 n + k)
+    "basis", "resid",  # QR partition choice: orthonormal basis (r r), a column's residual (r)
+    "detail", "cause",  # failure details, and those of the breakdown being answered (D_HEAD + 2 n each)
+    "ind", "dep", "piv", "cand", "best", "old", "count",  # integers
+))
+
+
+@jitable
+def partition_sizes(m, r, k):
+    """(floats, integers) that :func:`partition_state` lays out for m coordinates, r constraints, k loads."""
+    n, s = m - r, 2 * m + k
+    floats = 6 * m + 3 * r * n + r * m + 6 * r * r + 6 * r + 10 * n + 3 * s + k + 2 * D_HEAD
+    return floats, 2 * n + 4 * r + N_COUNT
+
+
+@jitable
+def _take(buf, at, size):
+    """(the view buf[at:at + size], where the next one starts)."""
+    return buf[at:at + size], at + size
+
+
+@jitable
+def partition_state(fw, iw, m, r, k):
+    """The :class:`Partition` of m coordinates, r constraints and k loads as views into fw and iw.
+
+    fw and iw are at least :func:`partition_sizes` long; nothing is copied (a compiled caller
+    builds the views at every use, for the cost of the slices).
+    """
+    n, s = m - r, 2 * m + k
+    qa, a = _take(fw, 0, m)
+    Ta, a = _take(fw, a, r * n)
+    Va, a = _take(fw, a, r * r)
+    qp, a = _take(fw, a, m)
+    Tp, a = _take(fw, a, r * n)
+    Vp, a = _take(fw, a, r * r)
+    qe, a = _take(fw, a, m)
+    Te, a = _take(fw, a, r * n)
+    Ve, a = _take(fw, a, r * r)
+    q, a = _take(fw, a, m)
+    phi, a = _take(fw, a, r)
+    J, a = _take(fw, a, r * m)
+    lu, a = _take(fw, a, r * r)
+    dv, a = _take(fw, a, r)
+    col, a = _take(fw, a, r)
+    cinv, a = _take(fw, a, r * r)
+    pred, a = _take(fw, a, m)
+    du, a = _take(fw, a, n)
+    dvl, a = _take(fw, a, r)
+    dirn, a = _take(fw, a, m)
+    gam, a = _take(fw, a, r)
+    u0, a = _take(fw, a, n)
+    tgt, a = _take(fw, a, n)
+    uu, a = _take(fw, a, n)
+    ym, a = _take(fw, a, s)
+    yf, a = _take(fw, a, s)
+    ff, a = _take(fw, a, s)
+    lost, a = _take(fw, a, 2 * n + k)
+    basis, a = _take(fw, a, r * r)
+    resid, a = _take(fw, a, r)
+    detail, a = _take(fw, a, D_HEAD + 2 * n)
+    cause, a = _take(fw, a, D_HEAD + 2 * n)
+    ind, b = _take(iw, 0, n)
+    dep, b = _take(iw, b, r)
+    piv, b = _take(iw, b, r)
+    cand, b = _take(iw, b, r)
+    best, b = _take(iw, b, r)
+    old, b = _take(iw, b, n)
+    count, b = _take(iw, b, N_COUNT)
+    return Partition(qa, Ta, Va, qp, Tp, Vp, qe, Te, Ve, q, phi, J, lu, dv, col, cinv, pred, du, dvl, dirn, gam, u0,
+                     tgt, uu, ym, yf, ff, lost, basis, resid, detail, cause, ind, dep, piv, cand, best, old, count)
+
+
+def new_partition(m: int, r: int, k: int) -> Partition:
+    """A :class:`Partition` over new zeroed arrays (the Python driver's)."""
+    nf, ni = partition_sizes(m, r, k)
+    return partition_state(np.zeros(max(nf, 1)), np.zeros(max(ni, 1), np.int64), m, r, k)
+
+
+# ---------------------------------------------------------------------------------------
+# linear algebra of a partition
+# ---------------------------------------------------------------------------------------
+@kernel
+def block_inverse(J, dep, r, m, lu, piv, col, inv):
+    """inv = Phi_v^-1 (r * r) of the columns ``dep`` of J (r * m); returns ||Phi_q||_1 ||Phi_v^-1||_1.
+
+    The condition is measured against the whole Jacobian, not Phi_v alone, so that it also
+    grows for a single constraint (a 1 x 1 block, whose own condition number is always 1):
+    it is 1 for the best-placed block of an orthogonal Jacobian, and infinite where Phi_v is
+    singular (inv is then left undefined).
+    """
+    for i in range(r):
+        for j in range(r):
+            lu[i * r + j] = J[i * m + dep[j]]
+    if not invert(lu, lu, piv, col, inv, r):  # factored in place
+        return np.inf
+    # 1-norms: the largest absolute column sums
+    norm_j = 0.0
+    for j in range(m):
+        s = 0.0
+        for i in range(r):
+            s += abs(J[i * m + j])
+        norm_j = max(norm_j, s)
+    norm_inv = 0.0
+    for j in range(r):
+        s = 0.0
+        for i in range(r):
+            s += abs(inv[i * r + j])
+        if not s <= norm_inv:  # NaN propagates, as numpy's max
+            norm_inv = s
+    return norm_j * norm_inv
+
+
+@kernel
+def complement(dep, r, m, ind):
+    """ind (m - r,) = the indices 0..m-1 not in dep, ascending (dep ascending too)."""
+    a = 0
+    b = 0
+    for i in range(m):
+        if b < r and dep[b] == i:
+            b += 1
+        else:
+            ind[a] = i
+            a += 1
+
+
+@kernel
+def n_partitions(m, r):
+    """C(m, r), the number of candidate dependent blocks, capped just above MAX_ENUMERATED_PARTITIONS."""
+    c = 1
+    for i in range(r):
+        c = c * (m - i) // (i + 1)
+        if c > MAX_ENUMERATED_PARTITIONS:
+            return MAX_ENUMERATED_PARTITIONS + 1
+    return c
+
+
+@kernel
+def choose_partition(J, r, m, ind, dep, cand, best, lu, piv, col, inv, basis, resid):
+    """The partition of coordinates for a Jacobian J (r * m): ind (n,) and dep (r,), ascending.
+
+    The dependent block Phi_v is the one with the smallest :func:`block_condition`, found by
+    trying every choice of r of the m columns in lexicographic order (the first of equal ones)
+    when there are at most :data:`MAX_ENUMERATED_PARTITIONS`. Beyond that, QR with column
+    pivoting (which orders the columns by how much each adds to the rank) picks its first r
+    pivots, a good block though not always the best.
+    """
+    if n_partitions(m, r) > MAX_ENUMERATED_PARTITIONS:
+        _pivoted_qr_columns(J, r, m, dep, basis, resid)
+    else:
+        for i in range(r):
+            cand[i] = i
+            best[i] = i
+        low = np.inf
+        first = True
+        while True:
+            c = block_inverse(J, cand, r, m, lu, piv, col, inv)
+            if first or c < low:
+                low = c
+                for i in range(r):
+                    best[i] = cand[i]
+            first = False
+            # the next combination in lexicographic order
+            i = r - 1
+            while i >= 0 and cand[i] == m - r + i:
+                i -= 1
+            if i < 0:
+                break
+            cand[i] += 1
+            for j in range(i + 1, r):
+                cand[j] = cand[j - 1] + 1
+        for i in range(r):
+            dep[i] = best[i]
+    complement(dep, r, m, ind)
+
+
+@kernel
+def _pivoted_qr_columns(J, r, m, dep, basis, resid):
+    """dep = the first r pivots of QR with column pivoting of J (r * m), sorted (Businger-Golub:
+    each the column with the largest part orthogonal to those chosen, the first of equal ones)."""
+    for c in range(r):
+        big = -1.0
+        pick = 0
+        for j in range(m):
+            taken = False
+            for i in range(c):
+                if dep[i] == j:
+                    taken = True
+            if taken:
+                continue
+            norm = _orthogonal_part(J, r, m, j, basis, c, resid)
+            if norm > big:
+                big = norm
+                pick = j
+        dep[c] = pick
+        norm = np.sqrt(_orthogonal_part(J, r, m, pick, basis, c, resid))
+        for a in range(r):
+            basis[c * r + a] = resid[a] / norm if norm > 0 else 0.0
+    for i in range(1, r):  # insertion sort: few entries
+        v = dep[i]
+        j = i - 1
+        while j >= 0 and dep[j] > v:
+            dep[j + 1] = dep[j]
+            j -= 1
+        dep[j + 1] = v
+
+
+@kernel
+def _orthogonal_part(J, r, m, j, basis, c, resid):
+    """resid (r,) = column j of J minus its projections on the first c basis vectors; returns |resid|^2."""
+    norm = 0.0
+    for a in range(r):
+        v = J[a * m + j]
+        for b in range(c):
+            dot = 0.0
+            for e in range(r):
+                dot += basis[b * r + e] * J[e * m + j]
+            v -= dot * basis[b * r + a]
+        resid[a] = v
+        norm += v * v
+    return norm
+
+
+@kernel
+def dependent_step(J, phi, dep, r, m, lu, piv, dv):
+    """dv (r,) from Phi_v dv = Phi (one Newton correction, v <- v - dv); False if Phi_v is singular."""
+    for i in range(r):
+        dv[i] = phi[i]
+        for j in range(r):
+            lu[i * r + j] = J[i * m + dep[j]]
+    if not lu_factor(lu, r, piv):
+        return False
+    lu_solve(lu, r, piv, dv)
+    return True
+
+
+@kernel
+def branch_tangent(J, ind, dep, r, m, lu, piv, col, V, T):
+    """V = Phi_v^-1 (r * r) and T = dv/du = -Phi_v^-1 Phi_u (r * n) at the Jacobian J.
+
+    Returns False where Phi_v is singular or the result is not finite (the branch folds
+    back: v is no function of u there).
+    """
+    n = m - r
+    if block_inverse(J, dep, r, m, lu, piv, col, V) == np.inf:
+        return False
+    ok = True
+    for i in range(r):
+        for j in range(n):
+            s = 0.0
+            for c in range(r):
+                s += V[i * r + c] * J[c * m + ind[j]]
+            T[i * n + j] = -s
+            if not np.isfinite(T[i * n + j]):
+                ok = False
+        for c in range(r):
+            if not np.isfinite(V[i * r + c]):
+                ok = False
+    return ok
+
+
+@kernel
+def _amax(x):
+    out = 0.0
+    for i in range(x.size):
+        v = abs(x[i])
+        if not v <= out:
+            out = v
+    return out
+
+
+@kernel
+def same_branch(qp, Tp, pred, qe, Te, du, dvl, dep, r, detail):
+    """Whether Newton's solution qe (with tangent Te) continues the branch from (qp, Tp); OK, or the test it fails.
+
+    Two tests, which a solution on another assembly fails unless the move is so large that
+    the prediction lies nearer that assembly than its own (a four-bar's crank moved by 2 rad
+    and more: the way is cut to MAX_PIECE_MOVE):
+
+    * the prediction was good: ``max |v - v_pred| <= BRANCH_CONTINUITY max(max |du|, max |dv_lin|)
+      + sqrt(eps) max(1, max |v_pred|)``. On the branch v(u) - v_pred is the remainder of the
+      prediction, of third order in the move; another assembly lies a finite distance away
+      whatever the move (the floor is the resolution of v, for a move of zero);
+    * the branch turned by less than its own slope: ``max |(dv/du)_end - (dv/du)_start| <=
+      BRANCH_TANGENT_CHANGE max(1, max |(dv/du)_start|)`` (another closure has another slope).
+
+    On a failure, detail [D_TEST, D_COORD, D_PRED, D_SOLVED, D_VALUE, D_BOUND] say which test,
+    with its numbers, and the coordinate that moved most from the prediction.
+    """
+    jump = 0.0
+    v_max = 0.0
+    for i in range(r):
+        d = abs(qe[dep[i]] - pred[dep[i]])
+        if not d <= jump:
+            jump = d
+        v_max = max(v_max, abs(pred[dep[i]]))
+    bound = BRANCH_CONTINUITY * max(_amax(du), _amax(dvl)) + SQRT_EPS * max(1.0, v_max)
+    code = OK
+    value = 0.0
+    if not jump <= bound:
+        code, value = BRANCH_JUMP, jump
+    else:
+        turn = 0.0
+        for i in range(Te.size):
+            d = abs(Te[i] - Tp[i])
+            if not d <= turn:
+                turn = d
+        bound = BRANCH_TANGENT_CHANGE * max(1.0, _amax(Tp))
+        if not turn <= bound:
+            code, value = BRANCH_TURN, turn
+    if code != OK:
+        worst = 0
+        for i in range(qe.size):
+            if abs(qe[i] - pred[i]) > abs(qe[worst] - pred[worst]):
+                worst = i
+        detail[D_TEST] = code
+        detail[D_COORD] = worst
+        detail[D_PRED] = pred[worst]
+        detail[D_SOLVED] = qe[worst]
+        detail[D_VALUE] = value
+        detail[D_BOUND] = bound
+    return code

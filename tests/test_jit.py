@@ -1,0 +1,77 @@
+"""csim.physics.jit: core functions compiled on first use, and commands that never import numba."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from conftest import CONFIGS, ROOT
+
+from csim.physics.jit import LazyKernel, kernel
+
+#: run csim's CLI in a fresh process, then say whether numba was imported
+CLI = ("import sys; from csim.cli import app\n"
+       "try:\n    app(args=sys.argv[1:], prog_name='csim')\nexcept SystemExit as exc:\n"
+       "    assert not exc.code, exc.code\n"
+       "print('numba' in sys.modules)")
+
+
+def _numba_imported(*args: str, code: str = CLI) -> bool:
+    done = subprocess.run([sys.executable, "-c", code, *args], cwd=ROOT, env=dict(os.environ), capture_output=True,
+                          text=True)
+    assert done.returncode == 0, done.stderr[-2000:]
+    return done.stdout.split()[-1] == "True"
+
+
+@pytest.fixture(scope="module")
+def result_file(tmp_path_factory):
+    out = tmp_path_factory.mktemp("jit") / "pendulum.h5"
+    subprocess.run([sys.executable, "-m", "csim", "run", str(CONFIGS / "pendulum.yaml"), "--set",
+                    "simulation.t_end=0.05", "-o", str(out), "--quiet"], cwd=ROOT, check=True, capture_output=True)
+    return out
+
+
+def test_validation_imports_no_numba():
+    code = ("import sys; from csim.case import load_case; "
+            "load_case('configs/quick_return.yaml', ['stabilization.method=minimal']); print('numba' in sys.modules)")
+    assert not _numba_imported(code=code)
+
+
+@pytest.mark.parametrize("args", [("describe", "configs/quick_return_tables.yaml"), ("schema",)])
+def test_describe_and_schema_import_no_numba(args):
+    assert not _numba_imported(*args)
+
+
+def test_plot_imports_no_numba(result_file, tmp_path):
+    assert not _numba_imported("plot", str(result_file), "-o", str(tmp_path), "--quiet")
+    assert list(tmp_path.glob("*.png"))
+
+
+def test_a_run_does_import_it(tmp_path):
+    # the checks above can fail: a run needs numba
+    assert _numba_imported("run", "configs/pendulum.yaml", "--set", "simulation.t_end=0.01", "-o",
+                           str(tmp_path / "run.h5"), "--quiet")
+
+
+def test_a_lazy_kernel_compiles_on_first_call_and_is_typed_in_compiled_callers():
+    pytest.importorskip("numba")
+    from numba import njit
+
+    @kernel
+    def twice(x):
+        return 2.0 * x
+
+    # lazy until numba loads; a dispatcher once it has (so that numba inlines and resolves it statically)
+    assert isinstance(twice, LazyKernel) or hasattr(twice, "signatures")
+    assert twice(1.5) == 3.0
+
+    @njit
+    def caller(x):
+        return twice(x) + 1.0
+
+    assert caller(2.0) == 5.0
+    compiled = twice.compiled() if isinstance(twice, LazyKernel) else twice
+    assert compiled.signatures  # a numba dispatcher
+    assert np.isclose(twice(np.float64(0.25)), 0.5)
