@@ -33,7 +33,10 @@ FAILURE_KINDS = (
     ("max steps", ("more than simulation.max_steps",)),
     ("chatter", ("more than simulation.max_events", "chattering load law")),
     ("projection", ("projection: gauss-newton",)),
-    ("singular", ("singular", "projection: singular", "numerical error after t = {t}: linalgerror")),
+    ("singular", ("singular", "projection: singular", "numerical error after t = {t}: linalgerror",
+                  "minimal: the dependent block phi_v is singular")),
+    ("newton", ("minimal: newton-raphson",)),
+    ("branch", ("minimal: the assembly branch",)),
     ("event location", ("numerical error",)),
     ("drive", ("mechanism.drive",)),
 )

@@ -170,7 +170,9 @@ CODE_KINDS = {"NONFINITE_RHS": "blow-up", "NONFINITE_STATE": "blow-up", "MAX_PHI
               "STEP_COLLAPSE": "step collapse", "MAX_STEPS": "max steps", "STEP_TOO_SMALL": "step collapse",
               "SINGULAR_KKT": "singular", "PROJ_SINGULAR": "singular", "PROJ_NO_CONVERGENCE": "projection",
               "MAX_EVENTS": "chatter", "RK4_RESOLUTION": "step", "SINGULAR_MASS": "singular",
-              "NO_SIGN_CHANGE": "event location", "CHATTER": "chatter"}
+              "NO_SIGN_CHANGE": "event location", "CHATTER": "chatter",
+              "DEPENDENT_NONFINITE": "blow-up", "DEPENDENT_SINGULAR": "singular", "DEPENDENT_NO_CONVERGENCE": "newton",
+              "BRANCH_LEFT": "branch", "NO_BETTER_PARTITION": "branch", "BRANCH_LOST": "branch"}
 
 
 def test_every_status_code_is_listed():
@@ -182,12 +184,15 @@ def test_every_failure_code_writes_its_kind_as_the_failure_attribute(tmp_path, n
     from types import SimpleNamespace
 
     from csim.physics import status as st
+    from csim.physics.partition import new_partition
     from csim.result import FAILURES, Result
 
     case = qr_case()  # an adaptive integrator (an RK4 step failure is its own kind)
-    projection = SimpleNamespace(tol=1e-10, max_iter=10)
-    message = st.failure_message(_status_codes()[name], 1.0, 2.0, case.integration_settings(), projection,
-                                 ["cutting_force"])
+    method = SimpleNamespace(tol=1e-13, max_iter=20)  # the projection's and minimal's settings quoted
+    detail = new_partition(3, 2, 0).detail  # the minimal-coordinate codes' details (csim.physics.partition)
+    detail[:] = 0.5
+    message = st.failure_message(_status_codes()[name], 1.0, 2.0, case.integration_settings(), method,
+                                 ["cutting_force"], detail=detail, coordinates=["q1", "q2", "q3"])
     failed = Result.empty("quick_return", ["q1", "q2", "q3"], [], [], 2, "", message=message)
     assert failed.failure == CODE_KINDS[name] and failed.failure in FAILURES
     path = tmp_path / "f.h5"
