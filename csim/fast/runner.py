@@ -81,7 +81,7 @@ def prepare(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSett
     args = _arguments(system, y0, settings, max_steps=0)  # builds the model functions
     mod = load_kernels()
     text = ("loading the compiled kernels" if kernels_compiled(mod) else
-            "compiling the kernels (once per csim installation, 1-2 min)")
+            "compiling the kernels (once per csim installation, 1-3 min)")
     with status(text), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         mod.integrate(*args)
 
