@@ -138,7 +138,13 @@ def analyse_motion(model, par: np.ndarray, drive: Callable[[float], tuple[np.nda
     dict with ``t`` (M,), ``q``, ``qd``, ``qdd`` (M, n), ``status``, ``message``, ``nsteps``
     (M <= N: a failure stops the analysis at the last solved time).
     """
-    from csim.solver.newton import BranchPoint, DependentSolveError, follow_branch, solve_dependent
+    from csim.solver.newton import (
+        BranchPoint,
+        DependentSolveError,
+        dependent_velocities,
+        follow_branch,
+        solve_dependent,
+    )
 
     n = model.n_coordinates
     ind = np.asarray(driven, dtype=int)
@@ -173,7 +179,7 @@ def analyse_motion(model, par: np.ndarray, drive: Callable[[float], tuple[np.nda
         # Phi_v vd = -Phi_u ud;  Phi_v vdd = gamma(q, qd) - Phi_u udd
         qd, qdd = np.zeros(n), np.zeros(n)
         qd[ind], qdd[ind] = ud, udd
-        qd[dep] = np.linalg.solve(Jv, -Ju @ ud)
+        qd = dependent_velocities(J, qd, dep)
         qdd[dep] = np.linalg.solve(Jv, model.gamma(q, qd, par) - Ju @ udd)
         q_out[k], qd_out[k], qdd_out[k] = q, qd, qdd
         done = k + 1
