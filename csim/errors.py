@@ -26,7 +26,21 @@ class ManifestError(CaseError):
 
 
 class SimulationFailure(CsimError):
-    """The simulation cannot go on (Newton did not converge, singular matrix, blow-up)."""
+    """The simulation cannot go on (Newton did not converge, singular matrix, blow-up).
+
+    Parameters
+    ----------
+    message : str
+        What went wrong, for the user.
+    kind : str, optional
+        What kind of failure it is (:data:`csim.result.FAILURES`, e.g. ``"singular"``), carried
+        into the result's ``failure``; ``""``: not known where it was raised (the result then
+        reads it from the message, :func:`csim.result.failure_kind`).
+    """
+
+    def __init__(self, message: str, kind: str = ""):
+        super().__init__(message)
+        self.kind = kind
 
 
 class ResultFileError(CsimError):

@@ -107,7 +107,8 @@ def run_case(case: Case, progress: Callable[[float], None] | None = None) -> Res
         load_time = time.perf_counter() - loading
         if backend == "failed":
             empty = Trajectory(t=np.zeros(0), y=np.zeros((0, system.n_state)),
-                               mode=np.zeros((0, system.loads.n_switches), bool), status="failed", message=why)
+                               mode=np.zeros((0, system.loads.n_switches), bool), status="failed", message=why,
+                               failure="backend")
             return assemble_result(case, system, empty, 0.0, backend="compiled")
         start = time.perf_counter()  # loading (on a cold cache: compiling) the kernels is not the run's time
     if backend == "compiled":  # numba kernels, entered once per run (csim.fast)
@@ -153,9 +154,9 @@ def assemble_result(case: Case, system: ConstrainedSystem, traj: Trajectory, wal
     """Evaluate every recorded quantity at the output times of a trajectory (``backend``: what integrated it)."""
     m = system.m
     arrays, failure = _sample_values(system, traj, backend, len(case.mechanism.observables))
-    status, message = traj.status, traj.message
-    if failure and status == "success":  # e.g. the last state of a failed run is singular
-        status, message = "failed", failure
+    status, message, kind = traj.status, traj.message, traj.failure
+    if failure is not None and status == "success":  # e.g. the last state of a failed run is singular
+        status, message, kind = "failed", str(failure), failure.kind
     y = traj.y
     return Result(
         mechanism=case.mechanism.name,
@@ -164,7 +165,7 @@ def assemble_result(case: Case, system: ConstrainedSystem, traj: Trajectory, wal
         observable_names=[ob.name for ob in case.mechanism.observables],
         case_yaml=case.to_yaml(),
         t=traj.t, q=y[:, :m], qd=y[:, m:2 * m], work=y[:, 2 * m:],
-        status=status, message=message, wall_time=wall_time,
+        status=status, message=message, failure=kind, wall_time=wall_time,
         nfev=traj.nfev, njev=traj.njev, nlu=traj.nlu, nsteps=traj.nsteps,
         event_times=np.asarray(traj.event_times, dtype=float), event_labels=list(traj.event_labels),
         backend=backend,
@@ -173,8 +174,8 @@ def assemble_result(case: Case, system: ConstrainedSystem, traj: Trajectory, wal
 
 
 def _sample_values(system: ConstrainedSystem, traj: Trajectory, backend: str,
-                   o: int) -> tuple[dict[str, np.ndarray], str]:
-    """Every recorded quantity at every sample, and the first failure's message.
+                   o: int) -> tuple[dict[str, np.ndarray], SimulationFailure | None]:
+    """Every recorded quantity at every sample, and the first failure (None: every sample evaluated).
 
     A compiled run's samples are evaluated in one compiled call, by the right-hand side that
     integrated them; a sample where that fails (and every sample of a Python run) by
@@ -199,13 +200,13 @@ def _sample_values(system: ConstrainedSystem, traj: Trajectory, backend: str,
             q, qd, _ = system.split(traj.y[i])
             arrays["observables"][i] = model.observables(q, par)
             arrays["observable_rates"][i] = model.observable_jacobian(q, par) @ qd
-    failure = ""
+    failure = None
     for i in todo:
         try:
             with np.errstate(over="ignore", invalid="ignore"):  # the last state of a blow-up
                 ev = system.evaluate(traj.t[i], traj.y[i], traj.mode[i])
         except SimulationFailure as exc:
-            failure = failure or str(exc)
+            failure = failure or exc
             continue
         for name, value in (("qdd", ev.qdd), ("lam", ev.lam), ("phi", ev.phi), ("phi_dot", ev.phi_dot),
                             ("loads", ev.u), ("generalized_forces", ev.Q), ("kinetic", ev.kinetic),

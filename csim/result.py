@@ -19,9 +19,11 @@ COMPILE_NOTICE = 3.0
 #: energy the run records: the relative energy balance is then round-off over round-off
 TINY_ENERGY_SCALE = 1e-9
 
-#: why a failed run failed (:attr:`Result.failure`): the first kind whose phrases its message
-#: starts with, in this order (the messages of csim.physics.status, the drivers and the
-#: kinematic analysis; a phrase with ``{t}`` also needs its tail in the message)
+#: why a failed run failed (:attr:`Result.failure`), read from a message that came without its
+#: kind (a run raises SimulationFailure with its kind, and a status code has its own,
+#: csim.physics.status.KINDS; tests check both file every code's message alike): the first
+#: kind whose phrases the message starts with, in this order (a phrase with ``{t}`` also
+#: needs its tail in the message)
 FAILURE_KINDS = (
     ("invalid", ("case: ",)),
     ("assembly", ("initial conditions", "the mechanism cannot be assembled")),
@@ -39,6 +41,7 @@ FAILURE_KINDS = (
     ("branch", ("minimal: the assembly branch",)),
     ("event location", ("numerical error",)),
     ("drive", ("mechanism.drive",)),
+    ("backend", ("simulation.backend 'compiled'",)),
 )
 
 #: values of :attr:`Result.failure`: "" for a success, a kind of :data:`FAILURE_KINDS`, or

@@ -163,3 +163,26 @@ def test_a_stalling_drive_chatters_where_the_reference_has_no_classical_solution
     assert res.message.startswith("chattering load law: cutting_force: ds/dt = 0 (velocity sign)")
     assert abs(res.event_times[-1] - t_stall) < 1e-8  # measured 4e-10 s
     assert len(res.event_times) == 23 + 20
+
+
+@pytest.mark.parametrize("backend", ["python", "compiled"])
+def test_the_failure_kind_comes_from_the_status_code_not_the_message(monkeypatch, backend):
+    # every kind below is carried from where the failure was raised (its status code): with the
+    # message classifier made blind, the results still name it
+    import csim.result
+
+    monkeypatch.setattr(csim.result, "failure_kind", lambda message: "other")
+    runs = {
+        "drift": pendulum("stabilization.w=100", "simulation.integrator=RK4", "simulation.step=0.03",
+                          "simulation.t_end=3", f"simulation.backend={backend}"),
+        "max steps": pendulum(*SLIDING, "stabilization.switching=sgn", "simulation.integrator=DOP853",
+                              "simulation.rtol=1e-6", "simulation.atol=1e-8", "simulation.max_steps=300",
+                              f"simulation.backend={backend}"),
+    }
+    for kind, res in runs.items():
+        assert res.status == "failed" and res.backend == backend
+        assert res.failure == kind, (kind, res.message)
+    if backend == "python":  # the elimination formulation runs on the Python path only
+        fixed = run_case(qr_case("formulation.method=elimination", "formulation.independent=[q2]",
+                                 "simulation.t_end=1"))
+        assert fixed.failure == "singular"

@@ -1,6 +1,8 @@
 """Result files: round trip, atomic writing, failed runs."""
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import h5py
 import numpy as np
 import pytest
@@ -10,6 +12,7 @@ from conftest import qr_case
 from csim.errors import ResultFileError
 from csim.io.hdf5 import atomic_h5, read_result, write_result
 from csim.pipeline import run_case
+from csim.result import failure_kind
 
 
 @pytest.fixture(scope="module")
@@ -177,6 +180,24 @@ CODE_KINDS = {"NONFINITE_RHS": "blow-up", "NONFINITE_STATE": "blow-up", "MAX_PHI
 
 def test_every_status_code_is_listed():
     assert set(_status_codes()) == set(CODE_KINDS)
+
+
+def test_each_status_code_carries_the_kind_its_message_is_filed_under():
+    # a run's failure kind comes from its code (csim.physics.status.KINDS); the message
+    # classifier (for messages without a code) must file every code's message the same way
+    from csim.physics import status as st
+    from csim.physics.partition import D_CODE, new_partition
+
+    assert {name: st.failure_kind(code) for name, code in _status_codes().items()} == CODE_KINDS
+    # NO_BETTER_PARTITION is the kind of the breakdown it could not get past, as its message reads
+    detail = new_partition(3, 2, 0).detail
+    detail[:] = 0.5
+    for inner, kind in ((st.DEPENDENT_SINGULAR, "singular"), (st.DEPENDENT_NO_CONVERGENCE, "newton"),
+                        (st.BRANCH_LEFT, "branch")):
+        detail[D_CODE] = inner
+        exc = st.failure(st.NO_BETTER_PARTITION, 0.0, 0.0, None, SimpleNamespace(tol=1e-13, max_iter=20),
+                         detail=detail, coordinates=["q1", "q2", "q3"])
+        assert exc.kind == kind == failure_kind(str(exc))
 
 
 @pytest.mark.parametrize("name", sorted(CODE_KINDS))

@@ -12,7 +12,7 @@ import numpy as np
 from csim.fast.layout import CONSTRAINED, PARTITIONED, PI_HEAD, workspace
 from csim.fast.module import kernels_compiled, load_kernels, load_model, method_dispatch
 from csim.physics.events import chattering_switches
-from csim.physics.status import OK, failure_message
+from csim.physics.status import OK, failure_kind, failure_message
 from csim.solver.partitioned import PartitionedSystem
 from csim.solver.settings import IntegrationSettings, Trajectory, output_times
 from csim.solver.system import ConstrainedSystem
@@ -96,15 +96,15 @@ def integrate_compiled(system: ConstrainedSystem, y0: np.ndarray, settings: Inte
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         n_rec, ts, ys, modes, n_ev, ev_t, ev_sw, nfev, nsteps, code, info = mod.integrate(*args)
     labels = system.loads.switch_labels
-    status, message = "success", f"reached t_end = {settings.t_end:g} s"
+    status, message, failure = "success", f"reached t_end = {settings.t_end:g} s", ""
     if code != OK:
-        status = "failed"
+        status, failure = "failed", failure_kind(int(code), info[2:])
         message = failure_message(int(code), float(info[0]), float(info[1]), settings, system.stabilizer,
                                   switches=_chattering_labels(ev_sw, n_ev, settings.chatter_events, labels),
                                   detail=info[2:], coordinates=system.model.definition.coordinate_names)
     return Trajectory(
         t=ts[:n_rec].copy(), y=ys[:n_rec].copy(), mode=modes[:n_rec].copy(),
-        status=status, message=message, nfev=int(nfev), njev=0, nlu=0, nsteps=int(nsteps),
+        status=status, message=message, failure=failure, nfev=int(nfev), njev=0, nlu=0, nsteps=int(nsteps),
         event_times=ev_t[:n_ev].tolist(), event_labels=_event_labels(ev_sw[:n_ev], labels),
     )
 

@@ -135,7 +135,8 @@ def analyse_motion(model, par: np.ndarray, drive: Callable[[float], tuple[np.nda
 
     Returns
     -------
-    dict with ``t`` (M,), ``q``, ``qd``, ``qdd`` (M, n), ``status``, ``message``, ``nsteps``
+    dict with ``t`` (M,), ``q``, ``qd``, ``qdd`` (M, n), ``status``, ``message``, ``failure`` (its kind,
+    :data:`csim.result.FAILURES`; "" for a success), ``nsteps``
     (M <= N: a failure stops the analysis at the last solved time).
     """
     from csim.solver.newton import (
@@ -151,7 +152,7 @@ def analyse_motion(model, par: np.ndarray, drive: Callable[[float], tuple[np.nda
     dep = np.setdiff1d(np.arange(n), ind)
     N = times.size
     q_out, qd_out, qdd_out = np.zeros((N, n)), np.zeros((N, n)), np.zeros((N, n))
-    status, message = "success", f"{KINEMATIC_RUN}: prescribed drive; lambda, loads, work are NaN"
+    status, message, failure = "success", f"{KINEMATIC_RUN}: prescribed drive; lambda, loads, work are NaN", ""
     point, done = None, 0
     for k, t in enumerate(times):
         try:
@@ -163,16 +164,16 @@ def analyse_motion(model, par: np.ndarray, drive: Callable[[float], tuple[np.nda
                 point = BranchPoint.at(sol.q, sol.phi_q, ind, dep)
             else:
                 sol, point = follow_branch(model, par, point, u, ind, dep, tol, max_iter)
-        except ValueError as exc:
-            status, message = "failed", str(exc)
+        except ValueError as exc:  # the drive is not finite
+            status, message, failure = "failed", str(exc), "drive"
             break
         except DependentSolveError as exc:
-            status, message = "failed", _assembly_message(exc, t, max_iter, labels)
+            status, message, failure = "failed", _assembly_message(exc, t, max_iter, labels), "assembly"
             break
         q, J = sol.q, sol.phi_q
         Jv, Ju = J[:, dep], J[:, ind]
         if np.linalg.cond(Jv) > 1e12:
-            status = "failed"
+            status, failure = "failed", "singular"
             message = (f"{KINEMATIC_RUN}: Phi_v is singular at t = {t:.6g} s: the driving variables cannot move the "
                        f"mechanism here (a singular position)")
             break
@@ -186,7 +187,7 @@ def analyse_motion(model, par: np.ndarray, drive: Callable[[float], tuple[np.nda
         if progress is not None:
             progress(float(t))
     return dict(t=times[:done], q=q_out[:done], qd=qd_out[:done], qdd=qdd_out[:done], status=status,
-                message=message, nsteps=done)
+                message=message, failure=failure, nsteps=done)
 
 
 #: why a position solve failed (csim.solver.newton.DependentSolveError.reason), for messages
@@ -261,6 +262,7 @@ def run_kinematics(case, model=None, progress: Callable[[float], None] | None = 
         t=t, q=q, qd=qd, qdd=qdd, lam=np.full((M, r), nan), phi=phi, phi_dot=phi_dot,
         kinetic=kinetic, potential=potential, work=np.full((M, k), nan), loads=np.full((M, k), nan),
         generalized_forces=np.full((M, len(names)), nan), observables=observables, observable_rates=rates,
-        status=out["status"], message=out["message"], wall_time=time.perf_counter() - start_time,
+        status=out["status"], message=out["message"], failure=out["failure"],
+        wall_time=time.perf_counter() - start_time,
         nsteps=out["nsteps"], run_kind="kinematic",
     )

@@ -30,6 +30,39 @@ BRANCH_LEFT = 18  # Newton's solution left the assembly branch (a breakdown)
 NO_BETTER_PARTITION = 19  # a breakdown other than BRANCH_LEFT, and no better partition at the accepted state
 BRANCH_LOST = 20  # BRANCH_LEFT again after MAX_BRANCH_RESTARTS restarts from the same accepted state
 
+#: the kind of failure each code is (:data:`csim.result.FAILURES`): what HDF5's ``failure``
+#: attribute, the sweep tables and ``csim batch`` call it
+KINDS = {
+    NONFINITE_RHS: "blow-up", NONFINITE_STATE: "blow-up", MAX_PHI: "drift",
+    STEP_COLLAPSE: "step collapse", MAX_STEPS: "max steps", STEP_TOO_SMALL: "step collapse",
+    SINGULAR_KKT: "singular", PROJ_SINGULAR: "singular", PROJ_NO_CONVERGENCE: "projection",
+    MAX_EVENTS: "chatter", RK4_RESOLUTION: "step", SINGULAR_MASS: "singular",
+    NO_SIGN_CHANGE: "event location", CHATTER: "chatter",
+    DEPENDENT_NONFINITE: "blow-up", DEPENDENT_SINGULAR: "singular", DEPENDENT_NO_CONVERGENCE: "newton",
+    BRANCH_LEFT: "branch", NO_BETTER_PARTITION: "branch", BRANCH_LOST: "branch",
+}
+
+
+def failure_kind(code: int, detail=None) -> str:
+    """The kind of failure of status ``code`` (:data:`KINDS`); NO_BETTER_PARTITION is the kind of
+    the breakdown it could not get past (``detail``: the partition's failure details)."""
+    if code == NO_BETTER_PARTITION and detail is not None:
+        from csim.physics.partition import D_CODE
+
+        inner = int(detail[D_CODE])
+        if inner != NO_BETTER_PARTITION and inner in KINDS:
+            return KINDS[inner]
+    return KINDS.get(code, "other")
+
+
+def failure(code: int, a: float, b: float, settings, method=None, switches=(), detail=None, coordinates=()):
+    """The :class:`csim.errors.SimulationFailure` of status ``code``: its message
+    (:func:`failure_message`, same arguments) and its kind (:func:`failure_kind`)."""
+    from csim.errors import SimulationFailure
+
+    return SimulationFailure(failure_message(code, a, b, settings, method, switches, detail, coordinates),
+                             failure_kind(code, detail))
+
 
 def failure_message(code: int, a: float, b: float, settings, method=None, switches=(), detail=None,
                     coordinates=()) -> str:

@@ -140,7 +140,7 @@ class DrivenSystem(ConstrainedSystem):
             qd = np.linalg.solve(J, np.concatenate((np.zeros(self.r), view.rates)))
         except np.linalg.LinAlgError:
             raise SimulationFailure(f"driven dynamics at t = {t:.6g} s: the constraint Jacobian with the drive rows "
-                                    f"is singular (a singular position of the driven mechanism)") from None
+                                    f"is singular (a singular position of the driven mechanism)", "singular") from None
         return np.concatenate((q, qd, y[2 * self.m:])), "swap"
 
     def restart(self, t: float, y: np.ndarray, mode: np.ndarray) -> np.ndarray:

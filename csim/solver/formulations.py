@@ -15,7 +15,7 @@ from csim.errors import SimulationFailure
 from csim.physics.kkt import kkt_solve
 from csim.physics.linalg import as_core
 from csim.physics.partition import block_inverse, choose_partition
-from csim.physics.status import SINGULAR_KKT, failure_message
+from csim.physics.status import SINGULAR_KKT, failure
 
 
 class Formulation:
@@ -60,7 +60,7 @@ class KKT(Formulation):
         x = np.empty(m + r)
         if not kkt_solve(as_core(M), as_core(phi_q), as_core(p), as_core(gamma_star), np.empty((m + r) ** 2), x,
                          np.empty(m + r, np.int64), m, r):
-            raise SimulationFailure(failure_message(SINGULAR_KKT, 0.0, 0.0, None))
+            raise failure(SINGULAR_KKT, 0.0, 0.0, None)
         return x[:m], x[m:]
 
 
@@ -141,13 +141,13 @@ class Elimination(Formulation):
                 raise SimulationFailure(
                     f"the dependent block Phi_v of the constraint Jacobian is singular "
                     f"(condition number {cond:.3g}) with the independent coordinates fixed by "
-                    f"formulation.independent"
-                )
+                    f"formulation.independent", "singular")
             self._set_independent(choose_independent(phi_q))
             self.repartitions += 1
             v, inv, cond = self._inverse_block(phi_q)
             if cond > self.max_condition:
-                raise SimulationFailure("singular constraint Jacobian: no well-conditioned dependent block exists")
+                raise SimulationFailure("singular constraint Jacobian: no well-conditioned dependent block exists",
+                                        "singular")
         return self.independent, v, inv
 
     def solve(self, M, phi_q, p, gamma_star):
@@ -162,7 +162,8 @@ class Elimination(Formulation):
         try:
             qdd = np.linalg.solve(A, b)
         except np.linalg.LinAlgError:
-            raise SimulationFailure("singular system [R^T M; Phi_q] in the elimination formulation") from None
+            raise SimulationFailure("singular system [R^T M; Phi_q] in the elimination formulation",
+                                    "singular") from None
         # Phi_v^T lambda = (p - M qdd)_v
         lam = phi_v_inv.T @ (p - M @ qdd)[v]
         return qdd, lam

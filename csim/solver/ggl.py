@@ -93,5 +93,5 @@ class GGLSystem(ConstrainedSystem):
         try:
             v_dot = np.linalg.solve(M, p - phi_q.T @ lam)
         except np.linalg.LinAlgError:
-            raise SimulationFailure("ggl: singular mass matrix") from None
+            raise SimulationFailure("ggl: singular mass matrix", "singular") from None
         return np.concatenate((v - phi_q.T @ mu, v_dot, u * (B.T @ v), model.phi(q, par), phi_q @ v))

@@ -75,7 +75,7 @@ def consistent_initial_state(model: NumericModel, par: np.ndarray, independent: 
         return SimulationFailure(
             f"initial conditions: the constraint Jacobian with respect to the dependent "
             f"coordinates ({dep_names}) is singular at q = {_fmt(names, q_)}; the given "
-            f"independent coordinates cannot drive the mechanism here, or the guess is poor")
+            f"independent coordinates cannot drive the mechanism here, or the guess is poor", "assembly")
 
     try:
         solution = solve_dependent(model, par, q, v, tol, max_iter, max_condition=MAX_CONDITION)
@@ -83,12 +83,13 @@ def consistent_initial_state(model: NumericModel, par: np.ndarray, independent: 
         if exc.reason == "singular":
             raise singular(exc.q) from None
         if exc.reason == "non_finite":
-            raise SimulationFailure("initial conditions: Newton-Raphson diverged (non-finite coordinates)") from None
+            raise SimulationFailure("initial conditions: Newton-Raphson diverged (non-finite coordinates)",
+                                    "assembly") from None
         per_eq = ", ".join(f"Phi[{i}] = {val:.3e}" for i, val in enumerate(exc.phi))
         raise SimulationFailure(
             f"initial conditions: Newton-Raphson did not converge in {max_iter} iterations "
             f"(residuals {per_eq}; last q = {_fmt(names, exc.q)}); the mechanism may not "
-            f"assemble at the given independent coordinates, or initial.guess is poor") from None
+            f"assemble at the given independent coordinates, or initial.guess is poor", "assembly") from None
     q, phi_q = solution.q, solution.phi_q
     if v.size and np.linalg.cond(phi_q[:, v]) > MAX_CONDITION:  # a tree has no dependent coordinates
         raise singular(q)

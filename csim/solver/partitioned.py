@@ -26,7 +26,7 @@ import numpy as np
 from csim.errors import PartitionBreakdown, SimulationFailure
 from csim.physics import branch as core
 from csim.physics.partition import C_BRANCH_RESTARTS, C_REPARTITIONS, MAX_BRANCH_RESTARTS, block_inverse, new_partition
-from csim.physics.status import BRANCH_LEFT, OK, failure_message
+from csim.physics.status import BRANCH_LEFT, OK, failure
 from csim.solver.newton import PythonModel
 from csim.solver.system import ConstrainedSystem
 
@@ -96,13 +96,17 @@ class PartitionedSystem(ConstrainedSystem):
         """Raise the driver's exception for a core status code (nothing for OK)."""
         if code == OK:
             return
-        message = failure_message(code, 0.0, 0.0, None, self.stabilizer, detail=self.P.detail.copy(),
-                                  coordinates=self.model.definition.coordinate_names)
+        exc = self._failure(code)
         if code == BRANCH_LEFT:
-            raise BranchChange(message)
+            raise BranchChange(str(exc), exc.kind)
         if core.is_breakdown(code):
-            raise PartitionBreakdown(message)
-        raise SimulationFailure(message)
+            raise PartitionBreakdown(str(exc), exc.kind)
+        raise exc
+
+    def _failure(self, code: int) -> SimulationFailure:
+        """The SimulationFailure of core status ``code``, with the partition's details."""
+        return failure(code, 0.0, 0.0, None, self.stabilizer, detail=self.P.detail.copy(),
+                       coordinates=self.model.definition.coordinate_names)
 
     def start(self, y_full: np.ndarray) -> np.ndarray:
         """Partition at q0 and keep u0, ud0 (v0 and vd0 are solved: a perturbed start is projected)."""
@@ -141,8 +145,7 @@ class PartitionedSystem(ConstrainedSystem):
         y = np.array(y, dtype=float)
         code = core.repartition(self.calls, self.P, y, *self._settings())
         if code != OK:
-            raise SimulationFailure(failure_message(code, 0.0, 0.0, None, self.stabilizer, detail=self.P.detail.copy(),
-                                                    coordinates=self.model.definition.coordinate_names))
+            raise self._failure(code)
         return y
 
     def after_step(self, t: float, y: np.ndarray) -> tuple[np.ndarray, str]:

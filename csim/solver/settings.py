@@ -83,6 +83,10 @@ class Trajectory:
         Load-law conditions in force at each output time.
     status : {"success", "failed"}
     message : str
+    failure : str
+        The kind of a failed run (:data:`csim.result.FAILURES`, from its status code or where it
+        was raised); ``""`` for a success, or where the kind is not known (then
+        :class:`csim.result.Result` reads it from the message).
     nfev : int
         Right-hand-side evaluations, all of them (stages, Jacobian differences, restarts).
     njev, nlu, nsteps : int
@@ -97,6 +101,7 @@ class Trajectory:
     mode: np.ndarray
     status: str
     message: str
+    failure: str = ""
     nfev: int = 0
     njev: int = 0
     nlu: int = 0

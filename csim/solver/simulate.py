@@ -59,7 +59,7 @@ class _Counter:
             if self.implicit:
                 self.non_finite_at = t
                 return f
-            raise SimulationFailure(st.failure_message(st.NONFINITE_RHS, t, np.max(np.abs(y)), None))
+            raise st.failure(st.NONFINITE_RHS, t, np.max(np.abs(y)), None)
         return f
 
 
@@ -79,7 +79,7 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
     locate = settings.events and system.loads.n_switches > 0
 
     t, y = 0.0, np.array(y0, dtype=float)
-    status, message = "success", f"reached t_end = {settings.t_end:g} s"
+    status, message, failure = "success", f"reached t_end = {settings.t_end:g} s", ""
 
     adaptive = INTEGRATORS[settings.integrator].adaptive
     mode = np.zeros(system.loads.n_switches, bool)
@@ -119,13 +119,14 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
                         msg = solver.step()
                         counters["nsteps"] += 1
                         if counters["nsteps"] > settings.max_steps:
-                            raise SimulationFailure(st.failure_message(st.MAX_STEPS, solver.t, 0.0, settings))
+                            raise st.failure(st.MAX_STEPS, solver.t, 0.0, settings)
                         if solver.status == "failed":
                             if counter.non_finite_at is not None:
                                 msg += (f" (the right-hand side was non-finite at trial states, last at "
                                         f"t = {counter.non_finite_at:.6g} s)")
                             raise SimulationFailure(
-                                f"integrator {settings.integrator} failed at t = {solver.t:.6g} s: {msg}")
+                                f"integrator {settings.integrator} failed at t = {solver.t:.6g} s: {msg}",
+                                "step collapse")
                         _check_step(system, solver, settings, adaptive)
                         t_new = solver.t
                         dense, t_stop, switched = None, t_new, []
@@ -155,7 +156,7 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
                             events_sw.append(switched)
                             _check_chatter(events_t, events_sw, labels, settings)
                             if len(events_t) > settings.max_events:
-                                raise SimulationFailure(st.failure_message(st.MAX_EVENTS, t, 0.0, settings))
+                                raise st.failure(st.MAX_EVENTS, t, 0.0, settings)
                             restarted = True
                             break
                         t, y = t_new, solver.y.copy()
@@ -175,15 +176,18 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
                 if not restarted:
                     break
         except SimulationFailure as exc:
-            status, message = "failed", str(exc)
+            status, message, failure = "failed", str(exc), exc.kind
         except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+            # scipy's brentq (event location) raises ValueError; a solve of the system, LinAlgError
             status, message = "failed", f"numerical error after t = {t:.6g} s: {type(exc).__name__}: {exc}"
+            failure = "singular" if isinstance(exc, np.linalg.LinAlgError) else "event location"
         except KeyboardInterrupt:
             status, message = "failed", f"interrupted by the user after t = {t:.6g} s"
+            failure = "interrupted"
     return Trajectory(
         t=np.array(ts), y=np.array(ys).reshape(len(ts), n_state),
         mode=np.array(modes).reshape(len(ts), len(mode)),
-        status=status, message=message, nfev=all_nfev, **counters,
+        status=status, message=message, failure=failure, nfev=all_nfev, **counters,
         event_times=events_t, event_labels=events_label,
     )
 
@@ -209,7 +213,7 @@ def _check_step(system: ConstrainedSystem, solver, settings: IntegrationSettings
     code = check_step(y, max_phi, solver.t - solver.t_old, solver.t, solver.t_bound, adaptive, settings.max_phi,
                       settings.min_step, info)
     if code != st.OK:
-        raise SimulationFailure(st.failure_message(code, info[0], info[1], settings, system.stabilizer))
+        raise st.failure(code, info[0], info[1], settings, system.stabilizer)
 
 
 def _check_chatter(events_t: list, events_sw: list, labels: list, settings: IntegrationSettings) -> None:
@@ -229,7 +233,7 @@ def _check_chatter(events_t: list, events_sw: list, labels: list, settings: Inte
     involved = np.zeros(len(labels), bool)
     chattering_switches(last_sw, n, n, involved)
     switches = [labels[j] for j in np.flatnonzero(involved)]
-    raise SimulationFailure(st.failure_message(st.CHATTER, info[0], info[1], settings, switches=switches))
+    raise st.failure(st.CHATTER, info[0], info[1], settings, switches=switches)
 
 
 def _swap_state(solver, y) -> bool:

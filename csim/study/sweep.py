@@ -134,7 +134,7 @@ def reference_run(plan: SweepPlan, overrides: list[str]) -> Result:
     result = run_case(case)
     if not result.ok:
         raise SimulationFailure(f"the reference run ({' '.join(overrides) or 'the base case'}) failed: "
-                                f"{result.message}")
+                                f"{result.message}", result.failure)
     return result
 
 

@@ -15,9 +15,8 @@ import dataclasses
 
 import numpy as np
 
-from csim.errors import SimulationFailure
 from csim.physics import projection as core
-from csim.physics.status import OK, SINGULAR_MASS, failure_message
+from csim.physics.status import OK, SINGULAR_MASS, failure
 from csim.solver.methods.base import Method, option
 
 METRICS = ("minimum_norm", "mass")
@@ -74,9 +73,5 @@ class Projection(Method):
         if code == SINGULAR_MASS:
             raise np.linalg.LinAlgError("Singular matrix")  # the driver says when
         if code != OK:
-            raise SimulationFailure(_failure(code, self, max_phi))
+            raise failure(code, max_phi, 0.0, None, self)
         return q, qd
-
-
-def _failure(code: int, method: Projection, a: float = 0.0) -> str:
-    return failure_message(code, a, 0.0, None, method)
