@@ -337,3 +337,20 @@ def test_auto_runs_minimal_compiled():
 
     assert resolve_backend(qr_case("stabilization.method=minimal")) == "compiled"
     assert resolve_backend(qr_case("stabilization.method=ggl", "simulation.integrator=Radau")) == "python"
+
+
+def test_the_common_kernels_leave_the_partitioned_path_to_minimals_copy():
+    """Two copies of one source (csim.fast.module): minimal's carries the partitioned system, the
+    other one has it pruned and refuses a partitioned problem rather than integrate it wrongly."""
+    from csim.fast import module
+    from csim.fast.runner import _arguments
+
+    assert "WITH_PARTITION = False\n" in module.kernels_source()
+    assert "WITH_PARTITION = True\n" in module.kernels_source(partitioned=True)
+    assert module.kernels_path() != module.kernels_path(partitioned=True)
+    common = module.load_kernels()
+    assert common.WITH_PARTITION is False and module.load_kernels(partitioned=True).WITH_PARTITION is True
+    case, system, y0 = _system("stabilization.method=minimal", "simulation.t_end=0.1")
+    args = _arguments(system, y0, case.integration_settings(), 10)
+    with pytest.raises(ValueError, match="WITH_PARTITION"):
+        common.integrate(*args)

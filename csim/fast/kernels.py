@@ -124,12 +124,22 @@ from csim.solver.methods.sliding_mode import sliding_mode_gamma_star
 
 activate()  # the core functions compile, and numba types them, from here on
 
+#: whether this copy of the kernels carries the partitioned system (minimal coordinates, the
+#: branches ``if WITH_PARTITION and ...``). :mod:`csim.fast.module` loads two copies: this
+#: source for ``minimal``, and one written with False for every other method, in which numba
+#: prunes those branches before typing them, so that it neither compiles the partitioned
+#: path (two thirds of the compile time) nor pays for it at run time
+WITH_PARTITION = True
+
 #: the decorator of every loop function that allocates nothing: compiled without numba's
 #: reference counting of arrays (NRT), which would cost two atomic operations per array
 #: argument and per slice at every call; the arrays live as long as ``integrate`` holds them
 hot = njit(**NJIT_OPTIONS)
-#: the same, inlined into its callers in numba's IR (constant arguments become constants of the copy)
-sized = njit(inline="always", **NJIT_OPTIONS)
+#: the same, inlined into its callers in numba's IR: a call passes every array argument as a
+#: struct of seven words, which for the small functions of every step costs more than their body
+inlined = njit(inline="always", **NJIT_OPTIONS)
+#: inlined, for functions whose callers pass their sizes as constants (the copy's loops have fixed lengths)
+sized = inlined
 #: the (m, r) whose right-hand side has a copy with constant sizes: the planar one-loop linkages
 #: (quick-return, four-bar, slider-crank) and the Cartesian pendulum
 SIZED = ((3, 2), (2, 1))
@@ -298,7 +308,7 @@ def _overload_at_q(core_fn, model_fn, slot):
     """Overload ``core_fn(model, q, out)`` for the kernels' handle: ``model_fn`` at q, then out = its term,
     read from w at the offset pi[slot]."""
 
-    @overload(core_fn, jit_options=CALL_OPTIONS, strict=False)
+    @overload(core_fn, jit_options=CALL_OPTIONS, strict=False, inline="always")
     def _typer(model, q, out):
         if not _is_handle(model):
             return None
@@ -319,7 +329,7 @@ _overload_at_q(model_jacobian, jac, W_J)
 _overload_at_q(model_mass, mass, W_M)
 
 
-@overload(model_gamma, jit_options=CALL_OPTIONS, strict=False)
+@overload(model_gamma, jit_options=CALL_OPTIONS, strict=False, inline="always")
 def _model_gamma(model, q, qd, out):
     if _is_handle(model):
         def impl(model, q, qd, out):
@@ -356,12 +366,21 @@ def _partition_call(par, pf, pi, w, piv):
     return (par, pi, w, P.ym), P, pi[PI_NC], pi[PI_NQ], pi[PI_NL], fpar[0], ipar[0], fpar[1]
 
 
-@hot
+# The partitioned system's branches in the functions of every step call a function of their own:
+# numba zeroes all of a function's variables at each call, and the partition's views (a tuple of
+# some thirty arrays) would cost every caller a memset of kilobytes even where it is not partitioned.
+@inlined
 def full_state(y, par, pf, pi, w, piv):
     """(code, the full state [q, qd, W] of the integrated state y): y itself, or for the partitioned
     system its dependent coordinates solved on the branch (csim.physics.branch.to_full), in P.yf."""
-    if pi[PI_SYS] != PARTITIONED:
-        return OK, y
+    if WITH_PARTITION and pi[PI_SYS] == PARTITIONED:
+        return _partitioned_full_state(y, par, pf, pi, w, piv)
+    return OK, y
+
+
+@hot
+def _partitioned_full_state(y, par, pf, pi, w, piv):
+    """:func:`full_state` of the partitioned system."""
     model, P, r, m, k, tol, max_iter, _ = _partition_call(par, pf, pi, w, piv)
     return branch.to_full(model, P, y, P.yf, r, m, k, tol, max_iter), P.yf
 
@@ -404,15 +423,21 @@ def _failure_details(pi, w, piv, info):
         info[2 + i] = detail[i]
 
 
-@hot
+@inlined
 def _pending(pi, w, piv):
     """The breakdown of a full state met where no code could be returned (a switching function's value), cleared."""
-    if pi[PI_SYS] != PARTITIONED:
-        return OK
+    if WITH_PARTITION and pi[PI_SYS] == PARTITIONED:
+        return _set_pending(pi, w, piv, OK)
+    return OK
+
+
+@hot
+def _set_pending(pi, w, piv, code):
+    """Set the partitioned system's pending breakdown to ``code``; returns the one it replaces."""
     P = _partition(pi, w, piv)
-    code = P.count[C_PENDING]
-    P.count[C_PENDING] = OK
-    return code
+    before = P.count[C_PENDING]
+    P.count[C_PENDING] = code
+    return before
 
 
 # the stabilization methods' gamma*: the built-in ones by code, any other through its address
@@ -516,10 +541,12 @@ def rhs(t, y, mode, located, par, pf, pi, w, piv, f):
     return _rhs_sized(t, y, mode, located, par, pf, pi, w, piv, f, nq, nc)
 
 
+# (not inlined by numba: LLVM inlines it where it pays; numba's inlining changed the register
+# allocation of rhs itself and cost the RK4 row 13 %, measured alternately)
 @hot
 def feval(t, y, mode, located, par, pf, pi, w, piv, f, info):
     """rhs plus the driver's check of a non-finite result (info = [t, max |y|] then)."""
-    if pi[PI_SYS] == PARTITIONED:
+    if WITH_PARTITION and pi[PI_SYS] == PARTITIONED:
         code = _partitioned_rhs(t, y, mode, located, par, pf, pi, w, piv, f)
     else:
         code = rhs(t, y, mode, located, par, pf, pi, w, piv, f)
@@ -605,8 +632,8 @@ def _g_at(j, tau, kind, t_old, h, y_old, F, par, pf, pi, w, piv, ytmp):
     """Switching function j on the dense output at tau (NaN, and the code pending, where the full state fails)."""
     dense_eval(kind, tau, t_old, h, y_old, F, ytmp)
     code, yv = full_state(ytmp, par, pf, pi, w, piv)
-    if code != OK:
-        _partition(pi, w, piv).count[C_PENDING] = code
+    if WITH_PARTITION and code != OK:  # (only the partitioned system's full state can fail)
+        _set_pending(pi, w, piv, code)
         return np.nan
     loads_(yv, par, pi, w)
     switching_from(yv, pf, pi, w)
@@ -1064,7 +1091,7 @@ def _max_phi(y, par, pf, pi, w, piv):
 def _start(y0, y, yp, mode, projects, par, pf, pi, w, piv, tr, ys, modes, info):
     """The integrated state y from the full initial state y0: projected (projection), partitioned and reduced
     (minimal), else y0 itself; then its mode, and the record of it. Returns the status."""
-    if pi[PI_SYS] == PARTITIONED:
+    if WITH_PARTITION and pi[PI_SYS] == PARTITIONED:
         model, P, r, m, k, tol, max_iter, _ = _partition_call(par, pf, pi, w, piv)
         code = branch.start(model, P, y0, y, r, m, k, tol, max_iter)
         if code != OK:
@@ -1151,7 +1178,7 @@ def _take_step(method, ts_, t_end, rtol, tolv, fixed_h, max_step, y, f, K, ytmp,
 def _after_step(ts_, y, f, f_new, yp, projects, par, pf, pi, rmode, locate, w, piv, cs, info):
     """Go on from the accepted step: project and hand the state back (projection); anchor the branch and
     maybe choose the partition again (minimal); else keep f_new. Returns (status, restart)."""
-    if pi[PI_SYS] == PARTITIONED:
+    if WITH_PARTITION and pi[PI_SYS] == PARTITIONED:
         code, restart = _partition_after_step(y, par, pf, pi, w, piv)
         if code != OK or restart:
             return code, restart
@@ -1200,7 +1227,7 @@ def _after_event(ts_, y, ev_t, ev_sw, n_chatter, max_events, min_step, par, pf, 
     """After an event recorded at index cs[N_EV]: anchor the partitioned system at the event state (maybe in a
     new partition; on a failure the event is not counted, its conditions stay flipped, as the Python driver
     leaves them), count the event, and check for chatter and too many events. Returns the status."""
-    if pi[PI_SYS] == PARTITIONED:
+    if WITH_PARTITION and pi[PI_SYS] == PARTITIONED:
         status, _ = _partition_after_step(y, par, pf, pi, w, piv)
         if status != OK:
             for jj in range(ev_sw.shape[1]):
@@ -1236,7 +1263,9 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset):
     locate, n_interior, max_events, max_steps, n_chatter = iset[0] != 0, iset[1], iset[2], iset[3], iset[4]
     t_end, rtol, atol, fixed_h, max_step, first_step, max_phi, min_step = fset[0], fset[1], fset[2], fset[3], \
         fset[4], fset[5], fset[6], fset[7]
-    partitioned = pi[PI_SYS] == PARTITIONED
+    partitioned = WITH_PARTITION and pi[PI_SYS] == PARTITIONED
+    if pi[PI_SYS] == PARTITIONED and not WITH_PARTITION:
+        raise ValueError("the partitioned system needs the kernels built with WITH_PARTITION")
     n_free = pi[PI_NQ] - pi[PI_NC] if partitioned else pi[PI_NQ]  # the integrated state: 2 n_free + k
     n, n_sw = 2 * n_free + pi[PI_NL], pi[PI_NSW]
     w = np.zeros(pi[W_END])
@@ -1313,14 +1342,14 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset):
                 break
             if t_new >= t_end:
                 break
-        if partitioned and branch.is_breakdown(status):
+        if WITH_PARTITION and partitioned and branch.is_breakdown(status):
             # a stage left the region of the partition: restart from the last accepted state
             ts_[T] = t_a
             status = _repartition(ya, y, par, pf, pi, w, piv)
             restarted = status == OK
         if not restarted:
             break
-    if partitioned and status != OK:
+    if WITH_PARTITION and partitioned and status != OK:
         _failure_details(pi, w, piv, info)
     return cs[N_REC], tr, ys, modes, cs[N_EV], ev_t, ev_sw, cs[NFEV], cs[NSTEPS], status, info
 

@@ -8,7 +8,11 @@ built-in methods' files, and the numba, numpy, scipy and Python versions. numba 
 them on first use and keeps the machine code next to the copy (``__pycache__``); every
 later process, for any mechanism, loads it from there. (numba's own cache check looks at
 one file's time stamp only; the key in the name makes an edit of any dependency a new
-module instead of stale machine code.)
+module instead of stale machine code.) There are two copies, two variants of one source:
+``kernels_partitioned_<key>.py`` for the partitioned system of ``minimal``, and
+``kernels_<key>.py``, written with ``WITH_PARTITION = False``, for every other method: that
+one neither compiles the partitioned path nor carries it through the loop. Each compiles on
+the first run that needs it.
 
 A mechanism's model functions (:mod:`csim.fast.codegen`) are built into
 ``<cache>/fast/<mechanism>_<key>.so`` by the system's C compiler (:mod:`csim.fast.ccodegen`,
@@ -56,7 +60,10 @@ METHODS = HERE.parent / "solver" / "methods"
 #: model backends (CSIM_MODEL_BACKEND)
 MODEL_BACKENDS = ("auto", "c", "numba")
 
-_KERNELS: ModuleType | None = None
+#: the loaded kernels, by variant (True: with the partitioned system)
+_KERNELS: dict[bool, ModuleType] = {}
+#: the line of the kernels' source that a variant sets (csim.fast.kernels.WITH_PARTITION)
+_VARIANT_LINE = "WITH_PARTITION = True\n"
 #: id(definition) -> (definition, model): hashing a definition takes milliseconds
 _BY_DEFINITION: dict[int, tuple[MechanismDefinition, CompiledModel]] = {}
 _MODELS: dict[str, CompiledModel] = {}
@@ -85,8 +92,18 @@ def kernels_key() -> str:
     return _hash([FAST_VERSION, *(p.read_text() for p in sources), _versions()])
 
 
-def kernels_path() -> Path:
-    return cache_dir() / "fast" / f"kernels_{kernels_key()}.py"
+def kernels_path(partitioned: bool = False) -> Path:
+    """The kernels' copy in the cache: ``kernels_<key>.py``, or ``kernels_partitioned_<key>.py``."""
+    return cache_dir() / "fast" / f"kernels{'_partitioned' if partitioned else ''}_{kernels_key()}.py"
+
+
+def kernels_source(partitioned: bool = False) -> str:
+    """The kernels' source for a variant: as written for the partitioned system (``minimal``), and
+    with ``WITH_PARTITION = False`` for every other method (numba then prunes those branches)."""
+    text = KERNELS.read_text()
+    if text.count(_VARIANT_LINE) != 1:
+        raise RuntimeError(f"{KERNELS} must set WITH_PARTITION = True on one line of its own")
+    return text if partitioned else text.replace(_VARIANT_LINE, "WITH_PARTITION = False\n")
 
 
 def kernels_compiled(module: ModuleType) -> bool:
@@ -95,22 +112,28 @@ def kernels_compiled(module: ModuleType) -> bool:
     return any((path.parent / "__pycache__").glob(f"{path.stem}.integrate-*.nbi"))
 
 
-def load_kernels() -> ModuleType:
-    """The kernels module (imported once per process; compiled on first use once per installation)."""
-    global _KERNELS
-    if _KERNELS is not None:
-        return _KERNELS
-    path = kernels_path()
+def load_kernels(partitioned: bool = False) -> ModuleType:
+    """The kernels module (imported once per process; compiled on first use once per installation).
+
+    Parameters
+    ----------
+    partitioned : bool
+        The variant with the partitioned system (:class:`csim.solver.partitioned.PartitionedSystem`,
+        ``minimal``); the other one, for every other method, neither compiles nor runs that path.
+    """
+    if partitioned in _KERNELS:
+        return _KERNELS[partitioned]
+    path = kernels_path(partitioned)
     if not path.is_file():
         path = _writable(path)
         if not path.is_file():
-            _write_atomic(path, KERNELS.read_text())
+            _write_atomic(path, kernels_source(partitioned))
     name = f"csim_fast_{path.stem}"
     spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module  # numba's cache locates functions through their module
     spec.loader.exec_module(module)
-    _KERNELS = module
+    _KERNELS[partitioned] = module
     return module
 
 

@@ -62,6 +62,11 @@ def _arguments(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationS
             *pack_problem(system), system.stabilizer.projects, iset, fset)
 
 
+def _kernels_for(system: ConstrainedSystem):
+    """The kernels' variant that integrates ``system`` (:func:`csim.fast.module.load_kernels`)."""
+    return load_kernels(partitioned=isinstance(system, PartitionedSystem))
+
+
 def _chattering_labels(ev_sw: np.ndarray, n_ev: int, n_chatter: int, labels: list[str]) -> list[str]:
     """Labels of the switching functions that switched in the last ``n_chatter`` events (for CHATTER)."""
     involved = np.zeros(len(labels), bool)
@@ -79,7 +84,7 @@ def prepare(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSett
     from csim.progress import status
 
     args = _arguments(system, y0, settings, max_steps=0)  # builds the model functions
-    mod = load_kernels()
+    mod = _kernels_for(system)
     text = ("loading the compiled kernels" if kernels_compiled(mod) else
             "compiling the kernels (once per csim installation, 1-3 min)")
     with status(text), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
@@ -92,7 +97,7 @@ def integrate_compiled(system: ConstrainedSystem, y0: np.ndarray, settings: Inte
     The caller has checked the combination with :func:`csim.fast.support.unsupported`.
     """
     args = _arguments(system, y0, settings, settings.max_steps)
-    mod = load_kernels()
+    mod = _kernels_for(system)
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         n_rec, ts, ys, modes, n_ev, ev_t, ev_sw, nfev, nsteps, code, info = mod.integrate(*args)
     labels = system.loads.switch_labels

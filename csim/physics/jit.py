@@ -111,7 +111,7 @@ def inline_kernel(fn):
     return _lazy(fn, dict(inline="always", **NJIT_OPTIONS))
 
 
-def jitable(fn):
+def jitable(fn=None, *, inline: bool = False):
     """Decorator for a core function that evaluates the model (:mod:`csim.physics.model`): ``fn`` itself
     to a Python caller, compiled into the compiled callers that call it.
 
@@ -120,7 +120,15 @@ def jitable(fn):
     their addresses, :mod:`csim.fast.kernels`), for which the kernels overload those functions.
     The function is compiled as part of each compiled caller (numba's ``register_jitable``), so
     it is cached with the caller, never on its own. It must not allocate.
+
+    ``inline=True`` (``@jitable(inline=True)``) inlines it in numba's IR into its compiled
+    callers: a call of a numba function passes every array argument as a struct of seven
+    words, which for a function of twenty arrays called once per step (the projection) costs
+    more than its body's small loops. Only for functions with one or two compiled callers.
     """
+    if fn is None:
+        return lambda f: jitable(f, inline=inline)
+    fn._csim_inline = inline
     _JITABLES.append(fn)
     if _NUMBA["njit"] is not None:
         _register_jitable(fn)
@@ -130,4 +138,5 @@ def jitable(fn):
 def _register_jitable(fn):
     from numba.extending import register_jitable
 
-    register_jitable(error_model="numpy", _nrt=False)(fn)
+    inline = "always" if getattr(fn, "_csim_inline", False) else "never"
+    register_jitable(error_model="numpy", _nrt=False, inline=inline)(fn)

@@ -114,7 +114,7 @@ def correction(J, Winv, mass_metric, res, WJt, S, z, piv, dq, r, m):
     return True
 
 
-@jitable
+@jitable(inline=True)  # one compiled caller per backend, called once per step
 def project(model, q, qd, tol, mass_metric, max_iter, m, r, M, LU, Winv, piv, col, phi, J, WJt, S, z, dq, phi_dot):
     """Project (q, qd) (m,) in place onto Phi = 0 and Phi_q qd = 0. Returns (code, max |Phi| of the last iterate).
 
