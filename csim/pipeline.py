@@ -96,10 +96,9 @@ def run_case(case: Case, progress: Callable[[float], None] | None = None) -> Res
         y0 = initial_state(case, system)
     except SimulationFailure as exc:
         empty = Trajectory(t=np.zeros(0), y=np.zeros((0, system.n_state)),
-                           mode=np.zeros((0, system.loads.n_switches), bool), status="failed", message=str(exc))
-        failed = assemble_result(case, system, empty, time.perf_counter() - start)
-        failed.failure = "assembly"  # the initial state cannot be assembled: bad input (csim run exits 2)
-        return failed
+                           mode=np.zeros((0, system.loads.n_switches), bool), status="failed", message=str(exc),
+                           failure="assembly")  # the initial state cannot be assembled: bad input (csim run exits 2)
+        return assemble_result(case, system, empty, time.perf_counter() - start)
     backend, why, load_time = resolve_backend(case), "", 0.0
     if backend == "compiled":
         loading = time.perf_counter()

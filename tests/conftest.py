@@ -1,6 +1,7 @@
 """Shared fixtures: the quick-return case, its numeric model, and a private model cache."""
 from __future__ import annotations
 
+import signal
 from pathlib import Path
 
 import pytest
@@ -80,3 +81,17 @@ def assert_bad_input(result, *fragments):
     assert "Traceback" not in result.output
     for fragment in fragments:
         assert fragment in result.output, result.output
+
+
+@pytest.fixture
+def python_sigint():
+    """Python's own SIGINT handler (KeyboardInterrupt) during a test, as in csim started at a terminal.
+
+    A pytest started in the background by a non-interactive shell (``pytest &`` in a script)
+    inherits SIGINT ignored (POSIX), Python then keeps SIG_IGN, and a test that raises SIGINT
+    to stand for Ctrl-C would see nothing happen.
+    """
+    old = signal.getsignal(signal.SIGINT)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, old if old is not None else signal.SIG_DFL)

@@ -133,7 +133,7 @@ def test_a_run_that_raises_fails_its_status_and_is_written_marked(monkeypatch, t
 
 
 @pytest.mark.parametrize("how", ["raised", "caught_by_the_driver"])
-def test_ctrl_c_stops_the_batch_exits_130_and_reports_the_rest_unfinished(monkeypatch, tmp_path, how):
+def test_ctrl_c_stops_the_batch_exits_130_and_reports_the_rest_unfinished(monkeypatch, python_sigint, tmp_path, how):
     real, calls = compare_module.run_case, []
 
     def run_case(case):

@@ -25,16 +25,8 @@ def ctrl_c() -> None:
 
 
 @pytest.fixture(autouse=True)
-def _python_sigint_handler():
-    """Python's own SIGINT handler (KeyboardInterrupt) during each test, as in csim started at a terminal.
-
-    A pytest started in the background by a non-interactive shell (``pytest &`` in a script)
-    inherits SIGINT ignored (POSIX), Python then keeps SIG_IGN, and ctrl_c() would do nothing.
-    """
-    old = signal.getsignal(signal.SIGINT)
-    signal.signal(signal.SIGINT, signal.default_int_handler)
-    yield
-    signal.signal(signal.SIGINT, old if old is not None else signal.SIG_DFL)
+def _python_sigint(python_sigint):
+    """Every test here raises SIGINT (conftest.python_sigint)."""
 
 
 @pytest.fixture

@@ -201,7 +201,7 @@ def test_an_exception_in_a_run_is_a_failed_row(monkeypatch, tmp_path):
 
 
 @pytest.mark.parametrize("how", ["raised", "caught_by_the_driver"])
-def test_ctrl_c_stops_the_comparison(monkeypatch, how):
+def test_ctrl_c_stops_the_comparison(monkeypatch, python_sigint, how):
     real, calls = compare_module.run_case, []
 
     def run_case(case):

@@ -186,3 +186,25 @@ def test_the_failure_kind_comes_from_the_status_code_not_the_message(monkeypatch
         fixed = run_case(qr_case("formulation.method=elimination", "formulation.independent=[q2]",
                                  "simulation.t_end=1"))
         assert fixed.failure == "singular"
+
+
+def test_an_rk4_step_below_the_resolution_of_t_is_the_same_kind_on_the_python_path(monkeypatch):
+    # the compiled RK4 reports RK4_RESOLUTION; the Python one fails inside the solver, and its kind
+    # comes from the same table (its message is not read: the classifier is blinded)
+    import csim.result
+    from csim.physics import status as st
+    from csim.solver import rk4
+
+    monkeypatch.setattr(csim.result, "failure_kind", lambda message: "other")
+    monkeypatch.setattr(rk4.RK4, "_step_impl", lambda self: (False, "step 0.01 s is below the resolution of t"))
+    res = pendulum("simulation.integrator=RK4", "simulation.step=0.01", "simulation.backend=python")
+    assert res.status == "failed" and res.failure == st.KINDS[st.RK4_RESOLUTION] == "step"
+
+
+def test_a_kinematic_analysis_that_loses_assembly_carries_its_kind(monkeypatch):
+    # the four-bar of tests/test_cli.py that closes at q_crank = 0 but not at pi
+    import csim.result
+
+    monkeypatch.setattr(csim.result, "failure_kind", lambda message: "other")
+    res = run_case(load_case(CONFIGS / "fourbar.yaml", ["mechanism.parameters.a=0.3"]))
+    assert res.run_kind == "kinematic" and res.status == "failed" and res.failure == "assembly"

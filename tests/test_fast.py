@@ -195,6 +195,7 @@ def test_unloadable_kernels_fall_back_under_auto_and_fail_under_compiled(monkeyp
     assert auto.ok and auto.backend == "python" and "compiled kernels could not be loaded" in auto.message
     forced = run_case(qr_case("simulation.t_end=0.2", "simulation.backend=compiled"))
     assert forced.status == "failed" and "OSError: no space left on device" in forced.message
+    assert forced.failure == "backend"
 
 
 def test_an_unwritable_cache_folder_is_no_error(monkeypatch, tmp_path):
@@ -329,7 +330,7 @@ def test_minimal_failures_read_the_same_on_both_backends():
                                                           "stabilization.minimal_max_iter=1"]))
     assert fast.backend == "compiled" and fast.status == slow.status == "failed"
     assert "Newton-Raphson for the dependent coordinates" in fast.message and "x = 0.5" in fast.message
-    assert fast.message == slow.message
+    assert fast.message == slow.message and fast.failure == slow.failure == "newton"
 
 
 def test_auto_runs_minimal_compiled():

@@ -188,7 +188,7 @@ def test_each_status_code_carries_the_kind_its_message_is_filed_under():
     from csim.physics import status as st
     from csim.physics.partition import D_CODE, new_partition
 
-    assert {name: st.failure_kind(code) for name, code in _status_codes().items()} == CODE_KINDS
+    assert {name: st.code_kind(code) for name, code in _status_codes().items()} == CODE_KINDS
     # NO_BETTER_PARTITION is the kind of the breakdown it could not get past, as its message reads
     detail = new_partition(3, 2, 0).detail
     detail[:] = 0.5

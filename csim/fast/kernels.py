@@ -2,8 +2,9 @@
 
 One module for every mechanism, compiled once per installation: :mod:`csim.fast.module`
 loads it (through a copy named by the hash of everything it depends on, so that numba's
-on-disk cache is never stale) and numba compiles it on first use, then loads the machine
-code from its cache in every later process. Nothing about a mechanism is a compile-time
+on-disk cache is never stale; two copies, with and without the partitioned system of
+``minimal``, see :data:`WITH_PARTITION`) and numba compiles it on first use, then loads the
+machine code from its cache in every later process. Nothing about a mechanism is a compile-time
 constant here: the sizes, the workspace offsets and the addresses of the mechanism's
 model functions are entries of ``pi`` (:mod:`csim.fast.layout`), and the model functions
 (C compiled by ``cc``, :mod:`csim.fast.ccodegen`, or numba cfuncs,
@@ -44,6 +45,7 @@ from numba import njit, types
 from numba.extending import intrinsic, overload
 
 from csim.fast.layout import (
+    EXTERNAL,
     F_JAC,
     F_KINETIC,
     F_LOADS,
@@ -300,6 +302,8 @@ def observe(y, par, pi, out):
 CALL_OPTIONS = dict(error_model="numpy", _nrt=False)
 
 
+# (A process that runs minimal and another method imports both copies of this module, and each
+# registers these overloads; numba takes the first one registered. They are the same source.)
 def _is_handle(model):
     return isinstance(model, types.BaseTuple)
 
@@ -440,11 +444,8 @@ def _set_pending(pi, w, piv, code):
     return before
 
 
-# the stabilization methods' gamma*: the built-in ones by code, any other through its address
-#: method code -> gamma* kernel (csim.fast.module.method_code reads this)
-BUILTIN_GAMMA = (baumgarte_gamma_star, sliding_mode_gamma_star)
-#: the code of a method whose gamma* is called through pi[PI_GAMMA_FN]
-EXTERNAL = -1
+# the stabilization methods' gamma*: the built-in ones by code (csim.fast.layout.BUILTIN_GAMMA),
+# any other through its address (EXTERNAL)
 
 
 @hot

@@ -16,6 +16,13 @@ is the workspace for the functions that write model terms (absolute offsets), th
 """
 from __future__ import annotations
 
+#: the stabilization methods whose gamma* the kernels call by code (pi[PI_MK] = 1, 2, ...; 0 is
+#: gamma* = gamma): csim.fast.module.method_dispatch reads this without loading the kernels
+BUILTIN_GAMMA = ("csim.solver.methods.baumgarte:baumgarte_gamma_star",
+                 "csim.solver.methods.sliding_mode:sliding_mode_gamma_star")
+#: the code of a method whose gamma* is called through pi[PI_GAMMA_FN]
+EXTERNAL = -1
+
 #: the model functions, in the order of their addresses in pi[PI_FN:]
 MODEL_FUNCTIONS = ("terms", "phi_", "jac", "mass", "loads_", "kinetic", "potential", "observe")
 F_TERMS, F_PHI, F_JAC, F_MASS, F_LOADS, F_KINETIC, F_POTENTIAL, F_OBSERVE = range(len(MODEL_FUNCTIONS))

@@ -23,7 +23,7 @@ which :func:`csim.fast.runner.pack_problem` puts into ``pi``. ``CSIM_MODEL_BACKE
 chooses: ``auto`` (default: C, else numba), ``c`` or ``numba``.
 
 A stabilization method whose gamma* is not in the kernels' own dispatch
-(:data:`csim.fast.kernels.BUILTIN_GAMMA`, e.g. one registered by a test or a user) runs
+(:data:`csim.fast.layout.BUILTIN_GAMMA`, e.g. one registered by a test or a user) runs
 compiled too: its kernel is wrapped in a cfunc in this process and called through its
 address.
 
@@ -45,7 +45,7 @@ from types import ModuleType
 
 import numpy as np
 
-from csim.fast.layout import MODEL_FUNCTIONS, c_symbol
+from csim.fast.layout import BUILTIN_GAMMA, EXTERNAL, MODEL_FUNCTIONS, c_symbol
 from csim.model.cache import cache_dir, definition_key
 from csim.model.definition import MechanismDefinition
 from csim.solver.methods import STABILIZERS
@@ -155,13 +155,13 @@ def method_dispatch(method) -> tuple[int, int]:
     fn = type(method).gamma_star_kernel
     if fn is None:
         return 0, 0
-    kernels = load_kernels()
-    for code, builtin in enumerate(kernels.BUILTIN_GAMMA, start=1):
-        if _py(builtin) is _py(fn):
+    for code, where in enumerate(BUILTIN_GAMMA, start=1):
+        module_name, name = where.split(":")
+        if _py(getattr(importlib.import_module(module_name), name)) is _py(fn):
             return code, 0
     if fn not in _GAMMA_CFUNCS:
         _GAMMA_CFUNCS[fn] = _gamma_cfunc(fn)
-    return kernels.EXTERNAL, _GAMMA_CFUNCS[fn].address
+    return EXTERNAL, _GAMMA_CFUNCS[fn].address
 
 
 def method_code(method) -> int:

@@ -12,7 +12,7 @@ import numpy as np
 from csim.fast.layout import CONSTRAINED, PARTITIONED, PI_HEAD, workspace
 from csim.fast.module import kernels_compiled, load_kernels, load_model, method_dispatch
 from csim.physics.events import chattering_switches
-from csim.physics.status import OK, failure_kind, failure_message
+from csim.physics.status import OK, code_kind, failure_message
 from csim.solver.partitioned import PartitionedSystem
 from csim.solver.settings import IntegrationSettings, Trajectory, output_times
 from csim.solver.system import ConstrainedSystem
@@ -86,7 +86,7 @@ def prepare(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSett
     args = _arguments(system, y0, settings, max_steps=0)  # builds the model functions
     mod = _kernels_for(system)
     text = ("loading the compiled kernels" if kernels_compiled(mod) else
-            "compiling the kernels (once per csim installation, 1-3 min)")
+            "compiling the kernels (once per csim installation, and once more for minimal; 1-3 min)")
     with status(text), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         mod.integrate(*args)
 
@@ -103,7 +103,7 @@ def integrate_compiled(system: ConstrainedSystem, y0: np.ndarray, settings: Inte
     labels = system.loads.switch_labels
     status, message, failure = "success", f"reached t_end = {settings.t_end:g} s", ""
     if code != OK:
-        status, failure = "failed", failure_kind(int(code), info[2:])
+        status, failure = "failed", code_kind(int(code), info[2:])
         message = failure_message(int(code), float(info[0]), float(info[1]), settings, system.stabilizer,
                                   switches=_chattering_labels(ev_sw, n_ev, settings.chatter_events, labels),
                                   detail=info[2:], coordinates=system.model.definition.coordinate_names)
@@ -146,7 +146,7 @@ def evaluate_compiled(system: ConstrainedSystem, t: np.ndarray, y: np.ndarray,
         ``observables`` (N, o) and ``observable_rates`` (N, o).
     """
     par, pf, pi = pack_problem(system)
-    mod = load_kernels()
+    mod = _kernels_for(system)  # one copy per process for a run of one method
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         ok, x, phi, phi_dot, u, Q, energy, obs = mod.evaluate_samples(
             np.ascontiguousarray(t, dtype=float), np.ascontiguousarray(y, dtype=float),

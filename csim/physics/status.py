@@ -43,7 +43,7 @@ KINDS = {
 }
 
 
-def failure_kind(code: int, detail=None) -> str:
+def code_kind(code: int, detail=None) -> str:
     """The kind of failure of status ``code`` (:data:`KINDS`); NO_BETTER_PARTITION is the kind of
     the breakdown it could not get past (``detail``: the partition's failure details)."""
     if code == NO_BETTER_PARTITION and detail is not None:
@@ -57,11 +57,11 @@ def failure_kind(code: int, detail=None) -> str:
 
 def failure(code: int, a: float, b: float, settings, method=None, switches=(), detail=None, coordinates=()):
     """The :class:`csim.errors.SimulationFailure` of status ``code``: its message
-    (:func:`failure_message`, same arguments) and its kind (:func:`failure_kind`)."""
+    (:func:`failure_message`, same arguments) and its kind (:func:`code_kind`)."""
     from csim.errors import SimulationFailure
 
     return SimulationFailure(failure_message(code, a, b, settings, method, switches, detail, coordinates),
-                             failure_kind(code, detail))
+                             code_kind(code, detail))
 
 
 def failure_message(code: int, a: float, b: float, settings, method=None, switches=(), detail=None,

@@ -126,7 +126,7 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
                                         f"t = {counter.non_finite_at:.6g} s)")
                             raise SimulationFailure(
                                 f"integrator {settings.integrator} failed at t = {solver.t:.6g} s: {msg}",
-                                "step collapse")
+                                st.KINDS[st.RK4_RESOLUTION if settings.integrator == "RK4" else st.STEP_TOO_SMALL])
                         _check_step(system, solver, settings, adaptive)
                         t_new = solver.t
                         dense, t_stop, switched = None, t_new, []
@@ -178,9 +178,10 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
         except SimulationFailure as exc:
             status, message, failure = "failed", str(exc), exc.kind
         except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
-            # scipy's brentq (event location) raises ValueError; a solve of the system, LinAlgError
+            # a solve of the system raises LinAlgError; brentq (event location) and the integrators, ValueError
             status, message = "failed", f"numerical error after t = {t:.6g} s: {type(exc).__name__}: {exc}"
-            failure = "singular" if isinstance(exc, np.linalg.LinAlgError) else "event location"
+            failure = ("singular" if isinstance(exc, np.linalg.LinAlgError) else
+                       "event location" if isinstance(exc, ValueError) else "other")
         except KeyboardInterrupt:
             status, message = "failed", f"interrupted by the user after t = {t:.6g} s"
             failure = "interrupted"
