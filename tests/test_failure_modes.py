@@ -165,13 +165,19 @@ def test_a_stalling_drive_chatters_where_the_reference_has_no_classical_solution
     assert len(res.event_times) == 23 + 20
 
 
-@pytest.mark.parametrize("backend", ["python", "compiled"])
-def test_the_failure_kind_comes_from_the_status_code_not_the_message(monkeypatch, backend):
-    # every kind below is carried from where the failure was raised (its status code): with the
-    # message classifier made blind, the results still name it
+@pytest.fixture
+def blind_classifier(monkeypatch):
+    """The message classifier (csim.result.failure_kind) files every message as "other": a kind a
+    result still names came from where its failure was raised."""
     import csim.result
 
     monkeypatch.setattr(csim.result, "failure_kind", lambda message: "other")
+
+
+@pytest.mark.parametrize("backend", ["python", "compiled"])
+def test_the_failure_kind_comes_from_the_status_code_not_the_message(blind_classifier, backend):
+    # every kind below is carried from where the failure was raised (its status code): with the
+    # message classifier made blind, the results still name it
     runs = {
         "drift": pendulum("stabilization.w=100", "simulation.integrator=RK4", "simulation.step=0.03",
                           "simulation.t_end=3", f"simulation.backend={backend}"),
@@ -188,23 +194,18 @@ def test_the_failure_kind_comes_from_the_status_code_not_the_message(monkeypatch
         assert fixed.failure == "singular"
 
 
-def test_an_rk4_step_below_the_resolution_of_t_is_the_same_kind_on_the_python_path(monkeypatch):
+def test_an_rk4_step_below_the_resolution_of_t_is_the_same_kind_on_the_python_path(blind_classifier, monkeypatch):
     # the compiled RK4 reports RK4_RESOLUTION; the Python one fails inside the solver, and its kind
     # comes from the same table (its message is not read: the classifier is blinded)
-    import csim.result
     from csim.physics import status as st
     from csim.solver import rk4
 
-    monkeypatch.setattr(csim.result, "failure_kind", lambda message: "other")
     monkeypatch.setattr(rk4.RK4, "_step_impl", lambda self: (False, "step 0.01 s is below the resolution of t"))
     res = pendulum("simulation.integrator=RK4", "simulation.step=0.01", "simulation.backend=python")
     assert res.status == "failed" and res.failure == st.KINDS[st.RK4_RESOLUTION] == "step"
 
 
-def test_a_kinematic_analysis_that_loses_assembly_carries_its_kind(monkeypatch):
+def test_a_kinematic_analysis_that_loses_assembly_carries_its_kind(blind_classifier):
     # the four-bar of tests/test_cli.py that closes at q_crank = 0 but not at pi
-    import csim.result
-
-    monkeypatch.setattr(csim.result, "failure_kind", lambda message: "other")
     res = run_case(load_case(CONFIGS / "fourbar.yaml", ["mechanism.parameters.a=0.3"]))
     assert res.run_kind == "kinematic" and res.status == "failed" and res.failure == "assembly"

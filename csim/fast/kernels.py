@@ -1264,6 +1264,8 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset):
     locate, n_interior, max_events, max_steps, n_chatter = iset[0] != 0, iset[1], iset[2], iset[3], iset[4]
     t_end, rtol, atol, fixed_h, max_step, first_step, max_phi, min_step = fset[0], fset[1], fset[2], fset[3], \
         fset[4], fset[5], fset[6], fset[7]
+    # (`partitioned` is a run-time value: the branches below test WITH_PARTITION as well, so that
+    # numba prunes them in the copy without the partitioned system)
     partitioned = WITH_PARTITION and pi[PI_SYS] == PARTITIONED
     if pi[PI_SYS] == PARTITIONED and not WITH_PARTITION:
         raise ValueError("the partitioned system needs the kernels built with WITH_PARTITION")

@@ -16,10 +16,12 @@ is the workspace for the functions that write model terms (absolute offsets), th
 """
 from __future__ import annotations
 
+from csim.solver.methods.baumgarte import baumgarte_gamma_star
+from csim.solver.methods.sliding_mode import sliding_mode_gamma_star
+
 #: the stabilization methods whose gamma* the kernels call by code (pi[PI_MK] = 1, 2, ...; 0 is
 #: gamma* = gamma): csim.fast.module.method_dispatch reads this without loading the kernels
-BUILTIN_GAMMA = ("csim.solver.methods.baumgarte:baumgarte_gamma_star",
-                 "csim.solver.methods.sliding_mode:sliding_mode_gamma_star")
+BUILTIN_GAMMA = (baumgarte_gamma_star, sliding_mode_gamma_star)
 #: the code of a method whose gamma* is called through pi[PI_GAMMA_FN]
 EXTERNAL = -1
 

@@ -155,9 +155,8 @@ def method_dispatch(method) -> tuple[int, int]:
     fn = type(method).gamma_star_kernel
     if fn is None:
         return 0, 0
-    for code, where in enumerate(BUILTIN_GAMMA, start=1):
-        module_name, name = where.split(":")
-        if _py(getattr(importlib.import_module(module_name), name)) is _py(fn):
+    for code, builtin in enumerate(BUILTIN_GAMMA, start=1):
+        if _py(builtin) is _py(fn):
             return code, 0
     if fn not in _GAMMA_CFUNCS:
         _GAMMA_CFUNCS[fn] = _gamma_cfunc(fn)
