@@ -12,11 +12,17 @@ CONFIGS = ROOT / "configs"
 
 @pytest.fixture(scope="session", autouse=True)
 def _cache_dir(tmp_path_factory):
-    """Keep generated model code of the test run out of the user's cache."""
+    """Keep generated model code of the test run out of the user's cache.
+
+    ``CSIM_TEST_CACHE_DIR`` names a cache to reuse across test sessions instead (its files
+    are filed under hashes of their sources, so an edit never reuses a stale copy): the
+    compiled kernels then compile once, not once per ``pytest``.
+    """
     import os
 
     old = os.environ.get("CSIM_CACHE_DIR")
-    os.environ["CSIM_CACHE_DIR"] = str(tmp_path_factory.mktemp("csim-cache"))
+    shared = os.environ.get("CSIM_TEST_CACHE_DIR")
+    os.environ["CSIM_CACHE_DIR"] = shared or str(tmp_path_factory.mktemp("csim-cache"))
     yield
     if old is None:
         os.environ.pop("CSIM_CACHE_DIR", None)
