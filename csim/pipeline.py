@@ -125,6 +125,7 @@ def run_case(case: Case, progress: Callable[[float], None] | None = None) -> Res
         from csim.linkage.results import linkage_outputs
 
         linkage_outputs(case, system, trajectory, result)
+    record_integrity(case, system, result)
     result.kernel_load_time = load_time
     if backend == "python" and case.simulation.backend == "auto":  # why auto fell back (run summary)
         from csim.fast.support import numba_available, unsupported
@@ -132,6 +133,47 @@ def run_case(case: Case, progress: Callable[[float], None] | None = None) -> Res
         result.backend_reason = why or "; ".join(unsupported(case)) or (
             "" if numba_available() else "numba is not installed")
     return result
+
+
+def constraint_watch(case: Case, system: ConstrainedSystem):
+    """Every non-trivial constraint equation of the case's mechanism (:class:`ConstraintWatch`):
+    a linkage's removed ones too; a registered mechanism's are the model's own."""
+    from csim.solver.integrity import ConstraintWatch
+
+    if case.linkage is not None:
+        from csim.linkage.constraints import constraint_watch as linkage_watch
+
+        linkage = case.linkage
+        return linkage_watch(linkage.reduction, linkage.topology.variables, linkage.tables)
+    model, par, r = system.model, system.par, system.r
+    return ConstraintWatch(phi=lambda q: model.phi(q, par), phi_q=lambda q: model.phi_q(q, par),
+                           labels=[f"Phi_{i + 1}" for i in range(r)], kept=np.arange(r),
+                           removed=np.zeros(0, dtype=int), rank=r)
+
+
+def record_integrity(case: Case, system: ConstrainedSystem, result: Result) -> None:
+    """Check the samples of a run for removed equations that came apart, singular crossings
+    and branch changes (:mod:`csim.solver.integrity`); record them in ``result``, and fail a
+    run whose motion is wrong although it reached its end."""
+    from csim.solver.integrity import check_integrity
+
+    if result.t.size == 0 or system.r == 0:
+        return
+    finite = np.all(np.isfinite(result.q), axis=1) & np.all(np.isfinite(result.qd), axis=1)
+    n = int(np.argmin(finite)) if not finite.all() else finite.size  # the samples before a blow-up
+    with np.errstate(all="ignore"):
+        found = check_integrity(constraint_watch(case, system), result.t[:n], result.q[:n], result.qd[:n],
+                                result.qdd[:n], case.mechanism.coordinate_names)
+    result.removed_names = found.removed_names
+    result.removed_phi = np.full((result.t.size, len(found.removed_names)), np.nan)
+    result.removed_phi[:n] = found.removed_phi
+    result.singular_times = found.singular_times
+    result.warnings = found.warnings
+    if found.failure is not None and result.status == "success":
+        result.status, result.failure = "failed", found.failure[0]
+        result.message = found.failure[1]
+    elif found.failure is not None:  # failed later, for a reason of its own: say what went wrong first
+        result.message += f"; before that, {found.failure[1]}"
 
 
 def _load_compiled(case: Case, system: ConstrainedSystem, y0: np.ndarray, settings) -> tuple[str, str]:

@@ -150,6 +150,14 @@ class Result:
         The torque or force each drive applies along its joint variable [N m or N].
     drive_work : ndarray (N, d) or None
         The work of each drive since t = 0 [J], part of the energy balance.
+    warnings : list of str
+        What a person should know about a run that may still be a success: singular
+        configurations crossed, kept equations that lost rank (:mod:`csim.solver.integrity`).
+    singular_times : ndarray (S,) [s]
+        Where Phi_q of the full set of equations fell below its generic rank.
+    removed_names : list of str; removed_phi : ndarray (N, d) or None
+        The constraint equations removed as dependent at the start, and their residuals at
+        the samples (a correct motion keeps them at the kept ones' level).
     """
 
     mechanism: str
@@ -190,6 +198,10 @@ class Result:
     drive_units: list[str] = field(default_factory=list)
     drive_forces: np.ndarray | None = None
     drive_work: np.ndarray | None = None
+    warnings: list[str] = field(default_factory=list)
+    singular_times: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    removed_names: list[str] = field(default_factory=list)
+    removed_phi: np.ndarray | None = None
 
     def __post_init__(self):
         if self.status != "success" and not self.failure:
@@ -320,6 +332,12 @@ class Result:
             else:
                 items.append(("energy balance", f"{self.energy_balance[0]:.3e} (max |T + V - T0 - V0 - W|"
                                                 f" / {self.energy_scale:.4g} J)"))
+            if self.removed_names and self.removed_phi is not None:
+                worst = np.nanmax(np.abs(self.removed_phi), axis=0, initial=0.0)
+                items.append(("removed equations", ", ".join(
+                    f"{n}: max |Phi| = {w:.3e}" for n, w in zip(self.removed_names, worst))))
+        for text in self.warnings:
+            items.append(("warning", text))
         if self.drive_forces is not None and self.t.size:
             items.append(("drives", ", ".join(
                 f"{n}: max |force| = {np.nanmax(np.abs(self.drive_forces[:, j])):.6g} {u}"

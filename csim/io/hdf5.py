@@ -133,6 +133,18 @@ def write_result_group(group: h5py.Group, result: Result, coordinate_units: list
     events = group.create_group("events")
     _dataset(events, "times", np.asarray(result.event_times, dtype=float), UNITS["events/times"])
     events.create_dataset("labels", data=np.array(result.event_labels, dtype=_STR))
+    _write_integrity(group, result)
+
+
+def _write_integrity(group: h5py.Group, result: Result) -> None:
+    """``integrity/``: the run's warnings (attribute), its singular crossings and the residuals
+    of the equations removed as dependent (:mod:`csim.solver.integrity`)."""
+    integrity = group.create_group("integrity")
+    integrity.attrs["warnings"] = np.array(result.warnings, dtype=_STR)
+    _dataset(integrity, "singular_times", np.asarray(result.singular_times, dtype=float), "s")
+    if result.removed_names and result.removed_phi is not None:
+        removed = _dataset(integrity, "removed_phi", result.removed_phi, "")
+        removed.attrs["names"] = np.array(result.removed_names, dtype=_STR)
 
 
 def _write_drives(group: h5py.Group, result: Result) -> None:
@@ -171,6 +183,13 @@ def _read_extras(group: h5py.Group) -> dict:
             JointReaction(name, _text(g.attrs["label"]), g["force_global"][()], g["torque_global"][()],
                           g["force_joint"][()], g["torque_joint"][()], [_text(x) for x in g.attrs["undetermined"]])
             for name, g in ((_text(n), rg[_text(n)]) for n in rg.attrs.get("joints", list(rg)))]
+    integrity = group.get("integrity")
+    if integrity is not None:
+        out.update(warnings=[_text(x) for x in integrity.attrs.get("warnings", [])],
+                   singular_times=integrity["singular_times"][()])
+        if "removed_phi" in integrity:
+            ds = integrity["removed_phi"]
+            out.update(removed_phi=ds[()], removed_names=[_text(x) for x in ds.attrs["names"]])
     return out
 
 

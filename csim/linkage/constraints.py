@@ -319,3 +319,17 @@ def plane_of_motion(tables: Tables, frames: Frames, variables: list[JointVariabl
     if not (parallel and normal_slides):
         return None
     return Plane(normal, {n: T[:3, :3].T @ normal for n, T in numeric.items()})
+
+
+def constraint_watch(reduction: Reduction, variables: list[JointVariable], tables: Tables):
+    """Every non-trivial equation of ``reduction`` as a :class:`csim.solver.integrity.ConstraintWatch`:
+    the kept ones (the model's Phi, in its order) and the ones removed as dependent, which a run
+    then watches."""
+    from csim.solver.integrity import ConstraintWatch
+
+    live = [e for e in reduction.equations if e.status != ZERO]
+    phi, phi_q = _numeric([e.expression for e in live], [v.symbol for v in variables], tables.values)
+    return ConstraintWatch(phi=phi, phi_q=phi_q, labels=[e.label for e in live],
+                           kept=np.array([i for i, e in enumerate(live) if e.status == KEPT], dtype=int),
+                           removed=np.array([i for i, e in enumerate(live) if e.status == DEPENDENT], dtype=int),
+                           rank=reduction.generic_rank)

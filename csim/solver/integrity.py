@@ -1,0 +1,232 @@
+"""Whether a run's motion can be trusted: removed equations, singular configurations, branches.
+
+A run can hold its constraint equations to round-off and still be wrong, in two ways that
+the integration itself cannot see. Both are checked on the samples after the run, for
+either backend, against the full set of non-trivial constraint equations:
+
+1. **Removed equations.** An overconstrained mechanism (Bricard's linkage) keeps an
+   independent subset of its closure equations, chosen at the start. Where that subset's
+   Jacobian later loses rank while the full set's does not, the motion can leave the
+   manifold along a direction only a removed equation sees: the kept residuals stay small
+   while a joint comes apart. The removed equations are evaluated at every sample; a run
+   where one exceeds :func:`removed_limit` fails (kind ``"drift"``) and names it.
+2. **Singular configurations.** Where Phi_q of the full set drops below its generic rank
+   (every link of the N-four-bar horizontal) the mechanism can leave its assembly branch.
+   The relative k-th singular value sigma_k / sigma_1 of Phi_q (k the generic rank) is
+   taken at the samples; each local minimum below :data:`COARSE` is refined on the cubic
+   Hermite interpolant of (q, qd) between the neighbouring samples, and one below
+   :data:`SINGULAR` is recorded as a singular crossing (a warning in the summary and the
+   file). Across a crossing the exact motion's velocity is continuous and smooth: where
+   the samples on either side are not joined by their accelerations (the trapezoidal
+   residual qd_b - qd_a - h (qdd_a + qdd_b) / 2, relative to the velocity scale, above
+   :data:`JUMP`), the motion took another branch and the run fails (kind ``"branch"``).
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+#: a sampled local minimum of sigma_k / sigma_1 below this is refined between the samples
+COARSE = 0.25
+#: sigma_k / sigma_1 below this (refined) is a loss of rank: a singular configuration
+SINGULAR = 1e-3
+#: a relative velocity jump (trapezoidal residual / velocity scale) above this across a
+#: singular crossing is a change of assembly branch
+JUMP = 0.05
+#: a removed equation may exceed the kept ones' largest residual by this factor ...
+REMOVED_FACTOR = 100.0
+#: ... and never fails below this residual [unit of Phi]
+REMOVED_FLOOR = 1e-8
+
+
+@dataclass
+class ConstraintWatch:
+    """Every non-trivial constraint equation of a mechanism, and which ones the model kept.
+
+    Attributes
+    ----------
+    phi : callable q (m,) -> (n_all,)
+    phi_q : callable q (m,) -> (n_all, m)
+    labels : list of str (n_all,)
+        A name of each equation, e.g. ``"joint j0 x: (r_jm - r_ik).e_x"``.
+    kept : ndarray of int (r,)
+        The rows the model integrates (its Phi), in the model's order.
+    removed : ndarray of int
+        The rows removed as dependent at the start.
+    rank : int
+        The generic rank of Phi_q over all rows.
+    """
+
+    phi: Callable
+    phi_q: Callable
+    labels: list[str]
+    kept: np.ndarray
+    removed: np.ndarray
+    rank: int
+
+
+@dataclass
+class Integrity:
+    """What the samples say about the motion (see the module docstring).
+
+    Attributes
+    ----------
+    removed_names : list of str (d,)
+    removed_phi : ndarray (N, d)
+        The removed equations' residuals at the samples [unit of Phi].
+    removed_limit : float
+        The largest residual a removed equation may have.
+    singular_times : ndarray (S,) [s]
+        The singular crossings.
+    singular_sigma : ndarray (S,)
+        sigma_k / sigma_1 of the full set's Phi_q at each.
+    kept_singular_times : ndarray [s]
+        Where the kept subset loses rank but the full set does not.
+    failure : tuple (kind, message) or None
+        Why the run must not be called a success.
+    warnings : list of str
+    """
+
+    removed_names: list[str]
+    removed_phi: np.ndarray
+    removed_limit: float
+    singular_times: np.ndarray
+    singular_sigma: np.ndarray
+    kept_singular_times: np.ndarray
+    failure: tuple[str, str] | None = None
+    warnings: list[str] = field(default_factory=list)
+
+
+def removed_limit(max_kept: float) -> float:
+    """The largest residual a removed equation may have when the kept ones reach ``max_kept``."""
+    return max(REMOVED_FACTOR * max_kept, REMOVED_FLOOR)
+
+
+def relative_sigma(J: np.ndarray, k: int) -> float:
+    """sigma_k / sigma_1 of J (1-based k: the k-th largest singular value); 1 for k = 0 or J = 0."""
+    if k == 0 or J.size == 0:
+        return 1.0
+    s = np.linalg.svd(J, compute_uv=False)
+    if s[0] == 0.0:
+        return 1.0
+    return float(s[k - 1] / s[0]) if k <= s.size else 0.0
+
+
+def hermite(qa, qda, qb, qdb, h: float, tau: float) -> np.ndarray:
+    """q at tau in [0, 1] of the step of length h [s] on the cubic Hermite interpolant."""
+    t2, t3 = tau * tau, tau * tau * tau
+    return ((2 * t3 - 3 * t2 + 1) * qa + (t3 - 2 * t2 + tau) * h * qda
+            + (-2 * t3 + 3 * t2) * qb + (t3 - t2) * h * qdb)
+
+
+def _refine(ratio: Callable[[np.ndarray], float], t, q, qd, i: int) -> tuple[float, float]:
+    """The smallest ratio on the interpolants of the intervals beside sample i: (t, ratio)."""
+    from scipy.optimize import minimize_scalar
+
+    best = (t[i], ratio(q[i]))
+    for a in (i - 1, i):
+        if a < 0 or a + 1 >= t.size:
+            continue
+        h = t[a + 1] - t[a]
+        res = minimize_scalar(lambda tau: ratio(hermite(q[a], qd[a], q[a + 1], qd[a + 1], h, tau)),
+                              bounds=(0.0, 1.0), method="bounded", options=dict(xatol=1e-6))
+        if res.fun < best[1]:
+            best = (t[a] + res.x * h, float(res.fun))
+    return best
+
+
+def _crossings(ratio: Callable[[np.ndarray], float], t, q, qd) -> list[tuple[float, float]]:
+    """The refined local minima of ratio along the samples that fall below :data:`SINGULAR`."""
+    values = np.array([ratio(x) for x in q])
+    found = []
+    for i in range(t.size):
+        left = values[i - 1] if i > 0 else np.inf
+        right = values[i + 1] if i + 1 < t.size else np.inf
+        if values[i] < COARSE and values[i] <= left and values[i] <= right:
+            tc, rc = _refine(ratio, t, q, qd, i)
+            if rc < SINGULAR and not (found and abs(tc - found[-1][0]) < 1e-9):
+                found.append((tc, rc))
+    return found
+
+
+def _branch_jump(t, qd, qdd, tc: float, names: list[str]) -> str | None:
+    """Why the velocities across the crossing at ``tc`` are not one smooth motion, or None."""
+    b = int(np.searchsorted(t, tc, side="right"))
+    a = b - 1
+    if a < 0 or b >= t.size:
+        return None
+    h = t[b] - t[a]
+    # qd_b = qd_a + h (qdd_a + qdd_b) / 2 + O(h^3) for a smooth motion
+    residual = qd[b] - qd[a] - 0.5 * h * (qdd[a] + qdd[b])
+    scale = max(np.max(np.abs(qd[a])), np.max(np.abs(qd[b])), 1e-12)
+    j = int(np.argmax(np.abs(residual)))
+    if not np.isfinite(residual[j]) or abs(residual[j]) > JUMP * scale:
+        return (f"between t = {t[a]:.6g} s and {t[b]:.6g} s {names[j]}'s velocity jumped by {residual[j]:.3g} "
+                f"(from {qd[a, j]:.6g} to {qd[b, j]:.6g}) beyond what the accelerations explain")
+    return None
+
+
+def check_integrity(watch: ConstraintWatch, t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+                    coordinate_names: list[str]) -> Integrity:
+    """Check a run's samples (see the module docstring).
+
+    Parameters
+    ----------
+    watch : ConstraintWatch
+    t : ndarray (N,) [s]
+    q, qd, qdd : ndarray (N, m)
+        The samples' coordinates, velocities and accelerations (NaN where not evaluated).
+    coordinate_names : list of str (m,)
+    """
+    N = t.size
+    phi_all = np.array([watch.phi(x) for x in q]).reshape(N, len(watch.labels))
+    kept_max = float(np.max(np.abs(phi_all[:, watch.kept]))) if N and watch.kept.size else 0.0
+    limit = removed_limit(kept_max)
+    removed_phi = phi_all[:, watch.removed]
+    names = [watch.labels[i] for i in watch.removed]
+    failure, warnings = None, []
+    if removed_phi.size:
+        worst = np.max(np.abs(removed_phi), axis=0)
+        bad = [j for j in range(worst.size) if not worst[j] <= limit]
+        if bad:
+            first = min(int(np.argmax(~(np.abs(removed_phi[:, j]) <= limit))) for j in bad)
+            listing = "; ".join(f"{names[j]} (max |Phi| {worst[j]:.3g})" for j in bad)
+            failure = ("drift", f"constraint violation of equations removed as dependent at the start: {listing}, "
+                                f"first above {limit:.3g} at t = {t[first]:.6g} s while the kept equations stay "
+                                f"within {kept_max:.3g}: a joint came apart where the kept equations lost rank; "
+                                f"use stabilization.method minimal or augmented_lagrangian")
+    full = lambda x: relative_sigma(watch.phi_q(x), watch.rank)  # noqa: E731
+    crossings = _crossings(full, t, q, qd) if N > 2 else []
+    kept_times = np.zeros(0)
+    if watch.removed.size and N > 2:
+        def kept(x):
+            return relative_sigma(watch.phi_q(x)[watch.kept], watch.kept.size)
+
+        kept_times = np.array([tc for tc, _ in _crossings(kept, t, q, qd)
+                               if all(abs(tc - tf) > 1e-6 for tf, _ in crossings)])
+        if kept_times.size:
+            held = "" if failure else f"; they were watched and held within {limit:.3g}"
+            warnings.append(f"the kept constraint equations lose rank at t = {_times(kept_times)} while the full set "
+                            f"does not: the equations removed at the start ({', '.join(names)}) are needed there"
+                            f"{held}")
+    if crossings:
+        warnings.append(f"singular configuration (Phi_q below its rank {watch.rank}) at t = "
+                        f"{_times([c[0] for c in crossings])}: the motion after it may follow another assembly branch")
+        for tc, _ in crossings:
+            jump = _branch_jump(t, qd, qdd, tc, coordinate_names)
+            if jump is not None and failure is None:
+                failure = ("branch", f"the motion changed assembly branch at the singular configuration near "
+                                     f"t = {tc:.6g} s: {jump}")
+    return Integrity(removed_names=names, removed_phi=removed_phi, removed_limit=limit,
+                     singular_times=np.array([c[0] for c in crossings]),
+                     singular_sigma=np.array([c[1] for c in crossings]),
+                     kept_singular_times=kept_times, failure=failure, warnings=warnings)
+
+
+def _times(times, shown: int = 5) -> str:
+    """``"1.2, 3.4, ... (7 in all)"`` [s]."""
+    times = list(times)
+    text = ", ".join(f"{x:.6g}" for x in times[:shown])
+    return text + (f", ... ({len(times)} in all)" if len(times) > shown else "") + " s"
