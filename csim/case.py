@@ -644,10 +644,18 @@ def _validate_combination(case: Case, problems):
         problems.append(f"simulation.integrator: got {describe(integrator)} with stabilization.method 'ggl'; the GGL "
                         f"equations are an index-2 DAE (Phi = 0 and Phi_q qd = 0 are equations, not derivatives), "
                         f"which only an implicit DAE integrator solves; expected one of {', '.join(DAE_INTEGRATORS)}")
-    if method == "ggl" and formulation == "elimination":
-        problems.append("formulation.method: got 'elimination' (string) with stabilization.method 'ggl'; GGL solves "
-                        "for the multipliers as unknowns of its DAE, so there is no ODE for the elimination to "
-                        "form; expected 'kkt'")
+    if method == "augmented_lagrangian" and integrator != "trapezoidal":
+        problems.append(f"simulation.integrator: got {describe(integrator)} with stabilization.method "
+                        f"'augmented_lagrangian'; the index-3 augmented Lagrangian method solves its own "
+                        f"discretised equations at each step; expected 'trapezoidal'")
+    if integrator == "trapezoidal" and method != "augmented_lagrangian":
+        problems.append(f"simulation.integrator: got 'trapezoidal' (string) with stabilization.method "
+                        f"{describe(method)}; the trapezoidal integrator is the augmented Lagrangian method's "
+                        f"(ALI3-P); expected stabilization.method 'augmented_lagrangian', or another integrator")
+    if method in ("ggl", "augmented_lagrangian") and formulation == "elimination":
+        problems.append(f"formulation.method: got 'elimination' (string) with stabilization.method '{method}'; it "
+                        f"solves for the multipliers itself, so there is no ODE for the elimination to "
+                        f"form; expected 'kkt'")
     if case.driven:
         from csim.solver.driven import driven_problems
 

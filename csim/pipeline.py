@@ -51,13 +51,16 @@ def build_system(case: Case) -> ConstrainedSystem:
         return DrivenSystem(model, model.parameter_vector(case.parameters), case.load_set(),
                             make_formulation(form.method, **settings), stabilizer,
                             case.linkage.driven_indices, case.linkage.drive_function(case.parameters))
-    return stabilizer.system_class()(
+    system = stabilizer.system_class()(
         model=model,
         par=model.parameter_vector(case.parameters),
         loads=case.load_set(),
         formulation=make_formulation(form.method, **settings),
         stabilizer=stabilizer,
     )
+    if hasattr(system, "use_constraints"):  # integrates every non-trivial equation, the removed ones too
+        system.use_constraints(constraint_watch(case, system))
+    return system
 
 
 def initial_state(case: Case, system: ConstrainedSystem) -> np.ndarray:

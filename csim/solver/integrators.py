@@ -30,6 +30,8 @@ class IntegratorInfo:
     description: str
     #: solves a Newton iteration per step: a non-finite trial iterate only makes it shrink the step
     implicit: bool = False
+    #: steps the system's own equations (it is given the system and the load conditions, not only fun)
+    needs_system: bool = False
 
     @property
     def cls(self) -> type:
@@ -47,6 +49,10 @@ INTEGRATORS: dict[str, IntegratorInfo] = {
     "BDF": IntegratorInfo("scipy.integrate:BDF", True, "implicit multistep BDF, orders 1-5 (stiff)", implicit=True),
     "LSODA": IntegratorInfo("scipy.integrate:LSODA", True, "Adams/BDF with automatic stiffness switching"),
     "RK4": IntegratorInfo("csim.solver.rk4:RK4", False, "classic Runge-Kutta 4, fixed step `simulation.step`"),
+    "trapezoidal": IntegratorInfo("csim.solver.ali3p:ALI3P", False,
+                                  "trapezoidal rule of the index-3 augmented Lagrangian method (ALI3-P), fixed step "
+                                  "`simulation.step`; stabilization.method augmented_lagrangian only",
+                                  implicit=True, needs_system=True),
 }
 
 
@@ -60,14 +66,16 @@ def _check_dae(name):
 
 
 def make_integrator(name, fun, t0, y0, t_bound, *, rtol, atol, step=None, max_step=np.inf, first_step=None,
-                    dae=None):
+                    dae=None, system=None, mode=None):
     """Start the integrator ``name`` on ``y' = fun(t, y)`` from (t0, y0) towards ``t_bound``.
 
     ``rtol``, ``atol`` (scalar or (n,)), ``max_step`` and ``first_step`` apply to the
     adaptive integrators, ``step`` [s] to the fixed-step ones. ``dae`` (a dict with
     ``differential``, the bool mask of the differential rows, and solver options) makes
     ``fun`` the right-hand side F of the DAE ``D y' = F(t, y)``; only the integrators of
-    :data:`DAE_INTEGRATORS` accept it.
+    :data:`DAE_INTEGRATORS` accept it. ``system`` and ``mode`` (the load conditions held, None:
+    evaluated at each step) go to an integrator that steps the system's own equations
+    (``needs_system``).
     """
     try:
         info = INTEGRATORS[name]
@@ -85,4 +93,6 @@ def make_integrator(name, fun, t0, y0, t_bound, *, rtol, atol, step=None, max_st
         return info.cls(fun, t0, y0, t_bound, **options)
     if dae is not None:
         _check_dae(name)
+    if info.needs_system:
+        return info.cls(fun, t0, y0, t_bound, step=step, system=system, mode=mode)
     return info.cls(fun, t0, y0, t_bound, step=step)

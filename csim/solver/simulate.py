@@ -100,8 +100,8 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
             mode[:] = system.mode_at(y)
             record(t, y)
             while t < settings.t_end and i_out <= len(t_out):
+                frozen = mode.copy()
                 if locate:
-                    frozen = mode.copy()
                     fun = lambda t_, y_, frozen=frozen: system.rhs(t_, y_, frozen)  # noqa: E731
                 else:
                     fun = system.rhs_unlocated
@@ -113,7 +113,7 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
                         settings.integrator, counter, t, y, settings.t_end,
                         rtol=settings.rtol, atol=_atol(settings.atol, system, y),
                         step=settings.step, max_step=settings.max_step, first_step=settings.first_step,
-                        dae=system.dae_options(),
+                        dae=system.dae_options(), system=system, mode=frozen if locate else None,
                     )
                     while solver.status == "running":
                         msg = solver.step()
