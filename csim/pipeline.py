@@ -34,8 +34,19 @@ def numeric_model(case: Case) -> NumericModel:
 
 
 def build_system(case: Case) -> ConstrainedSystem:
-    """The ODE system of a case: model, parameters, loads, formulation and stabilizer."""
+    """The ODE system of a case: model, parameters, loads, formulation and stabilizer.
+
+    An overconstrained linkage's model chooses its independent rows among all its equations
+    as it moves (:class:`csim.solver.redundant.RedundantModel`), for every method that works
+    with the constraint equations as rows (all but ``minimal``, which chooses its partition
+    itself, and ``augmented_lagrangian``, which takes the full set as it is).
+    """
     model = numeric_model(case)
+    if reselects_rows(case):
+        from csim.solver.redundant import RedundantModel
+
+        par = model.parameter_vector(case.parameters)
+        model = RedundantModel(model, constraint_watch(case, _Bare(model, par)), par)
     form = case.formulation
     settings = {}
     if form.method == "elimination":
@@ -138,6 +149,19 @@ def run_case(case: Case, progress: Callable[[float], None] | None = None) -> Res
     return result
 
 
+def reselects_rows(case: Case) -> bool:
+    """Whether a run of ``case`` chooses its independent constraint rows as it moves (see :func:`build_system`)."""
+    return (case.linkage is not None and case.linkage.redundant and not case.kinematic
+            and case.stabilization.method not in ("minimal", "augmented_lagrangian"))
+
+
+class _Bare:
+    """What :func:`constraint_watch` reads of a system (its model and parameters) before the system exists."""
+
+    def __init__(self, model, par):
+        self.model, self.par, self.r = model, par, model.n_constraints
+
+
 def constraint_watch(case: Case, system: ConstrainedSystem):
     """Every non-trivial constraint equation of the case's mechanism (:class:`ConstraintWatch`):
     a linkage's removed ones too; a registered mechanism's are the model's own."""
@@ -147,7 +171,10 @@ def constraint_watch(case: Case, system: ConstrainedSystem):
         from csim.linkage.constraints import constraint_watch as linkage_watch
 
         linkage = case.linkage
-        return linkage_watch(linkage.reduction, linkage.topology.variables, linkage.tables)
+        values = dict(linkage.tables.values)  # with the run's parameter values
+        values.update({linkage.tables.symbols[p.name]: v for p, v in zip(case.mechanism.parameters, system.par)
+                       if p.name in linkage.tables.symbols})
+        return linkage_watch(linkage.reduction, linkage.topology.variables, values)
     model, par, r = system.model, system.par, system.r
     return ConstraintWatch(phi=lambda q: model.phi(q, par), phi_q=lambda q: model.phi_q(q, par),
                            labels=[f"Phi_{i + 1}" for i in range(r)], kept=np.arange(r),
@@ -164,9 +191,11 @@ def record_integrity(case: Case, system: ConstrainedSystem, result: Result) -> N
         return
     finite = np.all(np.isfinite(result.q), axis=1) & np.all(np.isfinite(result.qd), axis=1)
     n = int(np.argmin(finite)) if not finite.all() else finite.size  # the samples before a blow-up
+    watch = constraint_watch(case, system)
     with np.errstate(all="ignore"):
-        found = check_integrity(constraint_watch(case, system), result.t[:n], result.q[:n], result.qd[:n],
-                                result.qdd[:n], case.mechanism.coordinate_names)
+        found = check_integrity(watch, result.t[:n], result.q[:n], result.qd[:n],
+                                result.qdd[:n], case.mechanism.coordinate_names,
+                                kept_fixed=not (reselects_rows(case) or case.stabilization.method == "augmented_lagrangian"))
     result.removed_names = found.removed_names
     result.removed_phi = np.full((result.t.size, len(found.removed_names)), np.nan)
     result.removed_phi[:n] = found.removed_phi
@@ -177,6 +206,12 @@ def record_integrity(case: Case, system: ConstrainedSystem, result: Result) -> N
         result.message = found.failure[1]
     elif found.failure is not None:  # failed later, for a reason of its own: say what went wrong first
         result.message += f"; before that, {found.failure[1]}"
+    if result.failure == "drift" and result.phi.shape[1] and np.isfinite(result.phi[:n]).any():
+        labels = watch.labels if result.phi.shape[1] == len(watch.labels) else [watch.labels[i] for i in watch.kept]
+        worst = np.nanmax(np.abs(result.phi[:n]), axis=0)
+        if len(labels) == worst.size:  # name the equation that came apart
+            j = int(np.nanargmax(worst))
+            result.message += f"; the largest residual is {labels[j]}'s ({worst[j]:.3g})"
 
 
 def _load_compiled(case: Case, system: ConstrainedSystem, y0: np.ndarray, settings) -> tuple[str, str]:
@@ -226,7 +261,7 @@ def _sample_values(system: ConstrainedSystem, traj: Trajectory, backend: str,
     :meth:`ConstrainedSystem.evaluate`. A sample that cannot be evaluated (the last state of
     a blow-up) is NaN, but for its observables (geometry only).
     """
-    N, m, r, k = traj.t.size, system.m, system.r, system.k
+    N, m, r, k = traj.t.size, system.m, system.r_recorded, system.k
     arrays = {name: np.full(shape, np.nan) for name, shape in dict(
         qdd=(N, m), lam=(N, r), phi=(N, r), phi_dot=(N, r), loads=(N, k), generalized_forces=(N, m),
         kinetic=(N,), potential=(N,), observables=(N, o), observable_rates=(N, o)).items()}

@@ -49,6 +49,10 @@ def unsupported(case) -> list[str]:
         why = {"ggl": "GGL is an index-2 DAE solved by the Python Radau IIA for DAEs"}
         reasons.append(f"stabilization.method {method!r}: {why.get(method, 'not implemented in compiled code')}; "
                        f"the compiled backend supports {', '.join(compiled_stabilizers())}")
+    if case.linkage is not None and case.linkage.redundant and method not in ("minimal",):
+        reasons.append(f"stabilization.method {method!r} on an overconstrained linkage: its independent constraint "
+                       f"equations are chosen again as it moves, on the Python path (csim.solver.redundant); the "
+                       f"compiled backend runs such a mechanism with 'minimal'")
     if case.driven:
         reasons.append("mechanism.drive_mode 'dynamic': the drives are constraints that depend on time, which the "
                        "compiled kernels do not evaluate (csim.solver.driven runs on the Python path)")

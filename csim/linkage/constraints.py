@@ -321,15 +321,37 @@ def plane_of_motion(tables: Tables, frames: Frames, variables: list[JointVariabl
     return Plane(normal, {n: T[:3, :3].T @ normal for n, T in numeric.items()})
 
 
-def constraint_watch(reduction: Reduction, variables: list[JointVariable], tables: Tables):
+def constraint_watch(reduction: Reduction, variables: list[JointVariable], values: dict[sp.Symbol, float]):
     """Every non-trivial equation of ``reduction`` as a :class:`csim.solver.integrity.ConstraintWatch`:
-    the kept ones (the model's Phi, in its order) and the ones removed as dependent, which a run
-    then watches."""
+    the kept ones (the model's Phi, in its order) and the ones removed as dependent, with
+    gamma of the removed ones (derived here: the model derives the kept ones'), at the
+    parameter ``values``."""
     from csim.solver.integrity import ConstraintWatch
 
     live = [e for e in reduction.equations if e.status != ZERO]
-    phi, phi_q = _numeric([e.expression for e in live], [v.symbol for v in variables], tables.values)
+    q_syms = [v.symbol for v in variables]
+    phi, phi_q = _numeric([e.expression for e in live], q_syms, values)
+    removed = [e for e in live if e.status == DEPENDENT]
     return ConstraintWatch(phi=phi, phi_q=phi_q, labels=[e.label for e in live],
                            kept=np.array([i for i, e in enumerate(live) if e.status == KEPT], dtype=int),
                            removed=np.array([i for i, e in enumerate(live) if e.status == DEPENDENT], dtype=int),
-                           rank=reduction.generic_rank)
+                           rank=reduction.generic_rank,
+                           gamma_removed=_numeric_gamma([e.expression for e in removed], variables, values))
+
+
+def _numeric_gamma(exprs: list[sp.Expr], variables: list[JointVariable], parameters: dict[sp.Symbol, float]):
+    """gamma(q, qd) (len(exprs),) = -(d(Phi_q qd)/dq) qd of ``exprs``, as a numpy function."""
+    q_syms, qd_syms = [v.symbol for v in variables], [v.velocity for v in variables]
+    r = len(exprs)
+    if not r:
+        return lambda q, qd: np.zeros(0)
+    qd_vec = sp.Matrix(qd_syms)
+    rate = sparse_jacobian(exprs, q_syms) * qd_vec  # Phi_q qd
+    gamma = -(sparse_jacobian(list(rate), q_syms) * qd_vec)
+    p_syms, p_vals = list(parameters), list(parameters.values())
+    f = sp.lambdify([q_syms, qd_syms, p_syms], gamma, "numpy", cse=True)
+
+    def gamma_removed(q, qd):
+        return np.asarray(f(list(q), list(qd), p_vals), dtype=float).reshape(r)
+
+    return gamma_removed

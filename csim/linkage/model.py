@@ -24,7 +24,14 @@ import numpy as np
 import sympy as sp
 
 from csim.errors import CaseError
-from csim.linkage.constraints import Plane, Reduction, cut_joint_equations, plane_of_motion, reduce_equations
+from csim.linkage.constraints import (
+    DEPENDENT,
+    Plane,
+    Reduction,
+    cut_joint_equations,
+    plane_of_motion,
+    reduce_equations,
+)
 from csim.linkage.expressions import evaluate, parse_expression, value_problem
 from csim.linkage.forces import Contribution, Geometry, build_forces
 from csim.linkage.frames import Frames, build_frames
@@ -86,6 +93,11 @@ class Linkage:
     def driven_indices(self) -> list[int]:
         names = self.variable_names
         return [names.index(n) for n in self.drive]
+
+    @property
+    def redundant(self) -> bool:
+        """Whether equations were removed as dependent (an overconstrained mechanism)."""
+        return any(e.status == DEPENDENT for e in self.reduction.equations)
 
     @property
     def equation_labels(self) -> list[str]:

@@ -130,7 +130,8 @@ def joint_reactions(linkage, definition, par: np.ndarray, q: np.ndarray, lam: np
     q : ndarray (N, m)
         Coordinates [rad or m].
     lam : ndarray (N, r)
-        Multipliers of the kept equations (NaN where a sample could not be evaluated).
+        Multipliers of the kept equations, or of every non-trivial one (an overconstrained
+        linkage's run records them all); NaN where a sample could not be evaluated.
 
     Returns
     -------
@@ -138,6 +139,8 @@ def joint_reactions(linkage, definition, par: np.ndarray, q: np.ndarray, lam: np
         One per cut joint, in the order of ``linkage.topology.cut_joints``.
     """
     kept = linkage.reduction.kept
+    if lam.shape[1] != len(kept):
+        kept = [eq for eq in linkage.reduction.equations if eq.status != ZERO]
     column = {id(eq): n for n, eq in enumerate(kept)}
     frames = _frame_functions(linkage, definition)
     cuts = linkage.topology.cut_joints

@@ -57,6 +57,8 @@ class ConstraintWatch:
         The rows removed as dependent at the start.
     rank : int
         The generic rank of Phi_q over all rows.
+    gamma_removed : callable (q, qd) -> (len(removed),), optional
+        gamma = -(dPhi_q/dt) qd of the removed rows (the model has the kept rows').
     """
 
     phi: Callable
@@ -65,6 +67,7 @@ class ConstraintWatch:
     kept: np.ndarray
     removed: np.ndarray
     rank: int
+    gamma_removed: Callable | None = None
 
 
 @dataclass
@@ -169,7 +172,7 @@ def _branch_jump(t, qd, qdd, tc: float, names: list[str]) -> str | None:
 
 
 def check_integrity(watch: ConstraintWatch, t: np.ndarray, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
-                    coordinate_names: list[str]) -> Integrity:
+                    coordinate_names: list[str], kept_fixed: bool = True) -> Integrity:
     """Check a run's samples (see the module docstring).
 
     Parameters
@@ -179,6 +182,9 @@ def check_integrity(watch: ConstraintWatch, t: np.ndarray, q: np.ndarray, qd: np
     q, qd, qdd : ndarray (N, m)
         The samples' coordinates, velocities and accelerations (NaN where not evaluated).
     coordinate_names : list of str (m,)
+    kept_fixed : bool
+        Whether the run integrated the rows kept at the start (False: it chose its rows as it
+        moved, :mod:`csim.solver.redundant`, and where the first ones lose rank is no news).
     """
     N = t.size
     phi_all = np.array([watch.phi(x) for x in q]).reshape(N, len(watch.labels))
@@ -200,7 +206,7 @@ def check_integrity(watch: ConstraintWatch, t: np.ndarray, q: np.ndarray, qd: np
     full = lambda x: relative_sigma(watch.phi_q(x), watch.rank)  # noqa: E731
     crossings = _crossings(full, t, q, qd) if N > 2 else []
     kept_times = np.zeros(0)
-    if watch.removed.size and N > 2:
+    if watch.removed.size and N > 2 and kept_fixed:
         def kept(x):
             return relative_sigma(watch.phi_q(x)[watch.kept], watch.kept.size)
 

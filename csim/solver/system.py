@@ -70,6 +70,9 @@ class ConstrainedSystem:
         self.stabilizer = stabilizer
         self.m = model.n_coordinates
         self.r = model.n_constraints
+        #: constraints recorded at the samples: every equation of an overconstrained linkage
+        #: (csim.solver.redundant.RedundantModel chooses r of them as it moves)
+        self.r_recorded = getattr(model, "n_recorded", self.r)
         self.k = model.n_loads
 
     #: None for an ODE; for a DAE, a bool array (n_state,), True on differential rows
@@ -195,6 +198,8 @@ class ConstrainedSystem:
         q, qd, _ = self.split(y)
         u = self.load_values(t, q, qd, mode)
         qdd, lam, phi, phi_dot, Q, _ = self._solve(q, qd, u)
+        if self.r_recorded != self.r:  # the full set's residuals and minimum-norm multipliers
+            phi, phi_dot, lam = self.model.recorded(q, qd, lam)
         return Evaluation(
             qdd=qdd, lam=lam, phi=phi, phi_dot=phi_dot, u=u, Q=Q,
             kinetic=self.model.kinetic_energy(q, qd, self.par),

@@ -73,8 +73,10 @@ class AugmentedLagrangianSystem(ConstrainedSystem):
         self.watch = None
 
     def use_constraints(self, watch) -> None:
-        """Integrate with every equation of ``watch`` (kept and removed), not only the model's."""
+        """Integrate with every equation of ``watch`` (kept and removed), not only the model's;
+        the samples record them all."""
         self.watch = watch
+        self.r_recorded = len(watch.labels)
 
     # -- the full constraint set --------------------------------------------------------
     def phi_all(self, q: np.ndarray) -> np.ndarray:
@@ -86,19 +88,13 @@ class AugmentedLagrangianSystem(ConstrainedSystem):
         return self.model.phi_q(q, self.par) if self.watch is None else self.watch.phi_q(q)
 
     def gamma_all(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
-        """gamma = -(dPhi_q/dt) qd (n_all,): the model's for the kept rows; for the removed
-        rows (few, and only where a linkage is overconstrained) by a central difference of
-        Phi_q along qd."""
+        """gamma = -(dPhi_q/dt) qd (n_all,): the model's on the kept rows, the watch's on the removed ones."""
         gamma_kept = self.model.gamma(q, qd, self.par)
         if self.watch is None or self.watch.removed.size == 0:
             return gamma_kept
         out = np.empty(len(self.watch.labels))
         out[self.watch.kept] = gamma_kept
-        scale = max(float(np.max(np.abs(qd))), 1e-300)
-        eps = 1e-6 / scale
-        dJ = (self.watch.phi_q(q + eps * qd)[self.watch.removed] -
-              self.watch.phi_q(q - eps * qd)[self.watch.removed]) / (2 * eps)
-        out[self.watch.removed] = -dJ @ qd
+        out[self.watch.removed] = self.watch.gamma_removed(q, qd)
         return out
 
     def forces(self, t: float, q: np.ndarray, qd: np.ndarray, mode: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -134,18 +130,11 @@ class AugmentedLagrangianSystem(ConstrainedSystem):
         return qdd, lam
 
     def _solve(self, q, qd, u):
-        """qdd, the kept rows' multipliers and the pieces of the balance (for the samples).
-
-        The multipliers of the full set are expressed on the kept rows by least squares,
-        Phi_q,kept^T lam_kept = Phi_q,all^T lam_all: the same constraint forces wherever the
-        kept rows have full rank.
-        """
+        """qdd, the minimum-norm multipliers and the residuals of every equation (for the samples)."""
         model, par = self.model, self.par
         M = model.mass(q, par)
         B = model.load_matrix(q, par)
         p = B @ u - model.velocity_terms(q, qd, par) - model.gravity(q, par)
         J = self.phi_q_all(q)
-        qdd, lam_all = self.accelerations(M, J, p, self.gamma_all(q, qd))
-        J_kept = model.phi_q(q, par)
-        lam = np.linalg.lstsq(J_kept.T, J.T @ lam_all, rcond=None)[0] if J_kept.size else np.zeros(0)
-        return qdd, lam, model.phi(q, par), J_kept @ qd, B @ u, B
+        qdd, lam = self.accelerations(M, J, p, self.gamma_all(q, qd))
+        return qdd, lam, self.phi_all(q), J @ qd, B @ u, B
