@@ -12,9 +12,10 @@ either backend, against the full set of non-trivial constraint equations:
    where one exceeds :func:`removed_limit` fails (kind ``"drift"``) and names it.
 2. **Singular configurations.** Where Phi_q of the full set drops below its generic rank
    (every link of the N-four-bar horizontal) the mechanism can leave its assembly branch.
-   The relative k-th singular value sigma_k / sigma_1 of Phi_q (k the generic rank) is
-   taken at the samples; each local minimum below :data:`COARSE` is refined on the cubic
-   Hermite interpolant of (q, qd) between the neighbouring samples, and one below
+   The k-th singular value of Phi_q (k the generic rank), relative to the largest
+   sigma_1 over the run, is taken at the samples; each local minimum below
+   :data:`COARSE` is refined on the cubic Hermite interpolant of (q, qd) between the
+   neighbouring samples, and one below
    :data:`SINGULAR` is recorded as a singular crossing (a warning in the summary and the
    file). Across a crossing the exact motion's velocity is continuous and smooth: where
    the samples on either side are not joined by their accelerations (the trapezoidal
@@ -28,9 +29,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-#: a sampled local minimum of sigma_k / sigma_1 below this is refined between the samples
+#: a sampled local minimum of sigma_k / max sigma_1 below this is refined between the samples
 COARSE = 0.25
-#: sigma_k / sigma_1 below this (refined) is a loss of rank: a singular configuration
+#: sigma_k / max sigma_1 below this (refined) is a loss of rank: a singular configuration
 SINGULAR = 1e-3
 #: a relative velocity jump (trapezoidal residual / velocity scale) above this across a
 #: singular crossing is a change of assembly branch
@@ -84,7 +85,7 @@ class Integrity:
     singular_times : ndarray (S,) [s]
         The singular crossings.
     singular_sigma : ndarray (S,)
-        sigma_k / sigma_1 of the full set's Phi_q at each.
+        sigma_k / max sigma_1 of the full set's Phi_q at each.
     kept_singular_times : ndarray [s]
         Where the kept subset loses rank but the full set does not.
     failure : tuple (kind, message) or None
@@ -107,14 +108,22 @@ def removed_limit(max_kept: float) -> float:
     return max(REMOVED_FACTOR * max_kept, REMOVED_FLOOR)
 
 
-def relative_sigma(J: np.ndarray, k: int) -> float:
-    """sigma_k / sigma_1 of J (1-based k: the k-th largest singular value); 1 for k = 0 or J = 0."""
+def relative_sigma(J: np.ndarray, k: int, scale: float | None = None) -> float:
+    """sigma_k / scale of J (k: the k-th largest singular value, 1-based); ``scale`` defaults
+    to sigma_1 of J itself. 1 for k = 0 or an empty J, 0 where J has fewer than k values."""
     if k == 0 or J.size == 0:
         return 1.0
     s = np.linalg.svd(J, compute_uv=False)
-    if s[0] == 0.0:
+    scale = s[0] if scale is None else scale
+    if scale == 0.0:
         return 1.0
-    return float(s[k - 1] / s[0]) if k <= s.size else 0.0
+    return float(s[k - 1] / scale) if k <= s.size else 0.0
+
+
+def jacobian_scale(phi_q: Callable[[np.ndarray], np.ndarray], q: np.ndarray) -> float:
+    """The largest sigma_1 of Phi_q over the samples q (N, m): the scale a singular value is
+    measured against (a single equation's Jacobian loses rank by vanishing as a whole)."""
+    return max((float(np.linalg.norm(phi_q(x), 2)) for x in q if np.all(np.isfinite(x))), default=0.0)
 
 
 def hermite(qa, qda, qb, qdb, h: float, tau: float) -> np.ndarray:
@@ -203,12 +212,13 @@ def check_integrity(watch: ConstraintWatch, t: np.ndarray, q: np.ndarray, qd: np
                                 f"first above {limit:.3g} at t = {t[first]:.6g} s while the kept equations stay "
                                 f"within {kept_max:.3g}: a joint came apart where the kept equations lost rank; "
                                 f"use stabilization.method minimal or augmented_lagrangian")
-    full = lambda x: relative_sigma(watch.phi_q(x), watch.rank)  # noqa: E731
+    scale = jacobian_scale(watch.phi_q, q) if N > 2 else 0.0
+    full = lambda x: relative_sigma(watch.phi_q(x), watch.rank, scale)  # noqa: E731
     crossings = _crossings(full, t, q, qd) if N > 2 else []
     kept_times = np.zeros(0)
     if watch.removed.size and N > 2 and kept_fixed:
         def kept(x):
-            return relative_sigma(watch.phi_q(x)[watch.kept], watch.kept.size)
+            return relative_sigma(watch.phi_q(x)[watch.kept], watch.kept.size, scale)
 
         kept_times = np.array([tc for tc, _ in _crossings(kept, t, q, qd)
                                if all(abs(tc - tf) > 1e-6 for tf, _ in crossings)])
