@@ -198,7 +198,7 @@ class ConstrainedSystem:
         q, qd, _ = self.split(y)
         u = self.load_values(t, q, qd, mode)
         qdd, lam, phi, phi_dot, Q, _ = self._solve(q, qd, u)
-        if self.r_recorded != self.r:  # the full set's residuals and minimum-norm multipliers
+        if hasattr(self.model, "recorded"):  # RedundantModel: the full set's residuals, minimum-norm multipliers
             phi, phi_dot, lam = self.model.recorded(q, qd, lam)
         return Evaluation(
             qdd=qdd, lam=lam, phi=phi, phi_dot=phi_dot, u=u, Q=Q,
