@@ -240,3 +240,23 @@ def test_a_coupling_name_that_is_a_list_is_rejected(tmp_path):
     data["mechanism"]["couplings"][2]["name"] = [1, 2]
     (problem,) = failed(tmp_path, data)
     assert problem.startswith("mechanism.couplings[2] (coupling 3).name: got [1, 2] (list); not a usable name")
+
+
+def test_a_point_name_on_links_no_coupling_joins_is_an_error(tmp_path):
+    """``B`` on every crank of the N-four-bar used to give one observable B_x, from the first crank."""
+    data = yaml.safe_load((CONFIGS / "iftomm" / "a02_n_four_bar_2.yaml").read_text())
+    for row in data["mechanism"]["links"]:
+        for joint in row["joints"]:
+            if isinstance(joint, list) and len(joint) == 3 and str(joint[2]).startswith("B"):
+                joint[2] = "B"
+    data["mechanism"]["couplings"] = [[0, 1, 1, 1], [0, 2, 2, 1], [0, 3, 3, 1], [1, 2, 4, 1], [4, 2, 2, 2],
+                                      [2, 2, 5, 1], [5, 2, 3, 2]]
+    problems = failed(tmp_path, data)
+    assert any("point name 'B' is also on link 1 'crank0'" in p and "no coupling joins" in p for p in problems)
+    # the same name on two frames that a coupling joins is one point (B on a crank and its coupler)
+    assert not any("point name" in p for p in failed_or_none(tmp_path, config("fourbar_gravity")))
+
+
+def failed_or_none(tmp_path, data) -> list[str]:
+    code, err, _ = cli(tmp_path, data)
+    return [] if code == 0 else err.splitlines()

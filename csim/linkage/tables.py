@@ -497,6 +497,38 @@ def _one_coupling(path: str, number: int, name: str | None, spec: list, rows: Li
     return Coupling(number, name, i, k, j, m, a.type, path)
 
 
+def _shared_point_names(links: dict[int, Link], couplings: list[Coupling]) -> list[str]:
+    """A point name on frames of several links names one physical point: the frames must be
+    joined by couplings (``B`` on a crank and on its coupler). On frames no coupling joins
+    (``B`` on every crank) it would name several points, and the observables ``B_x``, ``B_y``
+    would follow the first one alone."""
+    parent: dict[tuple[int, int], tuple[int, int]] = {}
+
+    def root(f):
+        while parent.get(f, f) != f:
+            f = parent[f]
+        return f
+
+    for c in couplings:
+        parent[root((c.i, c.k))] = root((c.j, c.m))
+    by_name: dict[str, list[JointFrame]] = {}
+    for number, link in sorted(links.items()):
+        for f in link.joints:
+            if f.point:
+                by_name.setdefault(f.point, []).append(f)
+    problems = []
+    for name, frames in by_name.items():
+        groups: dict[tuple[int, int], JointFrame] = {}
+        for f in frames:
+            groups.setdefault(root((f.link, f.index)), f)
+        if len(groups) > 1:
+            a, b = list(groups.values())[:2]
+            problems.append(f"{b.path}: point name {name!r} is also on {links[a.link].label} (joint {a.index}), and no "
+                            f"coupling joins the two frames: they are different points; expected a name of its own "
+                            f"for each point (e.g. {name}{a.link}, {name}{b.link})")
+    return problems
+
+
 def parse_tables(mechanism: dict, problems: list[str]) -> Tables | None:
     """Check the link-coupling keys of a ``mechanism`` section.
 
@@ -518,6 +550,7 @@ def parse_tables(mechanism: dict, problems: list[str]) -> Tables | None:
     rows = _links(mechanism.get("links"), scope, problems)
     _numbering(rows, problems)
     couplings = _couplings(mechanism.get("couplings"), rows, problems) if rows.links else []
+    problems += _shared_point_names(rows.links, couplings)
     gravity_raw = mechanism.get("gravity")
     gravity = (sp.Integer(0),) * 3
     if gravity_raw is not None:

@@ -67,5 +67,34 @@ def build_numeric_model(definition: MechanismDefinition, use_cache: bool = True)
     source = cached_source(definition, use_cache=use_cache)
     namespace: dict = {}
     exec(compile(source, f"<csim model {definition.name}>", "exec"), namespace)
-    functions = {name: namespace[name] for name in FUNCTIONS}
+    functions = {name: _nan_outside_domain(namespace[name]) for name in FUNCTIONS}
     return NumericModel(definition=definition, source=source, **functions)
+
+
+def _nan_outside_domain(f: Callable) -> Callable:
+    """``f``, returning NaN where its arguments leave the domain of ``math`` (``math.cos(inf)``,
+    ``math.sqrt(-1)`` raise ValueError): an implicit integrator's trial state then makes it
+    reject the step, as a NaN would, instead of ending the run with "math domain error"."""
+
+    def guarded(*args):
+        try:
+            return f(*args)
+        except (ValueError, OverflowError, ZeroDivisionError):
+            return _nan_like(f, args)
+
+    guarded.__name__ = f.__name__
+    guarded.__doc__ = f.__doc__
+    guarded.__wrapped__ = f
+    return guarded
+
+
+def _nan_like(f: Callable, args: tuple):
+    """NaN in the shape ``f`` returns (found at zero arguments of the same shapes)."""
+    with np.errstate(all="ignore"):
+        try:
+            out = f(*(np.zeros_like(np.asarray(a, dtype=float)) for a in args))
+        except (ValueError, OverflowError, ZeroDivisionError):
+            out = f(*(np.full_like(np.asarray(a, dtype=float), 0.5) for a in args))
+    if np.isscalar(out):
+        return float("nan")
+    return np.full(np.shape(out), np.nan)
