@@ -9,9 +9,11 @@ length h from (q_n, qd_n, qdd_n):
        qdd = (4/h^2) q + qdd^,   qdd^ = -((4/h^2) q_n + (4/h) qd_n + qdd_n)
 2. Newton-Raphson on the equations of motion with the augmented multipliers, scaled by h^2/4:
        f(q) = (h^2/4) [M qdd + Phi_q^T (lambda* + alpha Phi) - p] = 0
-   with the tangent  f_q = M + (h/2) C + (h^2/4) (Phi_q^T alpha Phi_q + K),  C = -dp/dqd and
-   K = -dp/dq by finite differences at the predictor (a modified Newton: one factorization
-   per step), and lambda* <- lambda* + alpha Phi after each iteration.
+   with alpha set from the method's relative penalty at the predictor
+   (:func:`~csim.solver.methods.augmented_lagrangian.penalty_factor`), the tangent
+   f_q = M + (h/2) C + (h^2/4) (Phi_q^T alpha Phi_q + K),  C = -dp/dqd and
+   K = -dp/dq by finite differences at the predictor, the rest at each iterate, and
+   lambda* <- lambda* + alpha Phi after each iteration.
 3. Projections with W = M + (h/2) C + (h^2/4) K at the converged positions:
        f_q qd  = W qd*,                              (onto Phi_q qd = 0)
        f_q qdd = W qdd* + (h^2/4) Phi_q^T alpha gamma   (onto Phi_q qdd = gamma)
@@ -30,6 +32,7 @@ import scipy.linalg
 from scipy.integrate import OdeSolver
 
 from csim.errors import SimulationFailure
+from csim.solver.methods.augmented_lagrangian import penalty_factor
 from csim.solver.rk4 import CubicHermite
 
 
@@ -128,7 +131,7 @@ class ALI3P(OdeSolver):
         """The step's positions by Newton-Raphson, then the projected velocities and accelerations."""
         s = self.system
         method = s.stabilizer
-        alpha, par = method.penalty, s.par
+        par = s.par
         qd_hat = -(2.0 / h * q0 + qd0)
         qdd_hat = -(4.0 / h**2 * q0 + 4.0 / h * qd0 + qdd0)
         q = q0 + h * qd0 + 0.5 * h * h * qdd0  # predictor
@@ -136,15 +139,17 @@ class ALI3P(OdeSolver):
         c = 0.25 * h * h
         qd, qdd = 2.0 / h * q + qd_hat, 4.0 / h**2 * q + qdd_hat
         C, K = self._force_derivatives(t, q, qd, mode)
-        J = s.phi_q_all(q)
-        M = s.model.mass(q, par)
-        factor = self._factor(M + 0.5 * h * C + c * (alpha * (J.T @ J) + K), t)
+        alpha = penalty_factor(method.penalty, s.model.mass(q, par), s.phi_q_all(q), c)
+        last = np.inf
         for _ in range(method.max_iter):
             qd, qdd = 2.0 / h * q + qd_hat, 4.0 / h**2 * q + qdd_hat
             M, J, phi = s.model.mass(q, par), s.phi_q_all(q), s.phi_all(q)
             p, _ = s.forces(t, q, qd, mode)
             # f(q) = (h^2/4) [M qdd + Phi_q^T (lambda* + alpha Phi) - p]
             f = c * (M @ qdd + J.T @ (lam + alpha * phi) - p)
+            # tangent f_q = M + (h/2) C + (h^2/4) (Phi_q^T alpha Phi_q + K), at the current iterate
+            # (near a singular configuration Phi_q turns quickly)
+            factor = self._factor(M + 0.5 * h * C + c * (alpha * (J.T @ J) + K), t)
             dq = scipy.linalg.lu_solve(factor, -f, check_finite=False)
             q = q + dq
             lam = lam + alpha * s.phi_all(q)
@@ -152,8 +157,12 @@ class ALI3P(OdeSolver):
             if not np.all(np.isfinite(q)):
                 raise SimulationFailure(f"augmented_lagrangian: Newton-Raphson diverged at t = {t:.6g} s "
                                         f"(a smaller simulation.step, or a smaller stabilization.penalty)", "newton")
-            if np.max(np.abs(dq)) <= method.tol * (1.0 + np.max(np.abs(q))):
+            size, bound = np.max(np.abs(dq)), method.tol * (1.0 + np.max(np.abs(q)))
+            # converged; or stalled at the round-off floor, which the penalty's conditioning
+            # raises above the tolerance near a singular configuration
+            if size <= bound or (size <= 100.0 * bound and size > 0.5 * last):
                 break
+            last = size
         else:
             raise SimulationFailure(f"augmented_lagrangian: Newton-Raphson did not converge in {method.max_iter} "
                                     f"iterations at t = {t:.6g} s (last correction {np.max(np.abs(dq)):.3g}; a smaller "

@@ -25,9 +25,11 @@ from csim.solver.system import ConstrainedSystem
 
 @dataclasses.dataclass(frozen=True)
 class AugmentedLagrangianOptions:
-    penalty: float = option(1e8, "penalty factor alpha of the constraints (large against the mass matrix's entries)",
-                            "unit of p / unit of Phi", gt=0.0)
-    al_tol: float = option(1e-12, "Newton-Raphson tolerance on the largest position correction of a step "
+    penalty: float = option(1e4, "the constraints' penalty against inertia: alpha (h^2/4) |Phi_q|^2 over the mass "
+                                 "matrix's largest diagonal entry; its iteration converges like 1/(1 + penalty "
+                                 "sigma^2) where sigma is the smallest singular value of Phi_q/|Phi_q|, so near a "
+                                 "singular configuration a large one is needed", "-", gt=0.0)
+    al_tol: float = option(1e-9, "Newton-Raphson tolerance on the largest position correction of a step "
                                   "(relative to 1 + |q|)", "-", gt=0.0)
     al_max_iter: int = option(20, "Newton-Raphson iteration limit per step", "-", gt=0)
 
@@ -38,7 +40,9 @@ class AugmentedLagrangian(Method):
     Parameters
     ----------
     penalty : float
-        alpha, the penalty factor.
+        The penalty relative to inertia (dimensionless): alpha = penalty max(diag M) /
+        ((h^2/4) max(diag Phi_q^T Phi_q)) for the step h, and the same without h^2/4 at the
+        acceleration level.
     al_tol : float
         Newton-Raphson tolerance on max |dq| / (1 + max |q|).
     al_max_iter : int
@@ -50,7 +54,7 @@ class AugmentedLagrangian(Method):
     Options = AugmentedLagrangianOptions
     integrators = ("trapezoidal",)
 
-    def __init__(self, penalty=1e8, al_tol=1e-12, al_max_iter=20):
+    def __init__(self, penalty=1e4, al_tol=1e-9, al_max_iter=20):
         super().__init__(penalty=penalty, al_tol=al_tol, al_max_iter=al_max_iter)
         self.penalty, self.tol, self.max_iter = float(penalty), float(al_tol), int(al_max_iter)
 
@@ -114,7 +118,7 @@ class AugmentedLagrangianSystem(ConstrainedSystem):
         """
         import scipy.linalg
 
-        alpha = self.stabilizer.penalty
+        alpha = penalty_factor(self.stabilizer.penalty, M, J, 1.0)
         lam = np.zeros(J.shape[0]) if lam0 is None else lam0.copy()
         with np.errstate(all="ignore"):
             factor = scipy.linalg.lu_factor(M + alpha * (J.T @ J), check_finite=False)
@@ -138,3 +142,11 @@ class AugmentedLagrangianSystem(ConstrainedSystem):
         J = self.phi_q_all(q)
         qdd, lam = self.accelerations(M, J, p, self.gamma_all(q, qd))
         return qdd, lam, self.phi_all(q), J @ qd, B @ u, B
+
+
+def penalty_factor(penalty: float, M: np.ndarray, J: np.ndarray, c: float) -> float:
+    """alpha = penalty max(diag M) / (c max(diag J^T J)): the penalty ``penalty`` times the
+    inertia, per unit of c alpha J^T J (c = h^2/4 in a step, 1 at the acceleration level)."""
+    inertia = float(np.max(np.abs(np.diag(M)), initial=0.0)) or 1.0
+    stiffness = float(np.max(np.sum(J * J, axis=0), initial=0.0)) or 1.0
+    return penalty * inertia / (c * stiffness)
