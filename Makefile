@@ -23,11 +23,13 @@ test: $(STAMP)  ## the default test suite (slow tests excluded)
 test-all: $(STAMP)  ## every test, the slow ones included
 	$(BIN)/python -m pytest -m ""
 
-batch: $(STAMP)  ## the README's accuracy claims, run and checked (configs/batch/accuracy.yaml); JUnit report in results/
+batch: $(STAMP)  ## the accuracy claims and the IFToMM benchmark problems, run and checked (configs/batch/); JUnit reports in results/
 	$(BIN)/csim batch configs/batch/accuracy.yaml --junit results/batch_junit.xml
+	$(BIN)/csim batch configs/batch/iftomm.yaml --junit results/batch_iftomm_junit.xml
 
 bench: $(STAMP)  ## speed and accuracy benchmark, side by side in one run, then the scaling table
 	$(BIN)/python bench/run.py
+	$(BIN)/python bench/iftomm.py
 	$(BIN)/python bench/scaling.py --plain-c
 
 bench-scaling: $(STAMP)  ## the scaling table alone: derive, cc, first run and per-RHS time against mechanism size
