@@ -74,7 +74,7 @@ def test_a_velocity_jump_across_a_singular_crossing_is_a_branch_change():
 def test_n_four_bar_crossings_are_in_the_result_file(tmp_path_factory):
     """A02 with N = 2: every link horizontal twice a turn; projection keeps the parallelogram."""
     path = simulated_file(tmp_path_factory, "iftomm/a02_n_four_bar_2.yaml", "a02.h5",
-                          "stabilization.method=projection", "simulation.t_end=3")
+                          "stabilization.method=projection", "simulation.integrator=DOP853", "simulation.t_end=3")
     with h5py.File(path) as fh:
         assert fh.attrs["status"] == "success"
         times = fh["integrity/singular_times"][()]
@@ -88,7 +88,7 @@ def test_n_four_bar_crossings_are_in_the_result_file(tmp_path_factory):
 def test_n_four_bar_branch_change_fails_without_stabilization(tmp_path_factory):
     """The unstabilized run used to report success while crank 2 stopped (2 m error)."""
     path = simulated_file(tmp_path_factory, "iftomm/a02_n_four_bar_2.yaml", "a02_none.h5",
-                          "stabilization.method=none", "simulation.t_end=4")
+                          "stabilization.method=none", "simulation.integrator=DOP853", "simulation.t_end=4")
     with h5py.File(path) as fh:
         status, failure, message = (str(fh.attrs[k]) for k in ("status", "failure", "message"))
         q = fh["q"][()]
