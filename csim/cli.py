@@ -478,7 +478,8 @@ def sweep(
         "--jobs", "-j", metavar="N", help="Worker processes. Default: one per CPU; 1 runs in this process.")] = None,
     scheduler: Annotated[str | None, typer.Option(
         "--scheduler", metavar="ADDRESS",
-        help="Run on a Dask distributed cluster, e.g. tcp://10.0.0.5:8786 (pip install 'csim[dask]').")] = None,
+        help="Run on a Dask distributed cluster, e.g. tcp://10.0.0.5:8786 "
+             "(pip install 'csim-multibody[dask]').")] = None,
     keep: Annotated[bool, typer.Option(
         "--keep", help="Also store each run's signals (t, q, qd, Phi, Phi_q qd, energy-balance error).")] = False,
     resume: Annotated[bool, typer.Option(
@@ -721,6 +722,47 @@ def plot(
             typer.echo(f"wrote {path}")
         for name, reason in report.skipped.items():
             typer.echo(f"skipped {name}: {reason}")
+
+
+@app.command(cls=_Command)
+@_interruptible
+def export(
+    result: Annotated[Path, typer.Argument(help="Result, comparison or sweep file (csim run, compare, sweep).",
+                                           show_default=False, metavar="RESULT.h5")],
+    fmt: Annotated[str, typer.Option("--format", "-f", metavar="csv|parquet",
+                                     help="csv: the header gives each column's unit, 'q:q1 [rad]'; parquet: "
+                                          "the units in the fields' metadata.")] = "csv",
+    output: Annotated[Path | None, typer.Option(
+        "--output", "-o", metavar="DIR", help="Folder for the files, one per table and run. "
+                                              "Default: RESULT_export beside the result file.")] = None,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing but errors.")] = False,
+):
+    """Write a result file's tables and time series as CSV or Parquet files.
+
+    One file per table (a comparison's summary and work_precision, a sweep's runs) and per
+    run (one row per output time, a column per coordinate, constraint, load: q:q1, phi:1,
+    ...), and per run's events. Needs the optional extra data (pandas; pyarrow for
+    Parquet). In Python, csim.load(RESULT) reads the same file into xarray and pandas.
+
+    Example: csim export results/qr.h5 --format parquet -o results/qr_tables
+    """
+    from csim.api import FORMATS
+    from csim.api import export as write_tables
+
+    if fmt not in FORMATS:
+        _fail_input(CsimError(f"--format {fmt!r}: expected one of {', '.join(FORMATS)}"))
+    out = output or result.parent / f"{result.stem}_export"
+    if out.exists() and not out.is_dir():
+        _fail_input(ResultFileError(f"--output {out}: exists and is not a folder"))
+    try:
+        written = write_tables(result, out, fmt)
+    except CsimError as exc:
+        _fail_input(exc)
+    except OSError as exc:
+        _fail_input(ResultFileError(f"--output {out}: cannot write there ({exc.strerror or exc})"))
+    if not quiet:
+        for path in written:
+            typer.echo(f"wrote {path}")
 
 
 @app.command(cls=_Command)

@@ -12,6 +12,7 @@ import numpy as np
 from csim.case import Case
 from csim.errors import SimulationFailure
 from csim.fast import integrate_compiled, prepare_compiled, resolve_backend
+from csim.io.units import mechanism_units
 from csim.model.cache import definition_key
 from csim.model.numeric import NumericModel, build_numeric_model
 from csim.result import Result
@@ -169,6 +170,7 @@ def assemble_result(case: Case, system: ConstrainedSystem, traj: Trajectory, wal
         event_times=np.asarray(traj.event_times, dtype=float), event_labels=list(traj.event_labels),
         backend=backend,
         **arrays,
+        **mechanism_units(case.mechanism, system.model, system.par),
     )
 
 

@@ -150,6 +150,11 @@ class Result:
         The torque or force each drive applies along its joint variable [N m or N].
     drive_work : ndarray (N, d) or None
         The work of each drive since t = 0 [J], part of the energy balance.
+    coordinate_units, constraint_units, load_units, observable_units, observable_rate_units : list of str
+        The unit of each column of q, of phi, of the loads, of the observables and of their
+        rates (:func:`csim.io.units.mechanism_units`); empty where not known (a run read
+        from a file of an earlier version). A constraint's unit is ``""`` where dimensional
+        analysis cannot find it.
     """
 
     mechanism: str
@@ -190,6 +195,11 @@ class Result:
     drive_units: list[str] = field(default_factory=list)
     drive_forces: np.ndarray | None = None
     drive_work: np.ndarray | None = None
+    coordinate_units: list[str] = field(default_factory=list)
+    constraint_units: list[str] = field(default_factory=list)
+    load_units: list[str] = field(default_factory=list)
+    observable_units: list[str] = field(default_factory=list)
+    observable_rate_units: list[str] = field(default_factory=list)
 
     def __post_init__(self):
         if self.status != "success" and not self.failure:
