@@ -490,3 +490,11 @@ def test_a_kinematic_analysis_that_loses_assembly_later_exits_1_not_2(tmp_path):
     with h5py.File(out, "r") as fh:
         assert (text_attr(fh, "status"), text_attr(fh, "failure")) == ("failed", "assembly")
         assert 0 < fh["t"][-1] < 0.5
+
+
+def test_plot_output_named_like_a_figure_is_rejected(tmp_path):
+    from conftest import assert_bad_input, invoke
+
+    result = invoke("plot", tmp_path / "r.h5", "-o", tmp_path / "plot.png")
+    assert_bad_input(result, "--output", "plot.png", "a folder")
+    assert not (tmp_path / "plot.png").exists()

@@ -233,9 +233,11 @@ def key_unit(case, key: str, constraint_unit: str | list[str] = "") -> str:
     mech = case.mechanism
     spec = SETTABLE.get(key)
     if spec is not None:
-        if spec.type in ("number", "integer"):
-            return phi_unit_text(spec.unit, constraint_unit) if spec.unit and spec.unit != "-" else DIMENSIONLESS
-        return DIMENSIONLESS if spec.type in ("string", "boolean") else ""
+        if spec.type in ("string", "boolean"):
+            return DIMENSIONLESS
+        if spec.unit and spec.unit != "-":  # a number, or a gain that may be one per constraint
+            return phi_unit_text(spec.unit, constraint_unit)
+        return DIMENSIONLESS if spec.type in ("number", "integer") else ""
     if parts[:2] == ["mechanism", "parameters"] and len(parts) == 3:
         try:
             return mech.parameter(parts[2]).unit or DIMENSIONLESS
