@@ -317,7 +317,8 @@ class Result:
         items = [("status", f"{self.status} ({self.message})")]
         if self.t.size:
             names = self.coordinate_names
-            items.append(("final time", f"{self.t[-1]:.6g} s"))
+            # a failed run's last sample is the last good one: the failing step is not recorded
+            items.append(("final time" if self.ok else "last sample", f"{self.t[-1]:.6g} s"))
             items.append(("final q", ", ".join(f"{n} = {v:.8g}" for n, v in zip(names, self.q[-1]))))
             items.append(("final qd", ", ".join(f"{n} = {v:.8g}" for n, v in zip(names, self.qd[-1]))))
             items.append(("max |Phi|", f"{self.max_phi:.3e}"))
