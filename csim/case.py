@@ -687,7 +687,7 @@ def _validate_formulation(out, mech, problems):
 
 
 def json_schema() -> dict:
-    """The case-file schema as JSON Schema (draft 2020-12), for editors (``csim schema``).
+    """The case-file schema as JSON Schema (draft-07, the draft yaml-language-server supports in full), for editors (``csim schema``).
 
     Generated from :data:`SCHEMA` (the methods' options included), :data:`LOAD_SCHEMA`,
     the registered mechanisms' parameters, coordinates and loads (one ``if``/``then`` per
@@ -695,7 +695,7 @@ def json_schema() -> dict:
     """
     from csim.linkage.json_schema import tables_json_schema
 
-    schema = {"$schema": "https://json-schema.org/draft/2020-12/schema", "title": "csim case file",
+    schema = {"$schema": "http://json-schema.org/draft-07/schema#", "title": "csim case file",
               "description": "A csim case (csim run CASE.yaml); see the README's 'Case files'. Units are SI.",
               **section_json_schema(SCHEMA)}
     schema["type"] = "object"
