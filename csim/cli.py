@@ -786,6 +786,32 @@ def export(
 
 
 @app.command(cls=_Command)
+def examples(
+    folder: Annotated[Path, typer.Argument(help="Folder to copy the example cases into (created).",
+                                           show_default=False, metavar="DIR")],
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing but errors.")] = False,
+):
+    """Copy the example case files (and the batch manifest) into a folder.
+
+    The cases of the documentation: the quick-return mechanism, the pendulum, Andrews'
+    squeezing mechanism, the link-coupling examples and the stability maps, with the case
+    schema as csim-case.schema.json beside them for editors. Files already there are never
+    replaced (exit 2).
+
+    Example: csim examples my_cases && csim run my_cases/quick_return.yaml
+    """
+    from csim.io.examples import copy_examples
+
+    try:
+        written = copy_examples(folder)
+    except CsimError as exc:
+        _fail_input(exc)
+    if not quiet:
+        for path in written:
+            typer.echo(f"wrote {path}")
+
+
+@app.command(cls=_Command)
 @_interruptible
 def animate(
     result: Annotated[Path, typer.Argument(help="Result file (csim run), or a comparison file with --group.",
