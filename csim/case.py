@@ -687,7 +687,7 @@ def _validate_formulation(out, mech, problems):
 
 
 def json_schema() -> dict:
-    """The case-file schema as JSON Schema (draft-07, the draft yaml-language-server supports in full), for editors (``csim schema``).
+    """The case-file schema as JSON Schema (draft-07: yaml-language-server supports it in full), for ``csim schema``.
 
     Generated from :data:`SCHEMA` (the methods' options included), :data:`LOAD_SCHEMA`,
     the registered mechanisms' parameters, coordinates and loads (one ``if``/``then`` per

@@ -881,7 +881,7 @@ def schema(
         "--output", "-o", metavar="FILE.json",
         help="Write the schema to this file (JSON). Default: print it.")] = None,
 ):
-    """Print the case-file schema as JSON Schema (draft-07, the draft yaml-language-server supports in full), for editors.
+    """Print the case-file schema as JSON Schema (draft-07, which editors support in full).
 
     Generated from csim's own schema: every key with its type, default, bounds, choices
     (mechanisms, integrators, methods, switching functions) and a description with its
