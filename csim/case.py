@@ -116,7 +116,7 @@ DRIVE_MODES = ("kinematic", "dynamic")
 SCHEMA = Section({
     "mechanism": Section({
         # Either a registered mechanism (name), or a link-coupling description (links,
-        # couplings; see csim/linkage/ and the README), checked by csim.linkage.tables.
+        # couplings; see csim/linkage/ and docs/link-coupling.md), checked by csim.linkage.tables.
         "name": Field("string", None, "registered mechanism", choices=lambda: sorted(MECHANISMS)),
         "parameters": Field("mapping", {}, "parameter values overriding the mechanism's defaults",
                              nullable=True),
@@ -696,7 +696,7 @@ def json_schema() -> dict:
     from csim.linkage.json_schema import tables_json_schema
 
     schema = {"$schema": "http://json-schema.org/draft-07/schema#", "title": "csim case file",
-              "description": "A csim case (csim run CASE.yaml); see the README's 'Case files'. Units are SI.",
+              "description": "A csim case (csim run CASE.yaml); see docs/case-files.md. Units are SI.",
               **section_json_schema(SCHEMA)}
     schema["type"] = "object"
     mechanism = schema["properties"]["mechanism"]

@@ -376,9 +376,8 @@ def test_hdf5_suffixes_are_accepted_in_any_case(tmp_path, name):
 
 
 def test_readme_use_examples_each_name_their_own_output():
-    """No README example overwrites another's result, nor make run's results/quick_return.h5."""
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
-    use = readme.split("\n## Use\n", 1)[1].split("\n## ", 1)[0]
+    """No example of docs/usage.md overwrites another's result, nor make run's results/quick_return.h5."""
+    use = (Path(__file__).resolve().parents[1] / "docs" / "usage.md").read_text()
     commands = [line.split() for line in use.splitlines() if line.startswith(".venv/bin/csim ")]
     writers = [c for c in commands if c[1] in ("run", "compare", "plot", "animate") and "--help" not in c]
     assert len(writers) >= 6
