@@ -4,7 +4,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: install run test test-all batch bench bench-scaling lint clean
+.PHONY: install run test test-all batch bench bench-scaling lint docs clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -35,9 +35,13 @@ bench: $(STAMP)  ## speed and accuracy benchmark, side by side in one run, then 
 bench-scaling: $(STAMP)  ## the scaling table alone: derive, cc, first run and per-RHS time against mechanism size
 	$(BIN)/python bench/scaling.py --plain-c
 
-lint: $(STAMP)
-	$(BIN)/python -m pip install --quiet ruff
+lint: $(STAMP)  ## ruff, at the version pinned in pyproject's lint extra
+	$(BIN)/python -m pip install --quiet -e '.[lint]'
 	$(BIN)/python -m ruff check csim tests bench
 
+docs: $(STAMP)  ## build the documentation into site/ (mkdocs-material, strict: a broken link or anchor fails)
+	$(BIN)/python -m pip install --quiet -e '.[docs]'
+	$(BIN)/python -m mkdocs build --strict
+
 clean:
-	rm -rf $(VENV) results .pytest_cache build *.egg-info
+	rm -rf $(VENV) results site .pytest_cache build *.egg-info

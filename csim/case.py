@@ -116,7 +116,7 @@ DRIVE_MODES = ("kinematic", "dynamic")
 SCHEMA = Section({
     "mechanism": Section({
         # Either a registered mechanism (name), or a link-coupling description (links,
-        # couplings; see csim/linkage/ and the README), checked by csim.linkage.tables.
+        # couplings; see csim/linkage/ and docs/link-coupling.md), checked by csim.linkage.tables.
         "name": Field("string", None, "registered mechanism", choices=lambda: sorted(MECHANISMS)),
         "parameters": Field("mapping", {}, "parameter values overriding the mechanism's defaults",
                              nullable=True),
@@ -695,7 +695,7 @@ def _validate_formulation(out, mech, problems):
 
 
 def json_schema() -> dict:
-    """The case-file schema as JSON Schema (draft 2020-12), for editors (``csim schema``).
+    """The case-file schema as JSON Schema (draft-07: yaml-language-server supports it in full), for ``csim schema``.
 
     Generated from :data:`SCHEMA` (the methods' options included), :data:`LOAD_SCHEMA`,
     the registered mechanisms' parameters, coordinates and loads (one ``if``/``then`` per
@@ -703,8 +703,8 @@ def json_schema() -> dict:
     """
     from csim.linkage.json_schema import tables_json_schema
 
-    schema = {"$schema": "https://json-schema.org/draft/2020-12/schema", "title": "csim case file",
-              "description": "A csim case (csim run CASE.yaml); see the README's 'Case files'. Units are SI.",
+    schema = {"$schema": "http://json-schema.org/draft-07/schema#", "title": "csim case file",
+              "description": "A csim case (csim run CASE.yaml); see docs/case-files.md. Units are SI.",
               **section_json_schema(SCHEMA)}
     schema["type"] = "object"
     mechanism = schema["properties"]["mechanism"]

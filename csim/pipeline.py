@@ -12,6 +12,7 @@ import numpy as np
 from csim.case import Case
 from csim.errors import SimulationFailure
 from csim.fast import integrate_compiled, prepare_compiled, resolve_backend
+from csim.io.units import mechanism_units
 from csim.model.cache import definition_key
 from csim.model.numeric import NumericModel, build_numeric_model
 from csim.result import Result
@@ -197,6 +198,7 @@ def record_integrity(case: Case, system: ConstrainedSystem, result: Result) -> N
                                 result.qdd[:n], case.mechanism.coordinate_names,
                                 kept_fixed=not (reselects_rows(case) or case.stabilization.method == "augmented_lagrangian"))
     result.removed_names = found.removed_names
+    result.removed_units = [watch.units[i] for i in watch.removed] if watch.units else []
     result.removed_phi = np.full((result.t.size, len(found.removed_names)), np.nan)
     result.removed_phi[:n] = found.removed_phi
     result.singular_times = found.singular_times
@@ -249,6 +251,7 @@ def assemble_result(case: Case, system: ConstrainedSystem, traj: Trajectory, wal
         event_times=np.asarray(traj.event_times, dtype=float), event_labels=list(traj.event_labels),
         backend=backend,
         **arrays,
+        **mechanism_units(case.mechanism, system.model, system.par),
     )
 
 

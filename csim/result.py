@@ -155,9 +155,14 @@ class Result:
         configurations crossed, kept equations that lost rank (:mod:`csim.solver.integrity`).
     singular_times : ndarray (S,) [s]
         Where Phi_q of the full set of equations fell below its generic rank.
-    removed_names : list of str; removed_phi : ndarray (N, d) or None
-        The constraint equations removed as dependent at the start, and their residuals at
-        the samples (a correct motion keeps them at the kept ones' level).
+    removed_names, removed_units : list of str; removed_phi : ndarray (N, d) or None
+        The constraint equations removed as dependent at the start, their units, and their
+        residuals at the samples (a correct motion keeps them at the kept ones' level).
+    coordinate_units, constraint_units, load_units, observable_units, observable_rate_units : list of str
+        The unit of each column of q, of phi, of the loads, of the observables and of their
+        rates (:func:`csim.io.units.mechanism_units`); empty where not known (a run read
+        from a file of an earlier version). A constraint's unit is ``""`` where dimensional
+        analysis cannot find it.
     """
 
     mechanism: str
@@ -202,6 +207,12 @@ class Result:
     singular_times: np.ndarray = field(default_factory=lambda: np.zeros(0))
     removed_names: list[str] = field(default_factory=list)
     removed_phi: np.ndarray | None = None
+    removed_units: list[str] = field(default_factory=list)
+    coordinate_units: list[str] = field(default_factory=list)
+    constraint_units: list[str] = field(default_factory=list)
+    load_units: list[str] = field(default_factory=list)
+    observable_units: list[str] = field(default_factory=list)
+    observable_rate_units: list[str] = field(default_factory=list)
 
     def __post_init__(self):
         if self.status != "success" and not self.failure:
@@ -319,7 +330,8 @@ class Result:
         items = [("status", f"{self.status} ({self.message})")]
         if self.t.size:
             names = self.coordinate_names
-            items.append(("final time", f"{self.t[-1]:.6g} s"))
+            # a failed run's last sample is the last good one: the failing step is not recorded
+            items.append(("final time" if self.ok else "last sample", f"{self.t[-1]:.6g} s"))
             items.append(("final q", ", ".join(f"{n} = {v:.8g}" for n, v in zip(names, self.q[-1]))))
             items.append(("final qd", ", ".join(f"{n} = {v:.8g}" for n, v in zip(names, self.qd[-1]))))
             items.append(("max |Phi|", f"{self.max_phi:.3e}"))

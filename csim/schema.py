@@ -255,7 +255,7 @@ def described(doc: str, unit: str = "") -> str:
 
 
 def field_json_schema(spec: Field) -> dict:
-    """The JSON Schema (draft 2020-12) of one field: type, bounds, choices, default, description.
+    """The JSON Schema (draft-07) of one field: type, bounds, choices, default, description.
 
     Non-finite numbers, which :func:`check_value` rejects, cannot be told apart in JSON
     Schema; everything else a field declares can.

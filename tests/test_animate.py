@@ -201,3 +201,17 @@ def test_cli_animate_errors(qr_file, tmp_path, monkeypatch):
 def test_mp4_with_ffmpeg(pendulum_file, tmp_path):
     anim = animate_file(pendulum_file, tmp_path / "p.mp4", fps=10, dpi=30)
     assert (tmp_path / "p.mp4").stat().st_size > 0 and len(anim) > 1
+
+
+def test_labels_and_title_lie_inside_the_frame(qr_file):
+    anim = MechanismAnimation(load_run(qr_file), fps=20)
+    fig = anim.figure
+    next(anim.frames_rgb(dpi=100))  # lays the figure out as the file's frames are
+    renderer = fig.canvas.get_renderer()
+    frame = fig.bbox
+    ax = fig.axes[0]
+    for text in (ax.xaxis.label, ax.yaxis.label, *fig.texts):
+        if text.get_text():
+            box = text.get_window_extent(renderer)
+            assert frame.x0 - 1 <= box.x0 and box.x1 <= frame.x1 + 1, text.get_text()
+            assert frame.y0 - 1 <= box.y0 and box.y1 <= frame.y1 + 1, text.get_text()

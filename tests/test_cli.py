@@ -376,9 +376,8 @@ def test_hdf5_suffixes_are_accepted_in_any_case(tmp_path, name):
 
 
 def test_readme_use_examples_each_name_their_own_output():
-    """No README example overwrites another's result, nor make run's results/quick_return.h5."""
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
-    use = readme.split("\n## Use\n", 1)[1].split("\n## ", 1)[0]
+    """No example of docs/usage.md overwrites another's result, nor make run's results/quick_return.h5."""
+    use = (Path(__file__).resolve().parents[1] / "docs" / "usage.md").read_text()
     commands = [line.split() for line in use.splitlines() if line.startswith(".venv/bin/csim ")]
     writers = [c for c in commands if c[1] in ("run", "compare", "plot", "animate") and "--help" not in c]
     assert len(writers) >= 6
@@ -490,3 +489,11 @@ def test_a_kinematic_analysis_that_loses_assembly_later_exits_1_not_2(tmp_path):
     with h5py.File(out, "r") as fh:
         assert (text_attr(fh, "status"), text_attr(fh, "failure")) == ("failed", "assembly")
         assert 0 < fh["t"][-1] < 0.5
+
+
+def test_plot_output_named_like_a_figure_is_rejected(tmp_path):
+    from conftest import assert_bad_input, invoke
+
+    result = invoke("plot", tmp_path / "r.h5", "-o", tmp_path / "plot.png")
+    assert_bad_input(result, "--output", "plot.png", "a folder")
+    assert not (tmp_path / "plot.png").exists()

@@ -145,8 +145,9 @@ def test_a_method_that_blows_up_is_a_failed_row_and_the_others_finish(tmp_path):
     out = tmp_path / "blow_up.h5"
     result = invoke("compare", QR, "--methods", "none,baumgarte,projection", "-o", out, "--jobs", "1",
                     *sets([*SHORT, *BLOW_UP]))
-    assert_clean_exit(result, 1)
-    assert "1 run(s) failed: baumgarte" in result.stderr and str(out) in result.stderr
+    assert_clean_exit(result, 0)  # every run ran: a failed one is a finding (--strict: exit 1)
+    assert "1 run(s) failed, each a row of" in result.stderr and str(out) in result.stderr
+    assert "baumgarte" in result.stderr.split("failed, each a row of", 1)[1]
     assert row(result.stdout, "baumgarte")[1] == "failed"
     assert "baumgarte: failed: " in result.stdout
     assert row(result.stdout, "none")[1] == row(result.stdout, "projection")[1] == "success"
@@ -404,3 +405,39 @@ def test_help_has_an_example():
     for fragment in ("Example", "--methods", "--tolerances", "--jobs", "--reference-method", "--reference-tol",
                      "--set", "--quiet", "--output"):
         assert fragment in result.stdout, fragment
+
+
+FAILING = ("--methods", "none,baumgarte", "--set", "simulation.integrator=RK4", "--set", "simulation.step=1e-2",
+           "--set", "stabilization.w=400", "--set", "simulation.t_end=1", "-j", "1", "-q")
+
+
+def test_a_failed_run_is_a_finding_and_strict_makes_it_an_error(tmp_path):
+    """w h = 4 is beyond RK4's bound for Baumgarte: that run fails, every run ran."""
+    result = invoke("compare", QR, *FAILING, "-o", tmp_path / "a.h5")
+    assert result.exit_code == 0, result.output
+    assert "1 run(s) failed" in result.output and "baumgarte" in result.output
+    assert read_comparison(tmp_path / "a.h5").summary["status"].tolist() == ["success", "failed"]
+    strict = invoke("compare", QR, *FAILING, "--strict", "-o", tmp_path / "b.h5")
+    assert strict.exit_code == 1 and "comparison incomplete" in strict.output
+    assert (tmp_path / "b.h5").is_file()
+
+
+def test_repeat_keeps_the_median_wall_time_and_says_so(tmp_path, monkeypatch):
+    import csim.compare as package
+
+    times = iter([3.0, 1.0, 2.0] * 4)
+    real = package.run_case
+
+    def timed(case):
+        result = real(case)
+        result.wall_time = next(times)
+        return result
+
+    monkeypatch.setattr(package, "run_case", timed)
+    result = invoke("compare", QR, "--methods", "none", "--repeat", "3", "-j", "1", "-q", "--set",
+                    "simulation.t_end=0.1", "-o", tmp_path / "r.h5")
+    assert result.exit_code == 0, result.output
+    file = read_comparison(tmp_path / "r.h5")
+    assert file.summary["wall_time"].tolist() == [2.0] and int(file.attrs["repeat"]) == 3
+    bad = invoke("compare", QR, "--repeat", "0", "-o", tmp_path / "x.h5")
+    assert bad.exit_code == 2 and "--repeat" in bad.output

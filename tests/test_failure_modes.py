@@ -209,3 +209,15 @@ def test_a_kinematic_analysis_that_loses_assembly_carries_its_kind(blind_classif
     # the four-bar of tests/test_cli.py that closes at q_crank = 0 but not at pi
     res = run_case(load_case(CONFIGS / "fourbar.yaml", ["mechanism.parameters.a=0.3"]))
     assert res.run_kind == "kinematic" and res.status == "failed" and res.failure == "assembly"
+
+
+def test_rk4_drift_names_the_step_and_the_summary_the_last_sample():
+    from conftest import qr_case
+
+    from csim.pipeline import run_case
+
+    result = run_case(qr_case("simulation.integrator=RK4", "simulation.step=1"))
+    assert result.failure == "drift" and "lower simulation.step" in result.message
+    assert "tolerances" not in result.message
+    items = dict(result.summary_items())
+    assert "final time" not in items and items["last sample"] == "0 s"

@@ -39,11 +39,35 @@ def test_every_dataset_has_units(tmp_path, short_result):
     with h5py.File(path) as fh:
         missing = []
         fh.visititems(lambda name, obj: missing.append(name)
-                      if isinstance(obj, h5py.Dataset) and "units" not in obj.attrs and name != "events/labels"
+                      if isinstance(obj, h5py.Dataset) and not ("units" in obj.attrs and "description" in obj.attrs)
                       else None)
         assert not missing
-        assert list(fh["q"].attrs["units"]) == [b"rad", b"rad", b"rad"] or list(fh["q"].attrs["units"]) == [
-            "rad", "rad", "rad"]
+        assert fh["q"].attrs["units"] == "rad" and fh["events/labels"].attrs["units"] == "1"
+    back = read_result(path)
+    assert (back.coordinate_units, back.constraint_units, back.load_units) == (["rad"] * 3, ["m", "m"], ["N m", "N"])
+    assert (back.observable_units, back.observable_rate_units) == (["m"], ["m/s"])
+
+
+def test_columns_of_different_units_get_one_unit_each(tmp_path, short_result):
+    from dataclasses import replace
+
+    path = tmp_path / "r.h5"
+    write_result(path, replace(short_result, coordinate_units=["rad", "m", "rad"]))
+    with h5py.File(path) as fh:
+        assert [u.decode() if isinstance(u, bytes) else u for u in fh["qdd"].attrs["units"]] == [
+            "rad/s^2", "m/s^2", "rad/s^2"]
+        assert list(fh["forces/generalized"].attrs["units"]) in ([b"N m", b"N", b"N m"], ["N m", "N", "N m"])
+    assert read_result(path).coordinate_units == ["rad", "m", "rad"]
+
+
+def test_arrays_are_attached_to_dimension_scales(tmp_path, short_result):
+    path = tmp_path / "r.h5"
+    write_result(path, short_result)
+    with h5py.File(path) as fh:
+        assert fh["q"].dims[0][0].name == "/t" and fh["q"].dims[1][0].name == "/coordinate"
+        assert fh["energy/work"].dims[1][0].name == "/load" and fh["lambda"].dims[1][0].name == "/constraint"
+        assert fh["observables/ram_x"].dims[0][0].name == "/t"
+        assert [x.decode() for x in fh["coordinate"][()]] == ["q1", "q2", "q3"]
 
 
 def test_result_file_mode_follows_the_umask(tmp_path, short_result):

@@ -173,8 +173,10 @@ def test_reactions_round_trip_through_hdf5(tmp_path):
     import h5py
 
     with h5py.File(path) as fh:
-        assert fh["reactions/C/force_global"].attrs["units"].startswith("N,")
-        assert fh["reactions/C/torque_joint"].attrs["units"].startswith("N m")
+        assert fh["reactions/C/force_global"].attrs["units"] == "N"
+        assert fh["reactions/C/force_global"].attrs["description"].startswith("N, in the fixed frame")
+        assert fh["reactions/C/torque_joint"].attrs["units"] == "N m"
+        assert [fh["reactions/C/force_global"].dims[i][0].name for i in (0, 1)] == ["/t", "/axis"]
         assert fh["reactions/C/force_global"].shape == (result.t.size, 3)
 
 

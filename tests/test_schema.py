@@ -25,12 +25,17 @@ from csim.solver.methods import STABILIZERS
 @pytest.fixture(scope="module")
 def validator():
     schema = json_schema()
-    jsonschema.Draft202012Validator.check_schema(schema)
-    return jsonschema.Draft202012Validator(schema)
+    jsonschema.Draft7Validator.check_schema(schema)
+    return jsonschema.Draft7Validator(schema)
 
 
 def read(path) -> dict:
-    return yaml.load(path.read_text(), Loader=CaseLoader)
+    """A shipped case as any YAML reader reads it (``yaml.safe_load``, YAML 1.1: ``1.0e6``
+    would be a string there, so the configs write ``1.0e+6``), and as csim's own loader does."""
+    text = path.read_text()
+    plain = yaml.safe_load(text)
+    assert plain == yaml.load(text, Loader=CaseLoader), f"{path.name}: read differently by yaml.safe_load"
+    return plain
 
 
 def errors(validator, document) -> list[str]:
@@ -179,3 +184,16 @@ def test_registered_mechanism_with_forces_may_add_the_elements_parameters():
         jsonschema.validate({"mechanism": {"name": "pendulum", "parameters": {"k": 4.0}}}, schema)
     with pytest.raises(jsonschema.ValidationError):
         jsonschema.validate({"mechanism": {"name": "pendulum", "parameters": {"k": "soft"}, "forces": forces}}, schema)
+
+
+def test_the_committed_schema_is_what_csim_schema_writes():
+    """``csim-case.schema.json`` (what the configs' modelines point to) is current; rewrite
+    it with ``csim schema -o csim-case.schema.json``."""
+    committed = json.loads((CONFIGS.parent / "csim-case.schema.json").read_text())
+    assert committed == json.loads(json.dumps(json_schema()))
+    assert committed["$schema"] == "http://json-schema.org/draft-07/schema#"
+
+
+@pytest.mark.parametrize("path", sorted(CONFIGS.glob("*.yaml")), ids=lambda p: p.name)
+def test_every_shipped_case_names_the_schema_on_its_first_line(path):
+    assert path.read_text().splitlines()[0] == "# yaml-language-server: $schema=../csim-case.schema.json"

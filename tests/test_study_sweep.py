@@ -279,3 +279,63 @@ def test_curves_draw_one_line_per_value_of_the_other_key(tmp_path):
 
 def curve_lines(fig):
     return [ln for ln in fig.axes[0].lines if ln.get_gid()]
+
+
+def _synthetic_table(keys_values: dict, case: str, statuses=None, value_units=None):
+    """A grid sweep table built by hand (no runs): every combination of the keys' values."""
+    import itertools
+
+    from csim.io.sweep_file import SweepTable
+    from csim.study.metrics import COLUMNS
+
+    combos = list(itertools.product(*keys_values.values()))
+    n = len(combos)
+    values = {k: [c[j] for c in combos] for j, k in enumerate(keys_values)}
+    status = statuses or ["success"] * n
+    rng = np.random.default_rng(1)
+    columns = {c.name: rng.uniform(1e-6, 1e-3, n) for c in COLUMNS}
+    return SweepTable(keys=list(keys_values), values=values, numeric={k: True for k in keys_values},
+                      status=status, reason=["" if s == "success" else "drift" for s in status], message=[""] * n,
+                      columns=columns, units={c.name: "m" for c in COLUMNS}, attrs={"case": case},
+                      value_units=value_units or {})
+
+
+def test_the_baumgarte_map_under_rk4_draws_the_bound_and_legend_swatches():
+    from matplotlib.lines import Line2D
+
+    from csim.plot.sweep_figures import RK4_BOUND, outcome_figure
+
+    w, h = [10.0, 100.0, 400.0], [1e-3, 5e-3, 2e-2]
+    status = ["drift" if wi * hi > RK4_BOUND else "success" for wi in w for hi in h]
+    case = "stabilization: {method: baumgarte}\nsimulation: {integrator: RK4}\n"
+    table = _synthetic_table({"stabilization.w": w, "simulation.step": h}, case, status,
+                             {"stabilization.w": "1/s", "simulation.step": "s"})
+    ax = outcome_figure(table).axes[0]
+    bound = [ln for ln in ax.get_lines() if ln.get_label().startswith("RK4 bound")]
+    assert len(bound) == 1
+    x, y = bound[0].get_data()
+    np.testing.assert_allclose(x * y, RK4_BOUND)
+    legend = ax.get_legend()
+    swatches = [h for h in legend.legend_handles if isinstance(h, Line2D) and h.get_marker() not in ("None", "")]
+    assert {t.get_text().split(" (")[0] for t in legend.get_texts()} >= {"success", "drift"}
+    assert all(h.get_markerfacecolor() not in ("none", "None") for h in swatches) and len(swatches) == 2
+    assert ax.get_xlabel() == "stabilization.w [1/s]" and ax.get_ylabel() == "simulation.step [s]"
+    # the same map under DOP853 has no RK4 bound
+    other = _synthetic_table({"stabilization.w": w, "simulation.step": h},
+                             "stabilization: {method: baumgarte}\nsimulation: {integrator: DOP853}\n")
+    assert not [ln for ln in outcome_figure(other).axes[0].get_lines() if ln.get_label().startswith("RK4")]
+
+
+def test_many_curves_are_a_colour_scale_with_a_colour_bar():
+    from csim.plot.sweep_figures import MAX_LEGEND, curves_figure
+
+    torques = list(np.linspace(1e5, 2e5, MAX_LEGEND + 4))
+    table = _synthetic_table({"simulation.rtol": [1e-8, 1e-6, 1e-4], "loads.torque": torques}, "",
+                             value_units={"simulation.rtol": "1", "loads.torque": "N m"})
+    fig = curves_figure(table)
+    bars = [ax for ax in fig.axes if ax.get_label() == "<colorbar>"]
+    assert len(bars) == 1 and bars[0].get_ylabel() == "loads.torque [N m]"
+    panels = [ax for ax in fig.axes if ax.get_label() != "<colorbar>"]
+    assert all(ax.get_legend() is None for ax in panels) and not fig.legends
+    assert panels[-1].get_xlabel() == "simulation.rtol [-]"
+    assert all(ax.get_ylabel().endswith("[m]") or ax.get_ylabel().endswith("[-]") for ax in panels)

@@ -71,6 +71,7 @@ class Comparison:
     reference_run: Run
     runs: list[Run]
     jobs: int = 1
+    repeat: int = 1
     skipped: dict[str, str] = field(default_factory=dict)
     interrupted: bool = False
     setting: str = ""
@@ -126,7 +127,8 @@ class Comparison:
 def compare(case: CaseInput, methods: Sequence[str] | None = None,
             tolerances: Sequence[float] | None = None, overrides: Sequence[str] = (),
             reference: ReferenceSettings | None = None, jobs: int | None = None,
-            progress: Progress | None = None, warn: Callable[[str], None] | None = None) -> Comparison:
+            progress: Progress | None = None, warn: Callable[[str], None] | None = None,
+            repeat: int = 1) -> Comparison:
     """Run ``case`` with each stabilization method (and tolerance), and a reference run.
 
     Parameters
@@ -151,6 +153,8 @@ def compare(case: CaseInput, methods: Sequence[str] | None = None,
         process.
     progress : callable, optional
         Called as ``progress(run, done, total)`` after each run finishes.
+    repeat : int
+        Run each case this many times (the reference's too) and keep the median wall time.
     warn : callable, optional
         Called before the runs with each warning of the runs' cases (a stabilizer gain times
         a fixed step outside the integrator's stability region, :attr:`csim.case.Case.warnings`),
@@ -186,10 +190,12 @@ def compare(case: CaseInput, methods: Sequence[str] | None = None,
     tasks = [(ref_run, plan.reference_case), *((_new_run(m, c), c) for m, c in plan.run_cases())]
     runs = [run for run, _ in tasks[1:]]
     n_jobs = job_count(jobs, len(tasks))
-    interrupted = run_tasks(tasks, n_jobs, progress)
+    interrupted = run_tasks(tasks, n_jobs, progress, repeat=repeat)
     for run in runs:
         run.measure_against(ref_run)
-    return _gather(plan, reference, ref_run, runs, n_jobs, interrupted)
+    comparison = _gather(plan, reference, ref_run, runs, n_jobs, interrupted)
+    comparison.repeat = repeat
+    return comparison
 
 
 def case_warnings(plan: Plan, reference_method: str) -> list[str]:

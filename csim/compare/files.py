@@ -64,7 +64,7 @@ def _root_attributes(c: Comparison) -> dict:
         tolerances=c.tolerances if c.tolerances is not None else [],
         reference_method=c.reference.method, reference_integrator=c.reference.integrator,
         reference_tol=c.reference.tol, reference_status=ref.status, reference_message=ref.message,
-        jobs=c.jobs, interrupted=c.interrupted, setting=c.setting,
+        jobs=c.jobs, repeat=c.repeat, interrupted=c.interrupted, setting=c.setting,
         skipped_methods=list(c.skipped), skipped_reasons=[c.skipped[m] for m in c.skipped],
     )
 

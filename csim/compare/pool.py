@@ -19,6 +19,8 @@ import os
 import sys
 from collections.abc import Callable, Sequence
 
+import numpy as np
+
 from csim.case import Case, validate_case
 from csim.compare.runs import INTERRUPTED, Run
 from csim.parallel import InterruptFlag, process_pool, stop_processes, worker_environment
@@ -38,7 +40,7 @@ def job_count(jobs: int | None, n_tasks: int) -> int:
     return min(jobs, n_tasks) if jobs is not None else max(1, min(n_tasks, os.cpu_count() or 1))
 
 
-def run_tasks(tasks: Sequence[Task], n_jobs: int, progress: Progress | None = None) -> bool:
+def run_tasks(tasks: Sequence[Task], n_jobs: int, progress: Progress | None = None, repeat: int = 1) -> bool:
     """Run every task (the longest first, for a pool) and set each Run's result.
 
     Parameters
@@ -48,6 +50,10 @@ def run_tasks(tasks: Sequence[Task], n_jobs: int, progress: Progress | None = No
         1: in this process, one after another; more: that many worker processes.
     progress : callable, optional
         Called as ``progress(run, done, total)`` after each run finishes.
+    repeat : int
+        Run each case this many times; its result is the last run's, with the median of the
+        runs' wall times (a work-precision chart's timings, less at the mercy of one busy
+        moment of the machine).
 
     Returns
     -------
@@ -55,10 +61,10 @@ def run_tasks(tasks: Sequence[Task], n_jobs: int, progress: Progress | None = No
         Whether Ctrl-C stopped the runs (those unfinished keep the message INTERRUPTED).
     """
     with InterruptFlag() as flag:
-        return (_run_serial if n_jobs == 1 else _run_parallel)(tasks, n_jobs, progress, flag)
+        return (_run_serial if n_jobs == 1 else _run_parallel)(tasks, n_jobs, progress, flag, repeat)
 
 
-def _execute(case_data: dict, source: str) -> tuple[Result | None, str]:
+def _execute(case_data: dict, source: str, repeat: int = 1) -> tuple[Result | None, str]:
     """Run one validated case in this process; an exception becomes (None, message).
 
     The numeric model is built (or loaded from the cache) before the run, so that the run's
@@ -68,17 +74,22 @@ def _execute(case_data: dict, source: str) -> tuple[Result | None, str]:
     try:
         case = validate_case(copy.deepcopy(case_data), source=source)
         numeric_model(case)
-        return sys.modules[__package__].run_case(case), ""
+        run_case = sys.modules[__package__].run_case
+        results = [run_case(case) for _ in range(max(1, repeat))]
+        result = results[-1]
+        result.wall_time = float(np.median([r.wall_time for r in results]))
+        return result, ""
     except Exception as exc:  # a bug or an unexpected numerical error: a failed row, not a crash
         return None, f"{type(exc).__name__}: {exc}"
 
 
-def _run_serial(tasks: Sequence[Task], n_jobs: int, progress: Progress | None, flag: InterruptFlag) -> bool:
+def _run_serial(tasks: Sequence[Task], n_jobs: int, progress: Progress | None, flag: InterruptFlag,
+                repeat: int = 1) -> bool:
     """Run the tasks one after another in this process; stop at Ctrl-C (returns True)."""
     total = len(tasks)
     for done, (run, case) in enumerate(tasks, start=1):
         try:
-            result, message = _execute(case.data, case.source)
+            result, message = _execute(case.data, case.source, repeat)
         except KeyboardInterrupt:
             flag.set = True
             result, message = None, INTERRUPTED
@@ -90,7 +101,8 @@ def _run_serial(tasks: Sequence[Task], n_jobs: int, progress: Progress | None, f
     return False
 
 
-def _run_parallel(tasks: Sequence[Task], n_jobs: int, progress: Progress | None, flag: InterruptFlag) -> bool:
+def _run_parallel(tasks: Sequence[Task], n_jobs: int, progress: Progress | None, flag: InterruptFlag,
+                  repeat: int = 1) -> bool:
     """Run the tasks in ``n_jobs`` worker processes; stop them all at Ctrl-C (returns True)."""
     # derive (and cache on disk) each mechanism's model once, not in every worker at the same
     # time (a batch has several mechanisms); should that fail, each worker reports the
@@ -103,7 +115,7 @@ def _run_parallel(tasks: Sequence[Task], n_jobs: int, progress: Progress | None,
     try:
         with worker_environment():  # the workers start while the first runs are submitted
             for run, case in tasks:  # the reference first: it is the longest
-                futures[executor.submit(_execute, case.data, case.source)] = run
+                futures[executor.submit(_execute, case.data, case.source, repeat)] = run
         _collect(futures, progress)
     except KeyboardInterrupt:
         _stop(executor, futures)

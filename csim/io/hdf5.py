@@ -31,7 +31,7 @@ datasets of equal length (one entry per run)::
     attributes: kind = "comparison", methods, csim_version, format_version, case (YAML),
     and the comparison settings (see :func:`write_comparison`)
 
-Table columns and their units: :data:`COMPARISON_UNITS`.
+Table columns and their units: :data:`COMPARISON_COLUMNS`.
 """
 from __future__ import annotations
 
@@ -46,10 +46,19 @@ import numpy as np
 
 from csim import __version__
 from csim.errors import ResultFileError
-from csim.io.units import UNITS
+from csim.io.units import (
+    DIMENSIONLESS,
+    FIXED_UNITS,
+    FORCE_UNIT,
+    UNITS,
+    common_unit,
+    multiplier_unit,
+    per_time,
+)
 from csim.result import JointReaction, Result
 
-FORMAT_VERSION = 1
+#: 2: parsable units, dimension scales, a ``description`` attribute on every dataset
+FORMAT_VERSION = 2
 _STR = h5py.string_dtype()
 
 
@@ -80,14 +89,61 @@ def atomic_h5(path: str | Path):
         raise
 
 
-def _dataset(group, name, data, units=None):
+def units_attr(unit: str | list[str]):
+    """The ``units`` attribute's value: one string, or an array of them (one per column)."""
+    return np.array(unit, dtype=_STR) if isinstance(unit, (list, tuple)) else unit
+
+
+def _dataset(group, name, data, units, description=None, dims=()):
+    """A dataset with its ``units`` and ``description``, its axes attached to the dimension
+    scales ``dims`` (None: leave an axis without one)."""
     ds = group.create_dataset(name, data=data)
-    ds.attrs["units"] = units if units is not None else UNITS.get(name, "")
+    ds.attrs["units"] = units_attr(units)
+    ds.attrs["description"] = description if description is not None else UNITS.get(name, "")
+    attach(ds, dims)
     return ds
 
 
+def attach(ds: h5py.Dataset, dims) -> None:
+    """Attach the dimension scales ``dims`` to the axes of ``ds``, in order (a scale whose
+    length differs from the axis, or None, is left out)."""
+    for axis, scale in enumerate(dims):
+        if scale is not None and axis < ds.ndim and scale.shape[0] == ds.shape[axis]:
+            ds.dims[axis].attach_scale(scale)
+
+
+def scale(group, name, data, units=DIMENSIONLESS, description=None) -> h5py.Dataset:
+    """A 1-D dataset made a dimension scale of its own name (a netCDF coordinate variable)."""
+    ds = _dataset(group, name, data, units, description if description is not None else UNITS.get(name, ""))
+    ds.make_scale(name)
+    return ds
+
+
+def _names(values) -> np.ndarray:
+    return np.array([str(v) for v in values], dtype=_STR)
+
+
+def _fill(units: list[str], n: int, default: str = "") -> list[str]:
+    """``units`` when it has ``n`` entries, else ``n`` times ``default``."""
+    return list(units) if len(units) == n else [default] * n
+
+
+def run_units(result: Result, coordinate_units: list[str] | None = None) -> dict[str, list[str]]:
+    """The unit of each column of ``result``: its own, else ``coordinate_units``, else unknown."""
+    m, r, k, o = result.q.shape[1], result.phi.shape[1], result.loads.shape[1], len(result.observable_names)
+    coords = result.coordinate_units or coordinate_units or []
+    return dict(coordinate=_fill(coords, m, "rad" if not coords else ""),
+                constraint=_fill(result.constraint_units, r), load=_fill(result.load_units, k),
+                observable=_fill(result.observable_units, o), observable_rate=_fill(result.observable_rate_units, o))
+
+
 def write_result_group(group: h5py.Group, result: Result, coordinate_units: list[str] | None = None) -> None:
-    """Write one run into an open HDF5 group (the file root, or a method's group)."""
+    """Write one run into an open HDF5 group (the file root, or a method's group).
+
+    ``t``, ``coordinate``, ``constraint``, ``load`` (and ``drive``, ``axis`` where there are
+    drives or reactions) are dimension scales that every array of the run is attached to,
+    so that netCDF readers (xarray with h5netcdf) see named dimensions.
+    """
     a = group.attrs
     a["csim_version"] = __version__
     a["format_version"] = FORMAT_VERSION
@@ -107,66 +163,93 @@ def write_result_group(group: h5py.Group, result: Result, coordinate_units: list
     for name in ("nfev", "njev", "nlu", "nsteps"):
         a[name] = int(getattr(result, name))
 
-    _dataset(group, "t", result.t)
-    units = coordinate_units or ["rad"] * len(result.coordinate_names)
-    _dataset(group, "q", result.q, np.array(units, dtype=_STR))
-    _dataset(group, "qd", result.qd, np.array([u + "/s" for u in units], dtype=_STR))
-    _dataset(group, "qdd", result.qdd, np.array([u + "/s^2" for u in units], dtype=_STR))
-    _dataset(group, "lambda", result.lam)
-    _dataset(group, "phi", result.phi)
-    _dataset(group, "phi_dot", result.phi_dot)
+    u = run_units(result, coordinate_units)
+    t = scale(group, "t", result.t, "s")
+    coordinate = scale(group, "coordinate", _names(result.coordinate_names[:result.q.shape[1]]))
+    constraint = scale(group, "constraint", np.arange(1, result.phi.shape[1] + 1, dtype=np.int64))
+    load = scale(group, "load", _names(result.load_names[:result.loads.shape[1]]))
+    tq, tc, tl = (t, coordinate), (t, constraint), (t, load)
+    _dataset(group, "q", result.q, common_unit(u["coordinate"]), dims=tq)
+    _dataset(group, "qd", result.qd, common_unit([per_time(c) for c in u["coordinate"]]), dims=tq)
+    _dataset(group, "qdd", result.qdd, common_unit([per_time(c, 2) for c in u["coordinate"]]), dims=tq)
+    _dataset(group, "lambda", result.lam, common_unit([multiplier_unit(c) if c else "" for c in u["constraint"]]),
+             dims=tc)
+    _dataset(group, "phi", result.phi, common_unit(u["constraint"]), dims=tc)
+    _dataset(group, "phi_dot", result.phi_dot, common_unit([per_time(c) if c else "" for c in u["constraint"]]),
+             dims=tc)
     energy = group.create_group("energy")
     for name, data in (("kinetic", result.kinetic), ("potential", result.potential), ("work", result.work),
                        ("balance_error", result.energy_error)):
-        _dataset(energy, name, data, UNITS[f"energy/{name}"])
+        _dataset(energy, name, data, FIXED_UNITS[f"energy/{name}"], UNITS[f"energy/{name}"], dims=tl)
     forces = group.create_group("forces")
-    _dataset(forces, "loads", result.loads, UNITS["forces/loads"])
-    _dataset(forces, "generalized", result.generalized_forces, UNITS["forces/generalized"])
+    _dataset(forces, "loads", result.loads, common_unit(u["load"]), UNITS["forces/loads"], dims=tl)
+    _dataset(forces, "generalized", result.generalized_forces,
+             common_unit([FORCE_UNIT.get(c, "") for c in u["coordinate"]]), UNITS["forces/generalized"], dims=tq)
     if result.drive_forces is not None:
-        _write_drives(group, result)
+        _write_drives(group, result, t)
     if result.reactions:
-        _write_reactions(group.create_group("reactions"), result.reactions)
+        _write_reactions(group.create_group("reactions"), result.reactions, t)
     obs = group.create_group("observables")
     for j, name in enumerate(result.observable_names):
-        _dataset(obs, name, result.observables[:, j], "")
-        _dataset(obs, f"{name}_rate", result.observable_rates[:, j], "")
+        _dataset(obs, name, result.observables[:, j], u["observable"][j], UNITS["observables"], dims=(t,))
+        _dataset(obs, f"{name}_rate", result.observable_rates[:, j], u["observable_rate"][j],
+                 UNITS["observables_rate"], dims=(t,))
     events = group.create_group("events")
-    _dataset(events, "times", np.asarray(result.event_times, dtype=float), UNITS["events/times"])
-    events.create_dataset("labels", data=np.array(result.event_labels, dtype=_STR))
-    _write_integrity(group, result)
+    times = scale(events, "times", np.asarray(result.event_times, dtype=float), "s", UNITS["events/times"])
+    _dataset(events, "labels", _names(result.event_labels), DIMENSIONLESS, UNITS["events/labels"], dims=(times,))
+    _write_integrity(group, result, t)
 
 
-def _write_integrity(group: h5py.Group, result: Result) -> None:
+def _write_integrity(group: h5py.Group, result: Result, t: h5py.Dataset) -> None:
     """``integrity/``: the run's warnings (attribute), its singular crossings and the residuals
     of the equations removed as dependent (:mod:`csim.solver.integrity`)."""
     integrity = group.create_group("integrity")
     integrity.attrs["warnings"] = np.array(result.warnings, dtype=_STR)
-    _dataset(integrity, "singular_times", np.asarray(result.singular_times, dtype=float), "s")
+    scale(integrity, "singular_times", np.asarray(result.singular_times, dtype=float), "s",
+          "instants where Phi_q of every constraint equation fell below its generic rank")
     if result.removed_names and result.removed_phi is not None:
-        removed = _dataset(integrity, "removed_phi", result.removed_phi, "")
-        removed.attrs["names"] = np.array(result.removed_names, dtype=_STR)
+        removed = scale(integrity, "removed", _names(result.removed_names), DIMENSIONLESS,
+                        "the constraint equations removed as dependent at the start")
+        units = result.removed_units if len(result.removed_units) == len(result.removed_names) else \
+            [""] * len(result.removed_names)
+        _dataset(integrity, "removed_phi", result.removed_phi, common_unit(units),
+                 "residuals of the removed equations at the samples", dims=(t, removed))
 
 
-def _write_drives(group: h5py.Group, result: Result) -> None:
+def _write_drives(group: h5py.Group, result: Result, t: h5py.Dataset) -> None:
     """``forces/drive`` and ``energy/drive_work`` (N, d), the drives named by an attribute."""
     names = np.array(result.drive_names, dtype=_STR)
-    ds = _dataset(group["forces"], "drive", result.drive_forces, np.array(result.drive_units, dtype=_STR))
+    drive = scale(group, "drive", names)
+    ds = _dataset(group["forces"], "drive", result.drive_forces, common_unit(list(result.drive_units)),
+                  UNITS["forces/drive"], dims=(t, drive))
     ds.attrs["names"] = names
-    ds.attrs["description"] = UNITS["forces/drive"]
-    work = _dataset(group["energy"], "drive_work", result.drive_work, UNITS["energy/drive_work"])
+    ds.attrs["drive_units"] = np.array(result.drive_units, dtype=_STR)
+    work = _dataset(group["energy"], "drive_work", result.drive_work, FIXED_UNITS["energy/drive_work"],
+                    UNITS["energy/drive_work"], dims=(t, drive))
     work.attrs["names"] = names
 
 
-def _write_reactions(group: h5py.Group, reactions) -> None:
+def _write_reactions(group: h5py.Group, reactions, t: h5py.Dataset) -> None:
     """One group per joint: force and torque, global and in joint frame ik, (N, 3)."""
     group.attrs["joints"] = np.array([r.name for r in reactions], dtype=_STR)  # their order
+    axis = scale(group.parent, "axis", _names("xyz"))
     for r in reactions:
         g = group.create_group(r.name)
         g.attrs["label"] = r.label
         g.attrs["convention"] = UNITS["reactions"]
         g.attrs["undetermined"] = np.array(r.undetermined, dtype=_STR)
         for name in ("force_global", "force_joint", "torque_global", "torque_joint"):
-            _dataset(g, name, getattr(r, name), UNITS[f"reactions/{name}"])
+            _dataset(g, name, getattr(r, name), FIXED_UNITS[f"reactions/{name}"], UNITS[f"reactions/{name}"],
+                     dims=(t, axis))
+
+
+def unit_list(value, n: int) -> list[str]:
+    """A ``units`` attribute as one unit per column (``n`` columns)."""
+    if value is None:
+        return [""] * n
+    if isinstance(value, np.ndarray) and value.ndim == 1:
+        return [_text(x) for x in value]
+    return [_text(value)] * n
 
 
 def _read_extras(group: h5py.Group) -> dict:
@@ -175,8 +258,10 @@ def _read_extras(group: h5py.Group) -> dict:
     forces = group.get("forces")
     if forces is not None and "drive" in forces:
         ds = forces["drive"]
-        out.update(drive_forces=ds[()], drive_names=[_text(x) for x in ds.attrs["names"]],
-                   drive_units=[_text(x) for x in ds.attrs["units"]], drive_work=group["energy/drive_work"][()])
+        names = [_text(x) for x in ds.attrs["names"]]
+        units = ds.attrs["drive_units"] if "drive_units" in ds.attrs else ds.attrs["units"]
+        out.update(drive_forces=ds[()], drive_names=names, drive_units=unit_list(units, len(names)),
+                   drive_work=group["energy/drive_work"][()])
     if "reactions" in group:
         rg = group["reactions"]
         out["reactions"] = [
@@ -188,8 +273,10 @@ def _read_extras(group: h5py.Group) -> dict:
         out.update(warnings=[_text(x) for x in integrity.attrs.get("warnings", [])],
                    singular_times=integrity["singular_times"][()])
         if "removed_phi" in integrity:
-            ds = integrity["removed_phi"]
-            out.update(removed_phi=ds[()], removed_names=[_text(x) for x in ds.attrs["names"]])
+            names = [_text(x) for x in integrity["removed"][()]]
+            units = [_text(u) for u in np.atleast_1d(integrity["removed_phi"].attrs["units"])]
+            out.update(removed_phi=integrity["removed_phi"][()], removed_names=names,
+                       removed_units=units * len(names) if len(units) == 1 else units)
     return out
 
 
@@ -215,6 +302,33 @@ def _read_events(group: h5py.Group) -> tuple[np.ndarray, list[str]]:
         times = np.asarray(a["event_times"], dtype=float).reshape(-1)
         labels = [_text(x) for x in np.atleast_1d(a["event_labels"])] if "event_labels" in a else []
     return times, labels if len(labels) == len(times) else [""] * len(times)
+
+
+def unit_text(value) -> str:
+    """A ``units`` attribute as one string: the unit, or the units of the columns joined by
+    ``", "`` where they differ."""
+    if isinstance(value, np.ndarray) and value.ndim == 1:
+        return ", ".join(_text(x) for x in value)
+    return _text(value)
+
+
+def _read_units(group: h5py.Group, o: int) -> dict[str, list[str]]:
+    """The unit of each column, as Result fields (files before format version 2: the
+    coordinates' only; their other ``units`` attributes were descriptions)."""
+    q = group["q"]
+    out = dict(coordinate_units=unit_list(q.attrs.get("units"), q.shape[1]))
+    if int(group.attrs.get("format_version", 1)) < 2:
+        return out
+    phi = group["phi"]
+    out["constraint_units"] = unit_list(phi.attrs.get("units"), phi.shape[1])
+    loads = group["forces/loads"]
+    out["load_units"] = unit_list(loads.attrs.get("units"), loads.shape[1])
+    names = [_text(x) for x in group.attrs["observable_names"]]
+    obs = group.get("observables")
+    if obs is not None and o:
+        out["observable_units"] = [_text(obs[n].attrs.get("units", "")) for n in names]
+        out["observable_rate_units"] = [_text(obs[f"{n}_rate"].attrs.get("units", "")) for n in names]
+    return out
 
 
 def read_result_group(group: h5py.Group) -> Result:
@@ -246,7 +360,7 @@ def read_result_group(group: h5py.Group) -> Result:
             run_kind=_text(a.get("run_kind", "simulation")), backend=_text(a.get("backend", "python")),
             kernel_load_time=float(a.get("kernel_load_time", 0.0)), failure=_text(a.get("failure", "")),
             backend_reason=_text(a.get("backend_reason", "")),
-            **_read_extras(group),
+            **_read_extras(group), **_read_units(group, len(obs_names)),
         )
     except KeyError as exc:
         raise ResultFileError(f"{group.file.filename}: not a csim result (missing {exc})") from None
@@ -278,9 +392,10 @@ COMPARISON_KIND = "comparison"
 #: groups of a comparison file that are not method groups
 COMPARISON_RESERVED = ("reference", "summary", "work_precision")
 
-#: column of a comparison table -> unit (the ``units`` attribute of its dataset). The
+#: column of a comparison table -> what it holds and in which unit (the ``description``
+#: attribute of its dataset; the parsable ``units`` come from :func:`comparison_units`). The
 #: tolerance's unit depends on the run's integrator: see the column ``tolerance_kind``.
-COMPARISON_UNITS: dict[str, str] = {
+COMPARISON_COLUMNS: dict[str, str] = {
     "method": "",
     "tolerance": "rtol (= atol) [1] for adaptive integrators, simulation.step [s] for fixed-step ones "
                  "(column tolerance_kind)",
@@ -314,10 +429,35 @@ def _attr_value(value):
     return value
 
 
-def _write_table(group: h5py.Group, table: dict[str, np.ndarray | list], units: dict[str, str]) -> None:
+def comparison_units(table: dict[str, list], coordinate_units: list[str],
+                     constraint_units: list[str]) -> dict[str, str | list[str]]:
+    """The parsable unit of each column of a comparison table (see :data:`COMPARISON_COLUMNS`).
+
+    ``coordinate_units`` and ``constraint_units`` are the runs' (the errors are maxima over
+    the coordinates, the residuals over the constraints); the tolerance is dimensionless for
+    an adaptive integrator's rtol and in s for a fixed step.
+    """
+    con = common_unit(list(constraint_units)) if constraint_units else ""
+    units: dict[str, str | list[str]] = {
+        "tolerance": common_unit(["s" if k == "step" else DIMENSIONLESS for k in table.get("tolerance_kind", [])]),
+        "max_phi": con, "final_phi": con,
+        "max_phi_dot": common_unit([per_time(c) if c else "" for c in constraint_units]) if constraint_units else "",
+        "motion_error": common_unit(list(coordinate_units)), "final_error": common_unit(list(coordinate_units)),
+        "error_until": "s", "wall_time": "s",
+    }
+    return {name: units.get(name, DIMENSIONLESS) for name in table}
+
+
+def _write_table(group: h5py.Group, table: dict[str, np.ndarray | list], units: dict[str, str | list[str]],
+                 index: str | None = None) -> None:
+    """Columns of equal length, each a dataset attached to the dimension scale ``index``
+    (a column made the scale), or to a scale ``row`` (0, 1, ...) when ``index`` is None."""
     lengths = {len(v) for v in table.values()}
     if len(lengths) > 1:
         raise ValueError(f"table columns of different lengths: { {k: len(v) for k, v in table.items()} }")
+    n = lengths.pop() if lengths else 0
+    row = None if index is not None else scale(group, "row", np.arange(n, dtype=np.int64), DIMENSIONLESS,
+                                               "row number (dimension scale of the columns)")
     for name, values in table.items():
         values = list(values)
         if any(isinstance(v, str) for v in values):
@@ -326,7 +466,14 @@ def _write_table(group: h5py.Group, table: dict[str, np.ndarray | list], units: 
             data = np.asarray(values, dtype=float if not all(isinstance(v, (int, np.integer)) for v in values)
                               else np.int64)
         ds = group.create_dataset(name, data=data)
-        ds.attrs["units"] = units.get(name, "")
+        ds.attrs["units"] = units_attr(units.get(name, DIMENSIONLESS))
+        ds.attrs["description"] = COMPARISON_COLUMNS.get(name, "")
+        if name == index:
+            ds.make_scale(name)
+            row = ds
+    for name in table:
+        if name != index:
+            attach(group[name], (row,))
 
 
 def write_comparison(path: str | Path, runs: dict[str, Result], reference: Result | None, attrs: dict,
@@ -348,9 +495,11 @@ def write_comparison(path: str | Path, runs: dict[str, Result], reference: Resul
     tables : dict
         Table name (``summary``, ``work_precision``) -> column name -> 1-D values of equal
         length; each column becomes the dataset ``/TABLE/COLUMN`` with the unit from
-        :data:`COMPARISON_UNITS`.
+        :data:`COMPARISON_COLUMNS` and :func:`comparison_units`. ``summary`` is indexed by
+        its column ``method`` (a dimension scale), every other table by a scale ``row``.
     coordinate_units : list of str, optional
-        Units of the coordinates (the ``units`` attribute of each group's ``q``).
+        Units of the coordinates (the ``units`` attribute of each group's ``q``), where the
+        runs do not carry them.
     """
     clash = [name for name in runs if name in COMPARISON_RESERVED or name in tables]
     if clash:
@@ -366,8 +515,12 @@ def write_comparison(path: str | Path, runs: dict[str, Result], reference: Resul
             write_result_group(fh.create_group(name), result, coordinate_units)
         if reference is not None:
             write_result_group(fh.create_group("reference"), reference, coordinate_units)
+        units = next((run_units(r, coordinate_units) for r in [*runs.values(), reference]
+                      if r is not None and r.q.shape[1]), None)
+        coords, cons = (units["coordinate"], units["constraint"]) if units else (coordinate_units or [], [])
         for name, table in tables.items():
-            _write_table(fh.create_group(name), table, COMPARISON_UNITS)
+            _write_table(fh.create_group(name), table, comparison_units(table, coords, cons),
+                         index="method" if name == "summary" else None)
 
 
 @dataclass
@@ -382,7 +535,7 @@ class ComparisonFile:
     attrs : dict
         Root attributes (strings decoded, arrays as lists or numpy arrays).
     summary : dict of str -> ndarray (n_methods,)
-        One entry per method: the runs in the method groups (see :data:`COMPARISON_UNITS`).
+        One entry per method: the runs in the method groups (see :data:`COMPARISON_COLUMNS`).
     work_precision : dict of str -> ndarray (n_runs,), or None
         One entry per (method, tolerance) of a tolerance study; None without one.
     has_reference : bool
@@ -405,11 +558,13 @@ class ComparisonFile:
 def _read_table(group: h5py.Group, units: dict[str, str]) -> dict[str, np.ndarray]:
     table = {}
     for name, ds in group.items():
+        if name == "row":  # the dimension scale of a table without an index column
+            continue
         if ds.dtype.kind in "OS":
             table[name] = np.array(ds.asstr()[()], dtype=object)
         else:
             table[name] = ds[()]
-        units[f"{group.name.strip('/')}/{name}"] = _text(ds.attrs.get("units", ""))
+        units[f"{group.name.strip('/')}/{name}"] = unit_text(ds.attrs.get("units", ""))
     return table
 
 

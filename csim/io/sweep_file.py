@@ -28,7 +28,8 @@ import numpy as np
 
 from csim import __version__
 from csim.errors import ResultFileError
-from csim.io.hdf5 import FORMAT_VERSION, atomic_h5
+from csim.io.hdf5 import FORMAT_VERSION, _dataset, atomic_h5, scale, unit_text
+from csim.io.units import DIMENSIONLESS, common_unit, per_time
 
 SWEEP_KIND = "sweep"
 _STR = h5py.string_dtype()
@@ -54,6 +55,10 @@ class SweepTable:
         ``case``, ``variations``, ``sampling``, ``seed``, ``reference``, ``complete``, ...
     reference : tuple of ndarray or None
         (t, q) of the reference run.
+    value_units : dict of str -> str
+        The unit of each varied key's value (:func:`csim.io.units.key_unit`).
+    coordinate_units, constraint_units : list of str
+        The units of the coordinates and of the constraint functions, for the signals.
     """
 
     keys: list[str]
@@ -66,6 +71,9 @@ class SweepTable:
     units: dict[str, str] = field(default_factory=dict)
     attrs: dict = field(default_factory=dict)
     reference: tuple[np.ndarray, np.ndarray] | None = None
+    value_units: dict[str, str] = field(default_factory=dict)
+    coordinate_units: list[str] = field(default_factory=list)
+    constraint_units: list[str] = field(default_factory=list)
 
     @property
     def n(self) -> int:
@@ -87,6 +95,10 @@ def write_sweep(path: str | Path, table: SweepTable, signals: dict[int, dict[str
                 keep_from: str | Path | None = None, n_runs: int | None = None) -> None:
     """Write ``table`` (and the runs' ``signals``) to ``path`` atomically.
 
+    ``run`` (0, 1, ...), ``coordinate`` and ``constraint`` are dimension scales at the root;
+    the columns of ``/values`` and ``/runs`` are attached to ``run``, and each group of
+    signals (and ``/reference``) has its own ``t``.
+
     Parameters
     ----------
     signals : dict
@@ -102,37 +114,82 @@ def write_sweep(path: str | Path, table: SweepTable, signals: dict[int, dict[str
         fh.attrs["keys"] = json.dumps(table.keys)
         for key, value in table.attrs.items():
             fh.attrs[key] = value if not isinstance(value, (list, dict, tuple)) else json.dumps(value)
+        run = scale(fh, "run", np.arange(table.n, dtype=np.int64), DIMENSIONLESS, "run number (dimension scale)")
+        names = json.loads(fh.attrs.get("coordinate_names", "[]")) if "coordinate_names" in fh.attrs else []
+        m = len(names)
+        scales = dict(coordinate=scale(fh, "coordinate", _names(names)),
+                      constraint=scale(fh, "constraint", np.arange(1, len(table.constraint_units) + 1,
+                                                                      dtype=np.int64)))
         values = fh.create_group("values")
         for key in table.keys:
             data, numeric = _value_dataset(table.values[key])
-            ds = values.create_dataset(key, data=data)
-            ds.attrs["numeric"] = numeric
+            unit = table.value_units.get(key, "") if numeric else DIMENSIONLESS
+            ds = _dataset(values, key, data, unit, f"the value of {key} in each run"
+                          + ("" if numeric else " (JSON text)"), dims=(run,))
+            ds.attrs["numeric"] = np.bool_(numeric)
         runs = fh.create_group("runs")
         for name in ("status", "reason", "message"):
-            runs.create_dataset(name, data=np.array(getattr(table, name), dtype=_STR))
+            _dataset(runs, name, _names(getattr(table, name)), DIMENSIONLESS, RUN_TEXT[name], dims=(run,))
+        from csim.study.metrics import COLUMNS  # not at the top: csim.study imports this module
+
+        docs = {c.name: c.doc for c in COLUMNS}
         for name, data in table.columns.items():
-            ds = runs.create_dataset(name, data=data)
-            ds.attrs["units"] = table.units.get(name, "")
+            _dataset(runs, name, data, table.units.get(name, ""), docs.get(name, ""), dims=(run,))
+        units = _signal_units(table, m)
         if table.reference is not None:
             ref = fh.create_group("reference")
-            ref.create_dataset("t", data=table.reference[0]).attrs["units"] = "s"
-            ref.create_dataset("q", data=table.reference[1])
-        _write_signals(fh, signals, keep_from, table.n if n_runs is None else n_runs)
+            _write_signal_group(ref, {"t": table.reference[0], "q": table.reference[1]}, units, scales)
+        _write_signals(fh, signals, keep_from, table.n if n_runs is None else n_runs, units, scales)
 
 
-def _write_signals(fh: h5py.File, signals: dict, keep_from, n_runs: int) -> None:
+#: descriptions of a sweep's text columns
+RUN_TEXT = {"status": "success | failed | pending (not run yet: an interrupted sweep)",
+            "reason": "why a run failed (the failure kinds of a result file), empty for a success",
+            "message": "the run's message"}
+
+
+def _names(values) -> np.ndarray:
+    return np.array([str(v) for v in values], dtype=_STR)
+
+
+def _signal_units(table: SweepTable, m: int) -> dict[str, str | list[str]]:
+    """The units of the kept signals (:data:`csim.study.execute.SIGNALS`)."""
+    coords = table.coordinate_units if len(table.coordinate_units) == m else [""] * m
+    cons = table.constraint_units
+    return {"t": "s", "q": common_unit(coords), "qd": common_unit([per_time(u) if u else "" for u in coords]),
+            "phi": common_unit(cons), "phi_dot": common_unit([per_time(u) if u else "" for u in cons]),
+            "energy_error": "J"}
+
+
+#: what each kept signal holds
+SIGNAL_TEXT = {"t": "s: output time", "q": "generalized coordinates", "qd": "generalized velocities",
+               "phi": "constraint residuals Phi(q)", "phi_dot": "velocity-level residuals Phi_q qd",
+               "energy_error": "energy-balance error T + V - (T0 + V0) - sum of load work"}
+
+
+def _write_signal_group(group: h5py.Group, arrays: dict[str, np.ndarray], units: dict, scales: dict) -> None:
+    """One run's signals, attached to its own ``t`` and the root's ``coordinate``, ``constraint``."""
+    t = scale(group, "t", arrays["t"], "s", SIGNAL_TEXT["t"])
+    second = {"q": "coordinate", "qd": "coordinate", "phi": "constraint", "phi_dot": "constraint"}
+    for name, data in arrays.items():
+        if name == "t":
+            continue
+        _dataset(group, name, data, units.get(name, ""), SIGNAL_TEXT.get(name, ""),
+                 dims=(t, scales.get(second.get(name, ""))))
+
+
+def _write_signals(fh: h5py.File, signals: dict, keep_from, n_runs: int, units: dict, scales: dict) -> None:
     if not signals and keep_from is None:
         return
     group = fh.require_group("signals")
+    kept: dict[int, dict[str, np.ndarray]] = {}
     if keep_from is not None and Path(keep_from).is_file():
-        with h5py.File(keep_from, "r") as old:
-            for name in old.get("signals", {}):
+        with h5py.File(keep_from, "r") as old:  # the arrays, not the objects: their scales are the old file's
+            for name, run in old.get("signals", {}).items():
                 if name.isdigit() and int(name) < n_runs and int(name) not in signals:
-                    old.copy(old["signals"][name], group, name=name)
-    for i, arrays in signals.items():
-        run = group.create_group(str(i))
-        for name, data in arrays.items():
-            run.create_dataset(name, data=data)
+                    kept[int(name)] = {k: run[k][()] for k in run}
+    for i, arrays in sorted({**kept, **signals}.items()):
+        _write_signal_group(group.create_group(str(i)), arrays, units, scales)
 
 
 def read_sweep(path: str | Path) -> SweepTable:
@@ -168,11 +225,12 @@ def _read(fh: h5py.File) -> SweepTable:
     runs = fh["runs"]
     text = {name: [_text(x) for x in runs[name][()]] for name in ("status", "reason", "message")}
     columns = {name: runs[name][()] for name in runs if name not in text}
-    units = {name: _text(runs[name].attrs.get("units", "")) for name in columns}
+    units = {name: unit_text(runs[name].attrs.get("units", "")) for name in columns}
+    value_units = {key: unit_text(fh["values"][key].attrs.get("units", "")) for key in keys}
     attrs = {name: _text(value) if isinstance(value, (bytes, str)) else value for name, value in fh.attrs.items()}
     reference = (fh["reference"]["t"][()], fh["reference"]["q"][()]) if "reference" in fh else None
     return SweepTable(keys=keys, values=values, numeric=numeric, columns=columns, units=units, attrs=attrs,
-                      reference=reference, **text)
+                      reference=reference, value_units=value_units, **text)
 
 
 def read_signals(path: str | Path, i: int) -> dict[str, np.ndarray]:

@@ -1,35 +1,254 @@
 """Units of everything csim records: the one place they are documented.
 
 csim works in SI units throughout. Coordinates are angles [rad] or lengths [m], as each
-mechanism declares (``coordinate_units`` attribute of ``q`` in a result file); the units
-of velocity-like and acceleration-like arrays follow from those per column.
-"""
+mechanism declares; the units of velocity-like and acceleration-like arrays follow from
+those per column.
 
-#: dataset path in a result file -> unit (``per coordinate`` means: see the dataset's
-#: ``units`` attribute, one entry per column)
+Every dataset of a result, comparison or sweep file carries two attributes:
+
+``units``
+    A unit that software can parse, spelled as UDUNITS and pint both read it (``s``,
+    ``rad/s^2``, ``N m``, ``J/m^2``; ``1`` for a dimensionless number, a count or a text
+    label). Where the columns of an array (or the terms of a maximum over columns) have
+    different units, as the coordinates of a mechanism with both revolute and prismatic
+    joints do, ``units`` is the list of them, one per column, each parsable.
+``description``
+    What the dataset holds, in words (:data:`UNITS`).
+
+:func:`mechanism_units` finds the unit of each coordinate, constraint, load and
+observable of a run; :func:`constraint_units` finds a constraint function's unit by
+dimensional analysis.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+#: the ``units`` of a dimensionless number, a count or a label
+DIMENSIONLESS = "1"
+
+#: dataset path in a result file -> what it holds and in which unit (the ``description``
+#: attribute; ``per coordinate`` means: see the dataset's ``units``, one entry per column
+#: where the columns differ)
 UNITS: dict[str, str] = {
-    "t": "s",
-    "q": "per coordinate: rad or m",
-    "qd": "per coordinate: rad/s or m/s",
-    "qdd": "per coordinate: rad/s^2 or m/s^2",
-    "lambda": "per constraint: N or N m divided by the constraint's unit (Phi_q^T lambda is a generalized force)",
-    "phi": "per constraint: unit of the constraint function (m for the quick-return mechanism)",
-    "phi_dot": "per constraint: unit of the constraint function per s",
-    "energy/kinetic": "J",
-    "energy/potential": "J",
-    "energy/work": "J, one column per load",
-    "energy/balance_error": "J: T + V - (T0 + V0) - sum of load work",
-    "forces/loads": "per load: N or N m",
-    "forces/generalized": "per coordinate: N m for angles, N for lengths",
+    "t": "s: output time",
+    "coordinate": "names of the generalized coordinates (dimension scale of q, qd, qdd)",
+    "constraint": "number of each constraint, from 1 (dimension scale of lambda, phi, phi_dot)",
+    "load": "names of the loads (dimension scale of forces/loads, energy/work)",
+    "drive": "names of the driven joint variables (dimension scale of forces/drive, energy/drive_work)",
+    "axis": "x, y, z (dimension scale of the joint reactions)",
+    "q": "generalized coordinates, per coordinate: rad or m",
+    "qd": "generalized velocities, per coordinate: rad/s or m/s",
+    "qdd": "generalized accelerations, per coordinate: rad/s^2 or m/s^2",
+    "lambda": "Lagrange multipliers, per constraint: J divided by the constraint's unit "
+              "(Phi_q^T lambda is a generalized force)",
+    "phi": "constraint residuals Phi(q), per constraint: unit of the constraint function",
+    "phi_dot": "velocity-level residuals Phi_q qd, per constraint: unit of the constraint function per s",
+    "energy/kinetic": "kinetic energy T [J]",
+    "energy/potential": "potential energy V [J]",
+    "energy/work": "work of each load since t = 0 [J]",
+    "energy/balance_error": "T + V - (T0 + V0) - sum of load work [J]",
+    "forces/loads": "value u of each load: N or N m",
+    "forces/generalized": "generalized forces Q = B u, per coordinate: N m for angles, N for lengths",
     "forces/drive": "per drive: N m for a rotation, N for a translation; the torque or force the drive "
                     "applies along its joint variable (driven dynamics)",
-    "energy/drive_work": "J, one column per drive: the work of the drive since t = 0",
+    "energy/drive_work": "work of each drive since t = 0 [J]",
+    "observables": "a quantity the mechanism declares",
+    "observables_rate": "the rate of a quantity the mechanism declares",
     "reactions": "the force and the moment that link i exerts on link j of the joint (i, k)-(j, m), at the "
                  "origin of joint frame jm; link i receives the opposite",
     "reactions/force_global": "N, in the fixed frame's axes",
     "reactions/force_joint": "N, in the axes of joint frame ik",
     "reactions/torque_global": "N m, about the origin of joint frame jm, in the fixed frame's axes",
     "reactions/torque_joint": "N m, about the origin of joint frame jm, in the axes of joint frame ik",
-    "events/times": "s",
+    "events/times": "s: switching instants (dimension scale of events/labels)",
+    "events/labels": "what switched at each event",
     "wall_time": "s",
 }
+
+#: dataset path -> its parsable unit, for the datasets whose unit does not depend on the mechanism
+FIXED_UNITS: dict[str, str] = {
+    "t": "s",
+    "coordinate": DIMENSIONLESS,
+    "constraint": DIMENSIONLESS,
+    "load": DIMENSIONLESS,
+    "drive": DIMENSIONLESS,
+    "axis": DIMENSIONLESS,
+    "energy/kinetic": "J",
+    "energy/potential": "J",
+    "energy/work": "J",
+    "energy/balance_error": "J",
+    "energy/drive_work": "J",
+    "reactions/force_global": "N",
+    "reactions/force_joint": "N",
+    "reactions/torque_global": "N m",
+    "reactions/torque_joint": "N m",
+    "events/times": "s",
+    "events/labels": DIMENSIONLESS,
+    "wall_time": "s",
+}
+
+#: the unit of a load's or drive's value, by the unit of the coordinate it acts along
+FORCE_UNIT = {"rad": "N m", "m": "N"}
+
+
+def per_time(unit: str, power: int = 1) -> str:
+    """``unit`` divided by s^power, spelled as UDUNITS and pint read it (``rad/s^2``, ``1/s``)."""
+    unit = unit or DIMENSIONLESS
+    return f"{unit}/s" if power == 1 else f"{unit}/s^{power}"
+
+
+def multiplier_unit(constraint_unit: str) -> str:
+    """Unit of a Lagrange multiplier whose constraint has the unit ``constraint_unit``.
+
+    Phi_q^T lambda is a generalized force, so lambda_i Phi_i has the unit of work (J).
+    """
+    if constraint_unit in ("", DIMENSIONLESS):
+        return "J"
+    return {"m": "N"}.get(constraint_unit, f"J/{constraint_unit}")
+
+
+def common_unit(units: Sequence[str]) -> str | list[str]:
+    """The ``units`` attribute of an array whose columns have ``units``: their unit when they
+    share one (``1`` for an array without columns), else the list of them."""
+    units = [u or DIMENSIONLESS for u in units]
+    if not units:
+        return DIMENSIONLESS
+    return units[0] if len(set(units)) == 1 else units
+
+
+def constraint_units(phi: Callable, q: np.ndarray, par: np.ndarray, length_q: np.ndarray,
+                     length_par: np.ndarray) -> list[str]:
+    """Unit of each constraint function, found by dimensional analysis.
+
+    Lengths (the parameters and coordinates in m) are doubled at a few generic
+    configurations: a constraint that doubles is in m, one that does not change is
+    dimensionless (``1``), one that grows by 2^k is in m^k. A constraint that scales
+    otherwise, or is zero at every configuration tried, gets ``""``.
+
+    Parameters
+    ----------
+    phi : callable
+        ``phi(q, par)`` -> (r,), the constraint functions.
+    q : ndarray (m,)
+        A configuration to start from (the values tried are generic ones near it).
+    par : ndarray (n_par,)
+    length_q, length_par : ndarray of bool
+        Which coordinates and which parameters are lengths [m].
+
+    Returns
+    -------
+    list of str, length r
+    """
+    q = np.asarray(q, dtype=float)
+    length_q, length_par = np.asarray(length_q, bool), np.asarray(length_par, bool)
+    units: list[str | None] = []
+    for trial in range(5):
+        qt = 0.37 + 0.29 * np.arange(q.size) + 0.11 * trial
+        try:
+            base = np.asarray(phi(qt, par), dtype=float)
+            scaled = np.asarray(phi(np.where(length_q, 2 * qt, qt), np.where(length_par, 2 * par, par)), dtype=float)
+        except (ValueError, ZeroDivisionError, OverflowError, TypeError, FloatingPointError, np.linalg.LinAlgError):
+            continue
+        if not units:
+            units = [None] * base.size
+        for i in range(base.size):
+            if units[i] is not None or not (math.isfinite(base[i]) and math.isfinite(scaled[i])) \
+                    or abs(base[i]) < 1e-9:
+                continue
+            ratio = scaled[i] / base[i]
+            k = math.log2(ratio) if ratio > 0 else float("nan")
+            if math.isfinite(k) and abs(k - round(k)) < 1e-9:
+                k = round(k)
+                units[i] = DIMENSIONLESS if k == 0 else "m" if k == 1 else f"m^{k}"
+        if units and all(u is not None for u in units):
+            break
+    return [u or "" for u in units]
+
+
+def mechanism_units(mechanism, model=None, par: np.ndarray | None = None) -> dict[str, list[str]]:
+    """The units of a run's columns, as :class:`csim.result.Result` fields.
+
+    Parameters
+    ----------
+    mechanism : MechanismDefinition or LightDefinition
+        The case's mechanism (its coordinates', loads' and observables' units).
+    model : NumericModel, optional
+        Its numeric model; with ``par``, the constraints' units come from it
+        (:func:`constraint_units`), else they are left empty.
+    par : ndarray, optional
+
+    Returns
+    -------
+    dict
+        ``coordinate_units``, ``constraint_units``, ``load_units``, ``observable_units``,
+        ``observable_rate_units``: one unit per column.
+    """
+    coords = list(mechanism.coordinate_units)
+    c_units: list[str] = []
+    if model is not None and par is not None:
+        length_par = np.array([p.unit == "m" for p in mechanism.parameters], dtype=bool)
+        c_units = constraint_units(model.phi, np.zeros(len(coords)), np.asarray(par, float),
+                                   np.array([u == "m" for u in coords], dtype=bool), length_par)
+    return dict(
+        coordinate_units=coords,
+        constraint_units=c_units,
+        load_units=[ld.unit for ld in mechanism.loads],
+        observable_units=[o.unit for o in mechanism.observables],
+        observable_rate_units=[o.rate_unit for o in mechanism.observables],
+    )
+
+
+def phi_unit_text(unit: str, constraint_unit: str | list[str]) -> str:
+    """A schema unit that names ``unit of Phi`` (``unit of Phi/s^2``, ``s/unit of Phi``)
+    with the constraints' unit put in (``""`` where the constraints' units differ)."""
+    if "unit of Phi" not in unit:
+        return unit
+    if not isinstance(constraint_unit, str) or not constraint_unit:
+        return ""
+    if constraint_unit == DIMENSIONLESS:
+        return unit.replace("s/unit of Phi", "s").replace("unit of Phi", DIMENSIONLESS)
+    return unit.replace("unit of Phi", constraint_unit)  # m or m^k: no parentheses needed
+
+
+def key_unit(case, key: str, constraint_unit: str | list[str] = "") -> str:
+    """The unit of a case key's value (what ``csim sweep`` varies), parsable; ``1`` for a
+    dimensionless number or a name, ``""`` where csim does not know it.
+
+    Parameters
+    ----------
+    case : Case
+        The validated base case (its mechanism's parameters, coordinates and loads).
+    key : str
+        A dotted key, e.g. ``stabilization.w``, ``mechanism.parameters.l1``, ``initial.q.q1``,
+        ``loads.torque`` or ``loads.torque.magnitude``.
+    constraint_unit : str or list of str
+        The constraints' unit (:func:`common_unit`), for the keys in the unit of Phi.
+    """
+    from csim.case import SETTABLE
+
+    parts = key.split(".")
+    mech = case.mechanism
+    spec = SETTABLE.get(key)
+    if spec is not None:
+        if spec.type in ("string", "boolean"):
+            return DIMENSIONLESS
+        if spec.unit and spec.unit != "-":  # a number, or a gain that may be one per constraint
+            return phi_unit_text(spec.unit, constraint_unit)
+        return DIMENSIONLESS if spec.type in ("number", "integer") else ""
+    if parts[:2] == ["mechanism", "parameters"] and len(parts) == 3:
+        try:
+            return mech.parameter(parts[2]).unit or DIMENSIONLESS
+        except KeyError:
+            return ""
+    if parts[0] == "initial" and len(parts) == 3 and parts[2] in mech.coordinate_names:
+        unit = mech.coordinate_units[mech.coordinate_names.index(parts[2])]
+        return {"q": unit, "qd": per_time(unit), "guess": unit, "q_offset": unit,
+                "qd_offset": per_time(unit)}.get(parts[1], "")
+    if parts[0] == "loads" and len(parts) >= 2:
+        units = {ld.name: ld.unit for ld in mech.loads}
+        if len(parts) == 2 or parts[2] == "magnitude":
+            return units.get(parts[1], "")
+    return ""

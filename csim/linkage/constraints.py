@@ -60,6 +60,11 @@ class Equation:
         name = self.coupling.name or str(self.coupling.number)
         return f"joint {name} {self.component}"
 
+    @property
+    def unit(self) -> str:
+        """``"m"`` for a component of the distance r_jm - r_ik, ``"1"`` for one between two axes."""
+        return "m" if "(r_jm - r_ik)" in self.component else "1"
+
 
 def cut_joint_equations(coupling: Coupling, frames: Frames) -> list[Equation]:
     """The equations of one cut joint, from its type's record (:data:`JOINT_TYPES`),
@@ -336,7 +341,8 @@ def constraint_watch(reduction: Reduction, variables: list[JointVariable], value
                            kept=np.array([i for i, e in enumerate(live) if e.status == KEPT], dtype=int),
                            removed=np.array([i for i, e in enumerate(live) if e.status == DEPENDENT], dtype=int),
                            rank=reduction.generic_rank,
-                           gamma_removed=_numeric_gamma([e.expression for e in removed], variables, values))
+                           gamma_removed=_numeric_gamma([e.expression for e in removed], variables, values),
+                           units=[e.unit for e in live])
 
 
 def _numeric_gamma(exprs: list[sp.Expr], variables: list[JointVariable], parameters: dict[sp.Symbol, float]):

@@ -9,7 +9,7 @@ mechanism. The parser, the topology, the transforms, the constraints, the energi
 ``csim describe`` all read this registry, so a new joint type is one new record
 (:func:`register_joint_type`).
 
-The five types of the brief (``shared/brief/link_coupling.md``), with q1, q2, q3 the joint
+The five joint types (docs/link-coupling.md), with q1, q2, q3 the joint
 variables:
 
 ====  ===========  =======================  ================================================

@@ -27,7 +27,7 @@ def joint_frame() -> dict:
     point = {"type": "string", "description": "name of the joint's point"}
     return {"anyOf": [
         kind,
-        {"type": "array", "prefixItems": [kind, p, point], "items": False, "minItems": 1},
+        {"type": "array", "items": [kind, p, point], "additionalItems": False, "minItems": 1},
         {"type": "object", "properties": {"type": kind, "p": p, "point": point}, "required": ["type"],
          "additionalProperties": False},
     ]}

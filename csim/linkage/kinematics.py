@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from csim.io.units import mechanism_units
 from csim.result import Result
 
 #: First words of the message of a kinematic run's result (the run kind).
@@ -264,5 +265,5 @@ def run_kinematics(case, model=None, progress: Callable[[float], None] | None = 
         generalized_forces=np.full((M, len(names)), nan), observables=observables, observable_rates=rates,
         status=out["status"], message=out["message"], failure=out["failure"],
         wall_time=time.perf_counter() - start_time,
-        nsteps=out["nsteps"], run_kind="kinematic",
+        nsteps=out["nsteps"], run_kind="kinematic", **mechanism_units(case.mechanism, model, par),
     )

@@ -3,7 +3,7 @@
 Planar, 1 DOF, vertical x-y plane, gravity along -y. Redundant coordinates
 q = [q1, q2, q3]: crank, rocker and connecting-rod angles from +x. Rocker pivot B at the
 origin, crank pivot O at (0, h1), ram guide on the line y = h2. See
-``shared/brief/quick_return.md``; only geometry, bodies and loads are written here, the
+docs/how-it-works.md; only geometry, bodies and loads are written here, the
 equations of motion are derived.
 """
 from __future__ import annotations
@@ -122,7 +122,7 @@ def definition() -> MechanismDefinition:
         ground=["O", "B"],
         guides=[((-l2 - l3, h2), (l2 + l3, h2))],
     )
-    # the paper's figures (shared/brief/quick_return.md), in terms of the recorded series
+    # the paper's figures H.2 to H.7 (docs/plots.md), in terms of the recorded series
     figures = [
         DeclaredFigure("crank_velocity", "Crank angular velocity", reference="paper fig. H.2",
                        panels=(Panel(("qd:q1",), ylabel=r"crank angular velocity $\dot{q}_1$"),)),

@@ -154,7 +154,11 @@ def _divergence(code: int, a: float, b: float, settings, method) -> str:
         text = (f"constraint violation: max |Phi| = {a:.3g} at t = {b:.6g} s exceeds simulation.max_phi = "
                 f"{settings.max_phi:g}; the joints have drifted apart")
         if unstable is None:
-            return text + " (stabilize, or tighten the tolerances)"
+            from csim.solver.integrators import INTEGRATORS
+
+            info = INTEGRATORS.get(getattr(settings, "integrator", ""))
+            remedy = "tighten the tolerances" if info is None or info.adaptive else "lower simulation.step"
+            return text + f" (stabilize, or {remedy})"
     if unstable is None:
         return text
     return f"{text}: {unstable}, so the stabilizer drives the constraint error up (lower simulation.step)"

@@ -127,6 +127,8 @@ class MechanismAnimation:
             ax = axes[0, 0]
             self.artists = MechanismArtists(ax, self.geometry, self.points[0], scale)
             setup_axes(ax, self.geometry, lo, hi)
+            if self.geometry.dim == 2:  # the limits give way, not the box: the labels stay inside the frame
+                ax.set_aspect("equal", adjustable="datalim")
             place = ax.text2D if self.geometry.dim == 3 else ax.text
             self.clock = place(0.02, 0.97, "", transform=ax.transAxes, va="top", ha="left",
                                fontfamily="monospace", bbox=dict(facecolor="white", edgecolor="none", alpha=0.8))

@@ -178,9 +178,12 @@ def work_precision_figure(data: ComparisonData, cost: str = "wall_time") -> Figu
     table = data.file.work_precision
     if table is None:
         raise PlotError(f"{data.path}: no tolerance study (run csim compare with --tolerances)")
-    fig, axes = new_figure(2, 1, height=5.6)
+    fig, axes = new_figure(2, 1, height=6.0)
     method_col = np.asarray(table["method"], dtype=object)
     order = list(dict.fromkeys(method_col))
+    backend_col = np.asarray(table.get("backend", [""] * len(method_col)), dtype=object)
+    mixed = len({b for b in backend_col if b}) > 1  # marked: filled compiled, hollow Python
+    tol_col = np.asarray(table["tolerance"], dtype=float)
     x_all, err_all, phi_all = [], [], []
     for k, m in enumerate(order):
         rows = np.flatnonzero(method_col == m)
@@ -191,11 +194,19 @@ def work_precision_figure(data: ComparisonData, cost: str = "wall_time") -> Figu
         x = np.asarray(table[cost], dtype=float)[rows]
         err = np.asarray(table["motion_error"], dtype=float)[rows]
         phi = np.asarray(table["max_phi"], dtype=float)[rows]
-        label = m + (f" ({failed} failed, not shown)" if failed else "")
-        style = dict(color=method_color(m, k), marker=method_marker(m, k), markersize=6, markerfacecolor="none",
-                     markeredgewidth=1.4)
+        backends = sorted({b for b in backend_col[rows] if b})
+        label = m + (f" ({'/'.join(backends)})" if mixed else "") + (f" ({failed} failed, not shown)" if failed
+                                                                   else "")
+        color = method_color(m, k)
+        style = dict(color=color, marker=method_marker(m, k), markersize=6, markeredgewidth=1.4,
+                     markerfacecolor=color if mixed and backends == ["compiled"] else "none")
         axes[0, 0].plot(x, err, label=label, **style)
         axes[1, 0].plot(x, phi, **style)
+        for ax, y in ((axes[0, 0], err),):  # the top panel only: the residuals of stabilized runs coincide
+            for xi, yi, tol in zip(x, y, tol_col[rows]):
+                if np.isfinite(xi) and np.isfinite(yi) and xi > 0 and yi > 0:
+                    ax.annotate(f"{tol:g}", (xi, yi), xytext=(4, 3), textcoords="offset points", fontsize=7,
+                                color=color)
         x_all.append(x)
         err_all.append(err)
         phi_all.append(phi)
@@ -224,8 +235,13 @@ def work_precision_figure(data: ComparisonData, cost: str = "wall_time") -> Figu
     kind = str(a.get("tolerance_kind", "rtol=atol")).replace("=", " = ")
     jobs = int(a.get("jobs", 1))
     sub = f"{a.get('mechanism', '')}, {a.get('integrator', '')}, {kind} = {tols}"
-    if cost == "wall_time" and jobs > 1:
-        sub += f"\n(wall time of each run in its own process, {jobs} processes sharing the CPU)"
+    repeat = int(a.get("repeat", 1))
+    if cost == "wall_time":
+        how = f"median of {repeat} runs" if repeat > 1 else "one run each (csim compare --repeat N: median of N)"
+        sub += f"\nwall time: {how}" + (f", {jobs} processes sharing the CPU" if jobs > 1 else "")
+    sub += "; top: points labelled with their tolerance"
+    if mixed:
+        sub += "\nbackends differ: filled markers compiled, hollow Python"
     title(fig, f"Work-precision: errors against {COSTS[cost].split(' [')[0]}", sub)
     return fig
 

@@ -117,7 +117,10 @@ def method_marker(method: str, index: int = 0) -> str:
 
 
 def label_with_unit(name: str, unit: str) -> str:
-    """``"crank angle [rad]"``; no brackets for an empty unit."""
+    """``"crank angle [rad]"``, ``"relative error [-]"`` for a dimensionless one (unit ``1``);
+    no brackets for an empty (unknown) unit."""
+    if unit == "1":
+        return f"{name} [-]"
     return f"{name} [{unit_text(unit)}]" if unit else name
 
 

@@ -13,8 +13,10 @@ import json
 from dataclasses import dataclass
 
 import numpy as np
-from matplotlib.colors import BoundaryNorm, ListedColormap, LogNorm
+from matplotlib.cm import ScalarMappable
+from matplotlib.colors import BoundaryNorm, ListedColormap, LogNorm, Normalize
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 
 from csim.io.sweep_file import PENDING, SweepTable
 from csim.plot.errors import PlotError
@@ -71,12 +73,65 @@ def axis_values(table: SweepTable, key: str) -> tuple[np.ndarray, list[str] | No
         str(json.loads(text)) for text in labels]
 
 
+def key_label(table: SweepTable, key: str) -> str:
+    """A varied key as an axis label, with the unit of its values (``stabilization.w [1/s]``)."""
+    unit = table.value_units.get(key, "") if table.numeric.get(key) else ""
+    return label_with_unit(key, unit)
+
+
 def _label_axes(ax, table: SweepTable, kx: str, ky: str) -> None:
     for key, axis, setter in ((kx, ax.xaxis, ax.set_xlabel), (ky, ax.yaxis, ax.set_ylabel)):
         _, labels = axis_values(table, key)
         if labels is not None:
             axis.set_ticks(range(len(labels)), labels)
-        setter(key)
+        setter(key_label(table, key))
+
+
+#: the end of the stability interval of classic RK4 on the negative real axis: Baumgarte's
+#: critically damped error equation (d = 1) has the double eigenvalue -w, so RK4 is stable
+#: for w h < 2.785
+RK4_BOUND = 2.785
+
+
+def _case_value(table: SweepTable, path: str):
+    """A value of the sweep's base case (``simulation.integrator``), None where absent."""
+    import yaml
+
+    try:
+        node = yaml.safe_load(table.attrs.get("case", "")) or {}
+        for part in path.split("."):
+            node = node[part]
+        return node
+    except (yaml.YAMLError, KeyError, TypeError):
+        return None
+
+
+def _value_set(table: SweepTable, key: str) -> set:
+    if key in table.keys:
+        return {json.dumps(v) for v in table.values[key]}
+    return {json.dumps(_case_value(table, key))}
+
+
+def draw_rk4_bound(ax, table: SweepTable, kx: str, ky: str) -> bool:
+    """On a map of ``stabilization.w`` against ``simulation.step`` of Baumgarte's method with
+    RK4, the curve w h = 2.785 (:data:`RK4_BOUND`) beyond which RK4 cannot be stable; True
+    where drawn."""
+    keys = {kx, ky}
+    if keys != {"stabilization.w", "simulation.step"}:
+        return False
+    if _value_set(table, "simulation.integrator") != {json.dumps("RK4")} or \
+            _value_set(table, "stabilization.method") != {json.dumps("baumgarte")}:
+        return False
+    lo, hi = sorted(ax.get_xlim() if kx == "stabilization.w" else ax.get_ylim())
+    w = np.geomspace(lo if lo > 0 else hi * 1e-3, hi, 400)  # a linear axis may start below 0
+    h = RK4_BOUND / w
+    xy = (w, h) if kx == "stabilization.w" else (h, w)
+    xlim, ylim = ax.get_xlim(), ax.get_ylim()
+    ax.plot(*xy, color="white", lw=3.0, zorder=3)
+    ax.plot(*xy, color="black", lw=1.4, ls="--", zorder=4, label=f"RK4 bound w h = {RK4_BOUND}")
+    ax.set_xlim(xlim)
+    ax.set_ylim(ylim)
+    return True
 
 
 def grid_of(table: SweepTable, kx: str, ky: str) -> Grid | None:
@@ -137,14 +192,19 @@ def outcome_figure(table: SweepTable) -> Figure:
         ax.set_xscale(sx)
         ax.set_yscale(sy)
     xs, ys = axis_values(table, kx)[0], axis_values(table, ky)[0]
+    handles = []
     for j, k in enumerate(present):
         pick = codes == j
-        ax.scatter(xs[pick], ys[pick], s=14 if grid else 22,
-                   color="none" if grid else OUTCOMES[k][0], marker=OUTCOMES[k][1],
-                   edgecolors="black" if grid else None, linewidths=0.5, label=f"{k} ({int(pick.sum())})",
-                   **({} if grid is None or k != "success" else {"alpha": 0.0}))
+        if grid is None or k != "success":  # a failed cell also gets its reason's marker
+            ax.scatter(xs[pick], ys[pick], s=14 if grid else 22, color="none" if grid else OUTCOMES[k][0],
+                       marker=OUTCOMES[k][1], edgecolors="black" if grid else None, linewidths=0.5)
+        handles.append(Line2D([], [], ls="none", marker="s" if k == "success" else OUTCOMES[k][1], ms=9,
+                              markerfacecolor=OUTCOMES[k][0], markeredgecolor="black", markeredgewidth=0.5,
+                              label=f"{k} ({int(pick.sum())})"))
     _label_axes(ax, table, kx, ky)
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small", title="outcome")
+    if draw_rk4_bound(ax, table, kx, ky):
+        handles.append(Line2D([], [], color="black", ls="--", label=f"RK4 bound\nw h = {RK4_BOUND}"))
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small", title="outcome")
     title(fig, "Stability map: outcome of each run", _subtitle(table))
     return fig
 
@@ -177,17 +237,26 @@ def metric_figure(table: SweepTable, column: str) -> Figure:
             ax.scatter(xs[pick], ys[pick], marker=OUTCOMES[k][1],
                        color=OUTCOMES[k][0], edgecolors="black", linewidths=0.4, s=20,
                        label=f"failed: {k} ({int(pick.sum())})")
-    if (~ok).any():
-        fig.legend(loc="outside lower center", ncols=4, fontsize="small")
     _label_axes(ax, table, kx, ky)
+    draw_rk4_bound(ax, table, kx, ky)
+    if (~ok).any() or ax.get_legend_handles_labels()[0]:
+        fig.legend(loc="outside lower center", ncols=4, fontsize="small")
     title(fig, f"Stability map: {METRICS.get(column, column)}", _subtitle(table))
     return fig
+
+
+#: more curves than this are drawn as a colour scale with a colour bar, not a legend
+MAX_LEGEND = 6
 
 
 @styled
 def curves_figure(table: SweepTable) -> Figure:
     """Each figure of merit against the first numeric key, one line per combination of the
-    other keys' values; failed runs marked at the bottom of each panel."""
+    other keys' values; failed runs marked at the bottom of each panel.
+
+    More than :data:`MAX_LEGEND` lines of one other numeric key are coloured by its value
+    on a colour scale with a colour bar; fewer get a legend below the panels.
+    """
     key = numeric_keys(table)[0]
     others = [k for k in table.keys if k != key]
     x = np.asarray(table.values[key], dtype=float)
@@ -198,27 +267,45 @@ def curves_figure(table: SweepTable) -> Figure:
     columns = [c for c in ("max_phi", "error", "energy_error", "nfev") if np.isfinite(table.columns[c]).any()]
     fig, axes = new_figure(len(columns), 1, sharex=True)
     ok = np.array([s == "success" for s in table.status])
+    scale_key = others[0] if len(others) == 1 and table.numeric[others[0]] and len(groups) > MAX_LEGEND else None
+    colour = None
+    if scale_key is not None:
+        v = np.asarray(table.values[scale_key], dtype=float)
+        log = np.all(v > 0) and v.max() / v.min() > 20
+        norm = LogNorm(v.min(), v.max()) if log else Normalize(v.min(), v.max())
+        colour = ScalarMappable(norm=norm, cmap="viridis")
     for ax, column in zip(axes[:, 0], columns):
         y = np.asarray(table.columns[column], dtype=float)
         for label, rows in groups.items():
             rows = np.array(rows)
             rows = rows[np.argsort(x[rows], kind="stable")]
             good = rows[ok[rows]]
-            ax.plot(x[good], y[good], "o-", ms=3, gid=f"{column}|{label}", label=label or None)
+            style = {} if colour is None else {"color": colour.to_rgba(float(table.values[scale_key][rows[0]]))}
+            ax.plot(x[good], y[good], "o-", ms=3, gid=f"{column}|{label}",
+                    label=(label or None) if colour is None else None, **style)
         ax.set_yscale("log" if np.all(y[ok & np.isfinite(y)] > 0) else "linear")
-        ax.set_ylabel(label_with_unit(column, table.units.get(column, "")))
+        ax.set_ylabel(label_with_unit(COLUMN_NAMES.get(column, column), table.units.get(column, "")))
         for k in OUTCOMES:
             pick = np.array([outcome(table, i) == k for i in range(table.n)]) & ~ok
             if pick.any():
                 ax.plot(x[pick], np.full(pick.sum(), 0.02), OUTCOMES[k][1], color=OUTCOMES[k][0],
-                        transform=ax.get_xaxis_transform(), label=f"failed: {k}")
-    if others or (~ok).any():
-        axes[0, 0].legend(fontsize="small")
-    axes[-1, 0].set_xlabel(key)
+                        transform=ax.get_xaxis_transform(), label=f"failed: {k}" if ax is axes[0, 0] else None)
+    if colour is not None:
+        fig.colorbar(colour, ax=list(axes[:, 0]), label=key_label(table, scale_key), aspect=40)
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    if handles:
+        fig.legend(handles, labels, loc="outside lower center", ncols=min(3, len(handles)), fontsize="small")
+    fig.align_ylabels(axes[:, 0])
+    axes[-1, 0].set_xlabel(key_label(table, key))
     if np.all(x > 0) and x.max() / x.min() > 100:
         axes[-1, 0].set_xscale("log")
     title(fig, f"Sweep of {key}", _subtitle(table))
     return fig
+
+
+#: a sweep column's name on an axis
+COLUMN_NAMES = {"max_phi": "max |Phi|", "error": "motion error", "energy_error": "energy error (relative)",
+                "nfev": "RHS evaluations"}
 
 
 def _short(value) -> str:

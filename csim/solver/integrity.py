@@ -60,6 +60,8 @@ class ConstraintWatch:
         The generic rank of Phi_q over all rows.
     gamma_removed : callable (q, qd) -> (len(removed),), optional
         gamma = -(dPhi_q/dt) qd of the removed rows (the model has the kept rows').
+    units : list of str (n_all,), optional
+        The unit of each equation (``"m"``, ``"1"``), where known.
     """
 
     phi: Callable
@@ -69,6 +71,7 @@ class ConstraintWatch:
     removed: np.ndarray
     rank: int
     gamma_removed: Callable | None = None
+    units: list[str] = field(default_factory=list)
 
 
 @dataclass

@@ -146,7 +146,7 @@ def connect(address: str):
         from distributed import Client
     except ImportError:
         raise CsimError("--scheduler: Dask's distributed package is not installed; "
-                        "pip install 'csim[dask]'") from None
+                        "pip install 'csim-multibody[dask]'") from None
     try:
         return Client(address, set_as_default=False, timeout="10s")
     except (OSError, TimeoutError, ValueError) as exc:

@@ -20,6 +20,7 @@ import numpy as np
 from csim.case import apply_overrides, validate_case
 from csim.errors import CaseError, ResultFileError, SimulationFailure
 from csim.io.sweep_file import PENDING, SweepTable, read_sweep, write_sweep
+from csim.io.units import common_unit, key_unit, mechanism_units, per_time
 from csim.result import Result
 from csim.study import execute
 from csim.study.metrics import COLUMNS, empty_row
@@ -56,6 +57,7 @@ class Sweep:
     interrupted: bool = False
     lost: str = ""
     new_signals: dict[int, dict] = field(default_factory=dict)
+    _units: tuple[list[str], list[str]] | None = field(default=None, repr=False)
     out: Path | None = None
     resumed: bool = False
     written: bool = False
@@ -87,9 +89,27 @@ class Sweep:
                      complete=self.complete, coordinate_names=list(plan.case.mechanism.coordinate_names))
         values = {key: plan.column(key) for key in plan.keys}
         numeric = {v.key: v.numeric for v in plan.variations}
+        coords, cons = self.units()
+        con, coord = common_unit(cons) if cons else "", common_unit(coords)
+        column_units = {"unit of Phi": con, "unit of Phi/s": common_unit([per_time(u) if u else "" for u in cons])
+                        if cons else "", "rad or m": coord}
         return SweepTable(keys=plan.keys, values=values, numeric=numeric, columns=columns,
-                          units={c.name: c.unit for c in COLUMNS}, attrs=attrs, reference=self.reference,
+                          units={c.name: column_units.get(c.unit, c.unit) for c in COLUMNS}, attrs=attrs,
+                          reference=self.reference,
+                          value_units={key: key_unit(plan.case, key, con) for key in plan.keys},
+                          coordinate_units=coords, constraint_units=cons,
                           **{name: [r[name] for r in rows] for name in ("status", "reason", "message")})
+
+    def units(self) -> tuple[list[str], list[str]]:
+        """The units of the base case's coordinates and constraint functions (found once)."""
+        if self._units is None:
+            from csim.pipeline import numeric_model
+
+            case = self.plan.case
+            model = numeric_model(case)
+            u = mechanism_units(case.mechanism, model, model.parameter_vector(case.parameters))
+            self._units = (u["coordinate_units"], u["constraint_units"])
+        return self._units
 
     def write(self, path: str | Path) -> None:
         """Write the sweep file (atomically), with the signals kept so far: those of this

@@ -4,7 +4,7 @@ Every module of this package (but :mod:`~csim.solver.methods.base`) is imported 
 :class:`~csim.solver.methods.base.Method` subclass it defines is registered under its
 ``name``, in ``rank`` order. A method defined elsewhere (a plug-in, a test) joins with
 :func:`register`. The case schema's ``stabilization`` section (:func:`schema_fields`) and
-the README's table of settings (:func:`settings_table`) are generated from the methods'
+the table of settings in docs/how-it-works.md (:func:`settings_table`) are generated from the methods'
 ``Options``.
 """
 from __future__ import annotations
@@ -96,7 +96,7 @@ def schema_fields() -> dict[str, Field]:
 
 
 def settings_table() -> str:
-    """The README's table of ``stabilization`` settings (Markdown), generated from the methods."""
+    """The table of ``stabilization`` settings in docs/how-it-works.md (Markdown), generated from the methods."""
     rows = ["| key | method | default | unit | meaning |", "|---|---|---|---|---|"]
     for cls in STABILIZERS.values():
         for f in cls.option_fields():

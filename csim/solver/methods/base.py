@@ -7,7 +7,7 @@ A method is a subclass of :class:`Method` in a file of its own in this package:
 ``Options``
     a frozen dataclass of its settings, each declared with :func:`option` (default, unit,
     bounds, one line of documentation). The case schema's ``stabilization`` section and
-    the README's table are generated from these declarations;
+    the table in docs/how-it-works.md are generated from these declarations;
 ``system``
     the system class that integrates it (:class:`csim.solver.system.ConstrainedSystem`
     unless the method changes what is integrated);
