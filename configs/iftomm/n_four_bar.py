@@ -14,6 +14,7 @@ def n_four_bar(n: int, method: str = "augmented_lagrangian") -> str:
     rod = "mass: 1, com: [0.5, 0, 0], inertia: 1/12"
     pivots = ", ".join(f"[R, [{i}, 0, 0], O{i}]" for i in range(n + 1))
     lines = [
+        "# yaml-language-server: $schema=../../csim-case.schema.json",
         f"# IFToMM benchmark A02: N = {n} four-bars in a row. Cranks pinned to ground at x = 0, 1, ..., N,",
         "# horizontal couplers joining their tops; every link a uniform 1 m, 1 kg rod; starts",
         "# rectangular (cranks vertical) with the top B0 of the first crank moving at 1 m/s along x.",

@@ -52,12 +52,17 @@ def link_row() -> dict:
 
 
 def coupling_row() -> dict:
-    """One row of ``mechanism.couplings``: ``[i, k, j, m]`` or ``{name, couple: [i, k, j, m]}``."""
+    """One row of ``mechanism.couplings``: ``[i, k, j, m]`` or ``{name, couple: [i, k, j, m]}``;
+    a joint shared by three or more links is ``{name, couple: [[i, k], [j, m], [l, n], ...]}``."""
     end = {"type": ["integer", "string"]}
     couple = {"type": "array", "items": end, "minItems": 4, "maxItems": 4,
               "description": "[i, k, j, m]: joint k of link i with joint m of link j (numbers or names)"}
+    shared = {"type": "array", "minItems": 2,
+              "items": {"type": "array", "items": end, "minItems": 2, "maxItems": 2},
+              "description": "[[i, k], [j, m], [l, n], ...]: one pin shared by three or more links"}
     return {"anyOf": [couple, {"type": "object", "properties": {
-        "name": {"type": "string", "description": "joint name (names its joint variables)"}, "couple": couple},
+        "name": {"type": "string", "description": "joint name (names its joint variables)"},
+        "couple": {"anyOf": [couple, shared]}},
         "required": ["couple"], "additionalProperties": False}]}
 
 
