@@ -36,14 +36,14 @@ CSIM = str(Path(sys.executable).with_name("csim"))
 
 
 def a01_error(r):
-    return float(np.max(np.hypot(*(r.q - a01_point(r.t)).T))), "m, max |P1 - P1_ref|"
+    return float(np.max(np.hypot(*(r.q - a01_point(r.t)).T))), "m (largest P1 distance)"
 
 
 def a02_error(n):
     def error(r):
         p, _ = a02_b0(r.t, n)
         th = r.q[:, 0]
-        return float(np.max(np.hypot(np.cos(th) - p[:, 0], np.sin(th) - p[:, 1]))), "m, max |B0 - B0_ref|"
+        return float(np.max(np.hypot(np.cos(th) - p[:, 0], np.sin(th) - p[:, 1]))), "m (largest B0 distance)"
     return error
 
 
@@ -81,7 +81,7 @@ def main(argv=None) -> None:
     parser.add_argument("--repeat", type=int, default=3, help="timed runs per case (median)")
     parser.add_argument("--cases", nargs="*", default=None, help="case files to run (default: all shipped)")
     args = parser.parse_args(argv)
-    print(f"| problem | method | error | tolerance | integration [s] | csim run [s] | OpenSim CPU [s] |")
+    print("| problem | method | error | tolerance | integration [s] | csim run [s] | OpenSim CPU [s] |")
     print("|---|---|---|---|---|---|---|")
     for name, file, error, tol, opensim, span in CASES:
         if args.cases and file not in args.cases:

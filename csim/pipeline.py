@@ -196,7 +196,8 @@ def record_integrity(case: Case, system: ConstrainedSystem, result: Result) -> N
     with np.errstate(all="ignore"):
         found = check_integrity(watch, result.t[:n], result.q[:n], result.qd[:n],
                                 result.qdd[:n], case.mechanism.coordinate_names,
-                                kept_fixed=not (reselects_rows(case) or case.stabilization.method == "augmented_lagrangian"))
+                                kept_fixed=not (reselects_rows(case)
+                                                or case.stabilization.method == "augmented_lagrangian"))
     result.removed_names = found.removed_names
     result.removed_units = [watch.units[i] for i in watch.removed] if watch.units else []
     result.removed_phi = np.full((result.t.size, len(found.removed_names)), np.nan)

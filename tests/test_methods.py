@@ -64,7 +64,8 @@ def registered(monkeypatch):
 
 
 def test_registry_lists_the_builtin_methods_in_rank_order():
-    assert list(methods.STABILIZERS) == ["none", "baumgarte", "sliding_mode", "projection", "ggl", "augmented_lagrangian", "minimal"]
+    assert list(methods.STABILIZERS) == ["none", "baumgarte", "sliding_mode", "projection", "ggl",
+                                         "augmented_lagrangian", "minimal"]
     with pytest.raises(KeyError, match="valid names: none, baumgarte"):
         methods.make_stabilizer("penalty")
 

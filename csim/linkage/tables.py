@@ -512,7 +512,7 @@ def _shared_point_names(links: dict[int, Link], couplings: list[Coupling]) -> li
     for c in couplings:
         parent[root((c.i, c.k))] = root((c.j, c.m))
     by_name: dict[str, list[JointFrame]] = {}
-    for number, link in sorted(links.items()):
+    for _, link in sorted(links.items()):
         for f in link.joints:
             if f.point:
                 by_name.setdefault(f.point, []).append(f)

@@ -145,7 +145,8 @@ def _refine(ratio: Callable[[np.ndarray], float], t, q, qd, i: int) -> tuple[flo
         if a < 0 or a + 1 >= t.size:
             continue
         h = t[a + 1] - t[a]
-        res = minimize_scalar(lambda tau: ratio(hermite(q[a], qd[a], q[a + 1], qd[a + 1], h, tau)),
+        ends = (q[a], qd[a], q[a + 1], qd[a + 1], h)
+        res = minimize_scalar(lambda tau, ends=ends: ratio(hermite(*ends, tau)),
                               bounds=(0.0, 1.0), method="bounded", options=dict(xatol=1e-6))
         if res.fun < best[1]:
             best = (t[a] + res.x * h, float(res.fun))
