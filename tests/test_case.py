@@ -56,7 +56,8 @@ def test_minimal_case_fills_every_default(tmp_path):
                                   "switching": "tanh", "eps": 1e-6, "c": 1e6, "projection_metric": "mass",
                                   "projection_tol": 1e-13, "projection_max_iter": 10,
                                       "minimal_tol": 1e-13, "minimal_max_iter": 20,
-                                      "minimal_max_condition": 20.0, "ggl_tol": 1e-12}
+                                      "minimal_max_condition": 20.0, "ggl_tol": 1e-12,
+                                      "penalty": 1e4, "al_tol": 1e-9, "al_max_iter": 20}
     assert d["output"] == {"dt": 0.01}
     assert d["loads"] == {}
     assert d["initial"]["q"] == {"q1": 3.0020}

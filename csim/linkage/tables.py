@@ -499,28 +499,42 @@ def _one_coupling(path: str, number: int, name: str | None, spec: list, rows: Li
 
 def _shared_point_names(links: dict[int, Link], couplings: list[Coupling]) -> list[str]:
     """A point name on frames of several links names one physical point: the frames must be
-    joined by couplings (``B`` on a crank and on its coupler). On frames no coupling joins
-    (``B`` on every crank) it would name several points, and the observables ``B_x``, ``B_y``
-    would follow the first one alone."""
-    parent: dict[tuple[int, int], tuple[int, int]] = {}
+    joined, by couplings and by frames of one link at the same origin (``B`` on a crank and
+    on its coupler). On frames nothing joins (``B`` on every crank) it would name several
+    points, and the observables ``B_x``, ``B_y`` would follow the first one alone. Links not
+    connected to the fixed link are left to the topology's own message."""
+    parent: dict[tuple, tuple] = {}
 
     def root(f):
         while parent.get(f, f) != f:
             f = parent[f]
         return f
 
+    def join(a, b):
+        parent[root(a)] = root(b)
+
+    connected, grown = {0}, True
+    while grown:
+        grown = False
+        for c in couplings:
+            if (c.i in connected) != (c.j in connected):
+                connected |= {c.i, c.j}
+                grown = True
     for c in couplings:
-        parent[root((c.i, c.k))] = root((c.j, c.m))
+        join(("frame", c.i, c.k), ("frame", c.j, c.m))
+    for number, link in links.items():
+        for f in link.joints:  # frames of one link at one origin are one point
+            join(("frame", number, f.index), ("origin", number, tuple(map(str, f.p[:3]))))
     by_name: dict[str, list[JointFrame]] = {}
-    for _, link in sorted(links.items()):
+    for number, link in sorted(links.items()):
         for f in link.joints:
-            if f.point:
+            if f.point and number in connected:
                 by_name.setdefault(f.point, []).append(f)
     problems = []
     for name, frames in by_name.items():
-        groups: dict[tuple[int, int], JointFrame] = {}
+        groups: dict[tuple, JointFrame] = {}
         for f in frames:
-            groups.setdefault(root((f.link, f.index)), f)
+            groups.setdefault(root(("frame", f.link, f.index)), f)
         if len(groups) > 1:
             a, b = list(groups.values())[:2]
             problems.append(f"{b.path}: point name {name!r} is also on {links[a.link].label} (joint {a.index}), and no "
@@ -550,7 +564,8 @@ def parse_tables(mechanism: dict, problems: list[str]) -> Tables | None:
     rows = _links(mechanism.get("links"), scope, problems)
     _numbering(rows, problems)
     couplings = _couplings(mechanism.get("couplings"), rows, problems) if rows.links else []
-    problems += _shared_point_names(rows.links, couplings)
+    if len(problems) == start:  # a coupling row in error leaves its frames unjoined: no second message
+        problems += _shared_point_names(rows.links, couplings)
     gravity_raw = mechanism.get("gravity")
     gravity = (sp.Integer(0),) * 3
     if gravity_raw is not None:
