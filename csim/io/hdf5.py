@@ -35,8 +35,7 @@ Table columns and their units: :data:`COMPARISON_UNITS`.
 """
 from __future__ import annotations
 
-import os
-import tempfile
+import uuid
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -46,6 +45,7 @@ import numpy as np
 
 from csim import __version__
 from csim.errors import ResultFileError
+from csim.io.atomic import write_atomically
 from csim.io.units import UNITS
 from csim.result import JointReaction, Result
 
@@ -55,29 +55,28 @@ _STR = h5py.string_dtype()
 
 @contextmanager
 def atomic_h5(path: str | Path):
-    """Open a temporary HDF5 file beside ``path``; it replaces ``path`` only when complete.
+    """Build an HDF5 file in memory; it replaces ``path`` only when complete.
 
-    A crash or an exception inside the block leaves ``path`` untouched (or absent) and
-    removes the temporary file.
+    The file is built with HDF5's in-memory driver and written by
+    :func:`csim.io.atomic.write_atomically`, so that HDF5 never meets a failing write (a
+    full disk left it in a state that crashed the process at exit): an exception inside
+    the block, or a write that fails, leaves ``path`` untouched (or absent) and no
+    temporary file. The file's image is held in memory once more while it is written.
+
+    Raises
+    ------
+    OSError
+        When the file cannot be written (``strerror`` says why).
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
+    fh = h5py.File(f"{path.name}.{uuid.uuid4().hex}", "w", driver="core", backing_store=False)
     try:
-        with h5py.File(tmp, "w") as fh:
-            yield fh
-        # durable before it becomes visible; mode as for any new file (mkstemp makes 0600)
-        with open(tmp, "rb+") as raw:
-            os.fsync(raw.fileno())
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-        raise
+        yield fh
+        fh.flush()
+        image = fh.id.get_file_image()
+    finally:
+        fh.close()
+    write_atomically(path, image)
 
 
 def _dataset(group, name, data, units=None):

@@ -672,7 +672,15 @@ def build_force(element: Element, geo: ElementGeometry, problems: list[str]) -> 
     e is fixed in the global frame (then the force works along s = e . r_P, its default
     switching coordinate) or in the link's frame (e = R e_link).
     """
-    point = geo.point(element.key("point"), [element.row.get("link"), element.row.get("point")], problems)
+    point = None
+    if geo.link(element.key("link"), element.row.get("link"), problems) is not None:
+        if "point" not in element.row:
+            problems.append(f"{element.key('point')}: missing; expected a point name of the link or [x, y, z] (in the "
+                            f"link frame, m)")
+        else:  # point_of names the point [LINK, POINT][1]: here it is the key point
+            found: list[str] = []
+            point = geo.point(element.key("point"), [element.row["link"], element.row["point"]], found)
+            problems += [line.replace(f"{element.key('point')}[1]", element.key("point"), 1) for line in found]
     e = _direction(geo, element, "direction", problems)
     frame = _frame(element, problems)
     if point is None or e is None or frame is None:
@@ -738,7 +746,7 @@ def _element(n: int, row: Any, names: set[str], problems: list[str]) -> Element 
         return None
     names.add(name)
     path = f"{path} ({name})"
-    kind = FORCE_KINDS.get(row.get("type"))
+    kind = FORCE_KINDS.get(row.get("type")) if isinstance(row.get("type"), str) else None
     if kind is None:
         problems.append(f"{path}.type: got {describe(row.get('type'))}; expected one of {FORCE_KINDS.names()}")
         return None

@@ -27,8 +27,9 @@ from typing import Any
 import numpy as np
 import yaml
 
-from csim.case import CaseLoader
+from csim.case import CaseLoader, YamlTooLarge
 from csim.errors import CaseError
+from csim.schema import short_repr
 
 #: range kinds
 RANGES = ("lin", "log")
@@ -83,6 +84,8 @@ def _scalar(text: str) -> Any:
     text = text.strip()
     try:
         return yaml.load(text, Loader=CaseLoader) if text else None
+    except YamlTooLarge as exc:
+        raise CaseError([f"value {short_repr(text)}: {exc}"]) from None
     except (yaml.YAMLError, ValueError):
         return text
 
@@ -135,6 +138,8 @@ def _from_file(option: str, name: str, base: Path) -> tuple:
         raise CaseError([f"{option}: cannot read the values file {str(path)!r}: {exc.strerror or exc}"]) from None
     try:
         data = yaml.load(text, Loader=CaseLoader)
+    except YamlTooLarge as exc:
+        raise CaseError([f"{option}: the values file {str(path)!r} is {exc}"]) from None
     except (yaml.YAMLError, ValueError):
         data = None
     if not isinstance(data, list):  # one value per line
@@ -150,7 +155,7 @@ def parse_variation(text: str, base: Path = Path(".")) -> Variation:
     CaseError
         Naming the option, when it is malformed or gives no values.
     """
-    option = f"--vary {text!r}"
+    option = f"--vary {short_repr(text)}"
     if "=" not in text:
         raise CaseError([f"{option}: expected KEY=VALUES, e.g. --vary stabilization.w=lin:1:40:20"])
     key, spec = (part.strip() for part in text.split("=", 1))
