@@ -67,6 +67,9 @@ MAX_EVENT_SAMPLES = 1000
 #: the most nodes a YAML document may hold with its aliases expanded (a case file has a few
 #: hundred; an "alias bomb" of a few lines expands to billions)
 MAX_YAML_NODES = 200_000
+#: the longest YAML text csim reads, in characters (a case file of a 100-link chain has about
+#: 15,000; the YAML reader takes about a second per 25,000)
+MAX_YAML_CHARS = 100_000
 #: the deepest nesting of lists and mappings a YAML document may have, aliases expanded (a
 #: case file nests 6 deep: mechanism.links[i].joints[j][1][k])
 MAX_YAML_DEPTH = 32
@@ -384,7 +387,11 @@ class Case:
 
 
 def parse_yaml(text: str, source: str) -> Any:
-    """YAML text to Python data, with syntax errors as :class:`CaseError`."""
+    """YAML text to Python data, with syntax errors, and a text or document beyond the bounds
+    (:data:`MAX_YAML_CHARS`, :class:`CaseLoader`), as :class:`CaseError`."""
+    if len(text) > MAX_YAML_CHARS:
+        raise CaseError([f"{source}: {len(text):,} characters long; expected at most {MAX_YAML_CHARS:,} (a case "
+                         f"file of a 100-link chain has about 15,000)"])
     try:
         return yaml.load(text, Loader=CaseLoader)
     except YamlTooLarge as exc:

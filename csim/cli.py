@@ -793,9 +793,11 @@ def describe(
     Example: csim describe configs/rrr3_planar.yaml --link 7
     """
     from csim.linkage.describe import describe_main
+    from csim.progress import reporting
 
     try:
-        text = describe_main(case, latex=latex, json=json_, links=link or None, overrides=set_ or [])
+        with reporting(True):  # a line on stderr for a step over a second (a long chain)
+            text = describe_main(case, latex=latex, json=json_, links=link or None, overrides=set_ or [])
     except CsimError as exc:
         _fail_input(exc)
     typer.echo(text, nl=False)

@@ -48,6 +48,7 @@ from csim.errors import ResultFileError
 from csim.io.atomic import write_atomically
 from csim.io.units import UNITS
 from csim.result import JointReaction, Result
+from csim.schema import cut
 
 FORMAT_VERSION = 1
 _STR = h5py.string_dtype()
@@ -77,6 +78,13 @@ def atomic_h5(path: str | Path):
     finally:
         fh.close()
     write_atomically(path, image)
+
+
+def damage(exc: Exception) -> str:
+    """What reading a damaged or crafted file ran into, for a message: the exception's kind
+    and the start of its text (h5py's KeyError names the missing attribute or dataset)."""
+    text = str(exc.args[0]) if exc.args else ""
+    return f"{type(exc).__name__}: {cut(text, 120)}"
 
 
 def _dataset(group, name, data, units=None):
@@ -230,6 +238,9 @@ def read_result_group(group: h5py.Group) -> Result:
         )
     except KeyError as exc:
         raise ResultFileError(f"{group.file.filename}: not a csim result (missing {exc})") from None
+    except (ValueError, TypeError, AttributeError, IndexError) as exc:  # a damaged or crafted file
+        raise ResultFileError(f"{group.file.filename}: a csim result with a damaged part ({damage(exc)})") \
+            from None
 
 
 def read_result(path: str | Path, group: str = "/") -> Result:
@@ -241,6 +252,9 @@ def read_result(path: str | Path, group: str = "/") -> Result:
         with h5py.File(path, "r") as fh:
             if group not in fh:
                 raise ResultFileError(f"{path}: no group {group!r}; groups: {', '.join(fh.keys())}")
+            if group.strip("/") == "" and _text(fh.attrs.get("kind", "")) == "sweep":
+                raise ResultFileError(f"{path}: a sweep file (csim sweep), a table of runs without their motion; "
+                                      f"expected a result file of csim run, or a comparison file and --group")
             if group.strip("/") == "" and _text(fh.attrs.get("kind", "")) == COMPARISON_KIND:
                 runs = [k for k in fh if isinstance(fh[k], h5py.Group) and "t" in fh[k]]
                 raise ResultFileError(f"{path}: a comparison file, with one run per group; read one with "
@@ -424,5 +438,8 @@ def read_comparison(path: str | Path) -> ComparisonFile:
             work = _read_table(fh["work_precision"], units) if "work_precision" in fh else None
             return ComparisonFile(path=path, methods=list(attrs.get("methods", [])), attrs=attrs, summary=summary,
                                   work_precision=work, has_reference="reference" in fh, units=units)
+    except (KeyError, ValueError, TypeError, AttributeError, IndexError) as exc:  # a damaged or crafted file
+        raise ResultFileError(f"{path}: a comparison file with a missing or damaged part ({damage(exc)})") \
+            from None
     except OSError as exc:
         raise ResultFileError(f"{path}: not a readable HDF5 file ({exc})") from None

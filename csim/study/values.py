@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from csim.case import CaseLoader, YamlTooLarge
+from csim.case import MAX_YAML_CHARS, CaseLoader, YamlTooLarge
 from csim.errors import CaseError
 from csim.schema import short_repr
 
@@ -136,6 +136,9 @@ def _from_file(option: str, name: str, base: Path) -> tuple:
         text = path.read_text()
     except OSError as exc:
         raise CaseError([f"{option}: cannot read the values file {str(path)!r}: {exc.strerror or exc}"]) from None
+    if len(text) > MAX_YAML_CHARS:
+        raise CaseError([f"{option}: the values file {str(path)!r} is {len(text):,} characters long; expected at "
+                         f"most {MAX_YAML_CHARS:,}"])
     try:
         data = yaml.load(text, Loader=CaseLoader)
     except YamlTooLarge as exc:
