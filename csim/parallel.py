@@ -10,7 +10,9 @@ import concurrent.futures as cf
 import multiprocessing
 import os
 import signal
+import sys
 import threading
+import time
 from contextlib import contextmanager
 
 #: environment variables that set the thread count of numpy's linear algebra
@@ -63,8 +65,52 @@ class InterruptFlag:
 
 
 def worker_init() -> None:
-    """Workers ignore Ctrl-C: the parent process stops them."""
+    """Workers ignore Ctrl-C (the parent process stops them) and end when the parent dies
+    (:func:`end_with_parent`)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    end_with_parent()
+
+
+#: PR_SET_PDEATHSIG of Linux's prctl(2): the signal a process gets when its parent ends
+PR_SET_PDEATHSIG = 1
+#: how often the watchdog of a system without PR_SET_PDEATHSIG looks for its parent [s]
+WATCHDOG_PERIOD = 0.2
+
+
+def end_with_parent() -> None:
+    """End this worker process when the process that started it ends, however it ends.
+
+    A parent killed with SIGKILL (``kill -9``, the out-of-memory killer) runs no clean-up,
+    and its workers would go on computing runs nobody collects, for minutes, as orphans.
+    On Linux the kernel sends this process SIGKILL when the parent ends (``prctl(2)``
+    PR_SET_PDEATHSIG, through ctypes); elsewhere a daemon thread looks for a new parent
+    process id every :data:`WATCHDOG_PERIOD` seconds and ends the process. Either way the
+    parent's death is checked once more after the arrangement, for a parent that died
+    before it.
+    """
+    parent = multiprocessing.parent_process()
+    expected = parent.pid if parent is not None else os.getppid()
+    if not _parent_death_signal():
+        def watch() -> None:
+            while os.getppid() == expected:
+                time.sleep(WATCHDOG_PERIOD)
+            os._exit(1)
+        threading.Thread(target=watch, name="csim-parent-watchdog", daemon=True).start()
+    if os.getppid() != expected:  # the parent died before the arrangement
+        os._exit(1)
+
+
+def _parent_death_signal() -> bool:
+    """Ask Linux to send this process SIGKILL when its parent ends; False where not available."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        return libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0) == 0
+    except (OSError, AttributeError):
+        return False
 
 
 @contextmanager
