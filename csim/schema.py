@@ -136,9 +136,10 @@ def _repr_pieces(value: Any, open_: set[int], depth: int):
                 yield from _repr_pieces(item, open_, depth + 1)
         yield right
         open_.discard(id(value))
-    elif isinstance(value, str):
-        yield repr(value[:SHOWN_CHARS * 4]) if len(value) <= SHOWN_CHARS * 4 else repr(value[:SHOWN_CHARS * 4])[:-1]
-    elif isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 10_000:  # repr() refuses beyond 4300 digits
+    elif isinstance(value, str):  # a longer string is cut (its closing quote dropped)
+        yield repr(value) if len(value) <= SHOWN_CHARS * 4 else repr(value[:SHOWN_CHARS * 4])[:-1]
+    elif isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 10_000:
+        # repr() refuses an integer beyond 4300 digits, and is slow long before
         yield f"{'-' if value < 0 else ''}<an integer of {int(value.bit_length() * math.log10(2)) + 1:,} digits>"
     else:
         yield repr(value)[:SHOWN_CHARS * 4]
