@@ -841,8 +841,20 @@ def schema(
 
 
 def main() -> None:
-    """Console-script entry point."""
-    app(prog_name="csim")
+    """Console-script entry point.
+
+    After Ctrl-C (exit 130) the process ends at once, without the interpreter's clean-up
+    of its objects (up to half a second with a derived model loaded): every file is
+    written and closed by then, and the user asked it to stop.
+    """
+    try:
+        app(prog_name="csim")
+    except SystemExit as exc:
+        if exc.code == EXIT_INTERRUPTED:
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os._exit(EXIT_INTERRUPTED)
+        raise
 
 
 if __name__ == "__main__":
