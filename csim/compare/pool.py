@@ -21,7 +21,14 @@ from collections.abc import Callable, Sequence
 
 from csim.case import Case, validate_case
 from csim.compare.runs import INTERRUPTED, Run
-from csim.parallel import InterruptFlag, process_pool, stop_processes, worker_environment
+from csim.parallel import (
+    InterruptFlag,
+    ask_to_stop,
+    process_pool,
+    stop_processes,
+    stoppable_run,
+    worker_environment,
+)
 from csim.pipeline import numeric_model
 from csim.result import Result
 
@@ -68,7 +75,8 @@ def _execute(case_data: dict, source: str) -> tuple[Result | None, str]:
     try:
         case = validate_case(copy.deepcopy(case_data), source=source)
         numeric_model(case)
-        return sys.modules[__package__].run_case(case), ""
+        with stoppable_run():  # in a worker, the parent's Ctrl-C ends the run with its samples so far
+            return sys.modules[__package__].run_case(case), ""
     except Exception as exc:  # a bug or an unexpected numerical error: a failed row, not a crash
         return None, f"{type(exc).__name__}: {exc}"
 
@@ -127,14 +135,23 @@ def _collect(futures: dict[cf.Future, Run], progress: Progress | None) -> None:
             progress(run, done, total)
 
 
+#: the longest the workers have, after Ctrl-C, to send back their runs' samples so far [s]
+#: (a run on the Python path evaluates its recorded quantities at every sample first)
+STOP_GRACE = 3.0
+
+
 def _stop(executor: cf.ProcessPoolExecutor, futures: dict[cf.Future, Run]) -> None:
-    """After Ctrl-C: keep the results that came in, end the workers, mark the rest interrupted."""
-    for future, run in futures.items():  # runs that finished before the interrupt keep their results
+    """After Ctrl-C: ask the workers to end their runs, keep every result that comes back
+    within :data:`STOP_GRACE` (the interrupted runs with their samples so far), end the
+    workers, mark the rest interrupted."""
+    processes = ask_to_stop(executor)
+    cf.wait([f for f, run in futures.items() if run.result is None and not f.done()], timeout=STOP_GRACE)
+    for future, run in futures.items():  # runs that finished, or stopped with their samples, keep them
         if run.result is None and future.done() and not future.cancelled() and future.exception() is None:
             run.set_result(*future.result())
-    stop_processes(executor)
-    for future, run in futures.items():
-        if run.result is None and (not future.done() or future.cancelled()):
+    stop_processes(executor, processes)
+    for run in futures.values():  # not started, or not back within the grace
+        if run.result is None:
             run.set_result(None, INTERRUPTED)
 
 

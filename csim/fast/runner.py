@@ -10,7 +10,7 @@ from __future__ import annotations
 import signal
 import threading
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 
 import numpy as np
 
@@ -154,7 +154,8 @@ def _run_kernel(mod, args: tuple, progress: Callable[[float], None] | None) -> t
 
 @contextmanager
 def _stop_on_ctrl_c(control: np.ndarray) -> Iterator[None]:
-    """While the block runs, Ctrl-C (SIGINT) sets control[0], which stops the kernel with its
+    """While the block runs, Ctrl-C (SIGINT; in a worker process, the parent's
+    :data:`csim.parallel.STOP_SIGNAL`) sets control[0], which stops the kernel with its
     samples so far, instead of raising KeyboardInterrupt here (which would lose them).
 
     The handler that was there is still called, so that whoever watches for Ctrl-C (the CLI,
@@ -162,22 +163,25 @@ def _stop_on_ctrl_c(control: np.ndarray) -> Iterator[None]:
     dropped: the run comes back as failed with the kind ``interrupted``, as on the Python
     path. Outside the main thread, or with SIGINT ignored, nothing changes.
     """
-    previous = signal.getsignal(signal.SIGINT)
-    if threading.current_thread() is not threading.main_thread() or not callable(previous):
+    from csim.parallel import STOP_SIGNAL
+
+    if threading.current_thread() is not threading.main_thread():
         yield
         return
+    watched = {signum: signal.getsignal(signum) for signum in (signal.SIGINT, STOP_SIGNAL) if signum is not None}
+    watched = {signum: previous for signum, previous in watched.items() if callable(previous)}
 
     def handler(signum, frame):
         control[0] = 1.0
-        try:
-            previous(signum, frame)
-        except KeyboardInterrupt:
-            pass
-    signal.signal(signal.SIGINT, handler)
+        with suppress(KeyboardInterrupt):  # recorded by the handler; the run returns its samples
+            watched[signum](signum, frame)
+    for signum in watched:
+        signal.signal(signum, handler)
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
+        for signum, previous in watched.items():
+            signal.signal(signum, previous)
 
 
 def _event_labels(switched: np.ndarray, labels: list[str]) -> list[str]:
