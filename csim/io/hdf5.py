@@ -216,7 +216,7 @@ def read_result_group(group: h5py.Group) -> Result:
         if obs_names:
             observables = np.column_stack([group["observables"][n][()] for n in obs_names])
             rates = np.column_stack([group["observables"][f"{n}_rate"][()] for n in obs_names])
-        return Result(
+        result = Result(
             mechanism=_text(a["mechanism"]),
             coordinate_names=[_text(x) for x in a["coordinate_names"]],
             load_names=[_text(x) for x in a["load_names"]],
@@ -236,11 +236,30 @@ def read_result_group(group: h5py.Group) -> Result:
             backend_reason=_text(a.get("backend_reason", "")),
             **_read_extras(group),
         )
+        _check_shapes(result)
+        return result
     except KeyError as exc:
         raise ResultFileError(f"{group.file.filename}: not a csim result (missing {exc})") from None
     except (ValueError, TypeError, AttributeError, IndexError) as exc:  # a damaged or crafted file
         raise ResultFileError(f"{group.file.filename}: a csim result with a damaged part ({damage(exc)})") \
             from None
+
+
+def _check_shapes(result: Result) -> None:
+    """Raise ValueError unless the signals have the shapes their names give: t (N,), q, qd
+    and qdd (N, m), phi and phi_dot (N, r) (a crafted or damaged file, read by plot)."""
+    n, m = result.t.shape[0] if result.t.ndim == 1 else -1, len(result.coordinate_names)
+    if n < 0:
+        raise ValueError(f"t has the shape {result.t.shape}; expected (N,)")
+    for name in ("q", "qd", "qdd"):
+        shape = getattr(result, name).shape
+        if shape != (n, m):
+            raise ValueError(f"{name} has the shape {shape}; expected ({n}, {m}): a sample per time, a column per "
+                             f"coordinate")
+    for name in ("phi", "phi_dot", "kinetic", "potential"):
+        shape = getattr(result, name).shape
+        if len(shape) not in (1, 2) or shape[0] != n:
+            raise ValueError(f"{name} has the shape {shape}; expected {n} samples")
 
 
 def read_result(path: str | Path, group: str = "/") -> Result:

@@ -22,7 +22,7 @@ from typing import Any
 import sympy as sp
 from sympy.parsing.sympy_parser import parse_expr
 
-from csim.schema import describe, finite_number
+from csim.schema import cut, describe, finite_number
 
 #: Functions and constants an expression may use besides the parameters.
 FUNCTIONS: dict[str, Any] = {
@@ -47,6 +47,9 @@ MAX_EXPRESSION_CHARS = 1000
 MAX_EXPONENT = 64
 #: the deepest nesting of parentheses and calls
 MAX_NESTING = 50
+#: the largest |exponent| of a number written 1e-5 (floats reach 1e308; below 1e-324 they are 0)
+MAX_DECIMAL_EXPONENT = 400
+_EXPONENT = re.compile(r"[0-9.][eE]([-+]?[0-9]+)")
 
 _BINARY = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul, ast.Div: operator.truediv,
            ast.Pow: operator.pow}
@@ -75,6 +78,10 @@ def bound_problem(text: str) -> str | None:
         deepest = max(deepest, depth)
     if deepest > MAX_NESTING:
         return f"nested {deepest} parentheses deep; expected at most {MAX_NESTING}"
+    for match in _EXPONENT.finditer(text):  # sympy turns 1e-400000000 into an exact fraction
+        if abs(int(match.group(1))) > MAX_DECIMAL_EXPONENT:
+            return (f"a number with the exponent {cut(match.group(1), 20)}; expected a number within the float "
+                    f"range (an exponent of at most {MAX_DECIMAL_EXPONENT} in magnitude)")
     try:
         tree = ast.parse(text.replace("^", "**"), mode="eval")
     except (SyntaxError, ValueError, RecursionError, MemoryError):
@@ -93,9 +100,12 @@ def _constant_value(node: ast.AST) -> float | None:
         if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
             return None
         try:
-            return float(node.value)
+            value = float(node.value)
         except OverflowError:
-            raise _TooLarge("a number beyond the float range (about 1.8e308); expected a finite number") from None
+            value = math.inf
+        if math.isinf(value):  # 1e999 reads as inf
+            raise _TooLarge("a number beyond the float range (about 1.8e308); expected a finite number")
+        return value
     if isinstance(node, ast.Name):
         return _FLOAT_CONSTANTS.get(node.id)
     if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.UAdd)):

@@ -79,13 +79,14 @@ class Variation:
         return [self.values[min(int(x * n), n - 1)] for x in u]
 
 
-def _scalar(text: str) -> Any:
-    """One value as a case file would read it (``1e-3`` a float, ``none`` a name)."""
+def _scalar(text: str, option: str) -> Any:
+    """One value as a case file would read it (``1e-3`` a float, ``none`` a name); a value
+    beyond the YAML bounds is a CaseError naming ``option``."""
     text = text.strip()
     try:
         return yaml.load(text, Loader=CaseLoader) if text else None
     except YamlTooLarge as exc:
-        raise CaseError([f"value {short_repr(text)}: {exc}"]) from None
+        raise CaseError([f"{option}: the value {short_repr(text)} is {exc}"]) from None
     except (yaml.YAMLError, ValueError):
         return text
 
@@ -146,7 +147,8 @@ def _from_file(option: str, name: str, base: Path) -> tuple:
     except (yaml.YAMLError, ValueError):
         data = None
     if not isinstance(data, list):  # one value per line
-        data = [_scalar(line.split("#", 1)[0]) for line in text.splitlines() if line.split("#", 1)[0].strip()]
+        data = [_scalar(line.split("#", 1)[0], option) for line in text.splitlines()
+                if line.split("#", 1)[0].strip()]
     return tuple(data)
 
 
@@ -171,10 +173,10 @@ def parse_variation(text: str, base: Path = Path(".")) -> Variation:
         values, bounds = _range(option, head, rest.split(":"))
     elif spec.startswith("@"):
         values = _from_file(option, spec[1:], base)
-    elif spec.startswith("[") and spec.endswith("]") and isinstance(_scalar(spec), list):
-        values = tuple(_scalar(spec))
+    elif spec.startswith("[") and spec.endswith("]") and isinstance(_scalar(spec, option), list):
+        values = tuple(_scalar(spec, option))
     else:
-        values = tuple(_scalar(item) for item in spec.split(","))
+        values = tuple(_scalar(item, option) for item in spec.split(","))
     if kind == "list" and (not values or any(v is None for v in values)):
         raise CaseError([f"{option}: no value, or an empty one; expected e.g. {key}=1,2,5 or {key}=lin:0:1:11"])
     return Variation(key=key, values=values, kind=kind, bounds=bounds, text=text)
