@@ -143,10 +143,15 @@ def _run_kernel(mod, args: tuple, progress: Callable[[float], None] | None) -> t
     worker = threading.Thread(target=target, name="csim-kernel", daemon=True)
     with _stop_on_ctrl_c(control):
         worker.start()
-        while worker.is_alive():
-            worker.join(WAIT_PERIOD)
-            if progress is not None:
-                progress(float(control[1]))
+        try:
+            while worker.is_alive():
+                worker.join(WAIT_PERIOD)
+                if progress is not None:
+                    progress(float(control[1]))
+        finally:  # the progress callback raised: stop the kernel too, not leave it computing
+            if worker.is_alive():
+                control[0] = 1.0
+                worker.join()
     if "error" in out:
         raise out["error"]
     return out["value"]
