@@ -406,7 +406,7 @@ def force_elements(draw):
     return rows
 
 
-@settings(max_examples=150, **FAST)
+@settings(max_examples=60, **FAST)
 @given(force_elements())
 def test_any_force_element_is_built_or_refused_naming_its_row(rows):
     doc = copy.deepcopy(DOCUMENTS["fourbar_gravity.yaml"])
