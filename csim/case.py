@@ -64,9 +64,90 @@ MIN_ATOL = 1e-20
 MAX_EVENT_SAMPLES = 1000
 
 
+#: the most nodes a YAML document may hold with its aliases expanded (a case file has a few
+#: hundred; an "alias bomb" of a few lines expands to billions)
+MAX_YAML_NODES = 200_000
+#: the longest YAML text csim reads, in characters (a case file of a 100-link chain has about
+#: 15,000; the YAML reader takes about a second per 25,000)
+MAX_YAML_CHARS = 100_000
+#: the deepest nesting of lists and mappings a YAML document may have, aliases expanded (a
+#: case file nests 6 deep: mechanism.links[i].joints[j][1][k])
+MAX_YAML_DEPTH = 32
+
+
+class YamlTooLarge(yaml.YAMLError):
+    """A YAML document nested deeper than :data:`MAX_YAML_DEPTH`, holding more than
+    :data:`MAX_YAML_NODES` nodes with its aliases expanded, or an alias inside itself."""
+
+
 class CaseLoader(yaml.SafeLoader):
-    """YAML loader that reads ``1e-8`` as a number (YAML 1.1 needs ``1.0e-8``) and
-    rejects duplicate keys instead of silently keeping the last one."""
+    """YAML loader that reads ``1e-8`` as a number (YAML 1.1 needs ``1.0e-8``), rejects
+    duplicate keys instead of silently keeping the last one, and measures a document
+    before building it: its nesting depth while it is read, then its size with aliases
+    expanded (:data:`MAX_YAML_DEPTH`, :data:`MAX_YAML_NODES`), so that a few bytes cannot
+    make every later step walk billions of values."""
+
+    _depth = 0
+
+    def compose_node(self, parent, index):
+        self._depth += 1
+        try:
+            if self._depth > MAX_YAML_DEPTH:
+                event = self.peek_event()
+                raise YamlTooLarge(f"nested more than {MAX_YAML_DEPTH} lists or mappings deep (line "
+                                   f"{event.start_mark.line + 1}); expected at most {MAX_YAML_DEPTH}")
+            return super().compose_node(parent, index)
+        finally:
+            self._depth -= 1
+
+    def get_single_data(self):
+        node = self.get_single_node()
+        if node is None:
+            return None
+        measure_node(node)
+        return self.construct_document(node)
+
+
+def measure_node(root: yaml.Node) -> None:
+    """Check a composed YAML document's size and depth with its aliases expanded.
+
+    Each node is visited once (an alias is the node it names), so the cost is that of
+    the text, whatever the expansion.
+
+    Raises
+    ------
+    YamlTooLarge
+        More than :data:`MAX_YAML_NODES` nodes or :data:`MAX_YAML_DEPTH` levels once
+        expanded, or a list or mapping that contains itself.
+    """
+    size: dict[int, tuple[int, int]] = {}  # id(node) -> (nodes, depth), expanded
+    on_path: set[int] = set()
+    stack = [(root, False)]
+    while stack:
+        node, done = stack.pop()
+        key = id(node)
+        children = [] if isinstance(node, yaml.ScalarNode) else \
+            [n for pair in node.value for n in pair] if isinstance(node, yaml.MappingNode) else list(node.value)
+        if done:
+            on_path.discard(key)
+            nodes = 1 + sum(size[id(c)][0] for c in children)
+            depth = 1 + max((size[id(c)][1] for c in children), default=0)
+            if nodes > MAX_YAML_NODES:
+                raise YamlTooLarge(f"{nodes:,} values or more once its aliases (*name) are expanded (line "
+                                   f"{node.start_mark.line + 1}); expected at most {MAX_YAML_NODES:,}")
+            if depth > MAX_YAML_DEPTH:
+                raise YamlTooLarge(f"nested {depth} lists or mappings deep once its aliases (*name) are expanded "
+                                   f"(line {node.start_mark.line + 1}); expected at most {MAX_YAML_DEPTH}")
+            size[key] = (nodes, depth)
+            continue
+        if key in size:
+            continue
+        if key in on_path:
+            raise YamlTooLarge(f"an alias inside the value it names (line {node.start_mark.line + 1}); expected a "
+                               f"value that does not contain itself")
+        on_path.add(key)
+        stack.append((node, True))
+        stack.extend((c, False) for c in children if id(c) not in size)
 
 
 CaseLoader.add_implicit_resolver(
@@ -83,8 +164,14 @@ CaseLoader.add_implicit_resolver(
 )
 
 
+#: YAML 1.1 booleans that are words when written as a key (``on: C_x``, a switching law's
+#: coordinate): no key of a case file is a boolean
+WORD_KEYS = ("on", "off", "yes", "no")
+
+
 def _construct_mapping(loader, node, deep=False):
-    """Construct a mapping, rejecting duplicate keys.
+    """Construct a mapping, rejecting duplicate keys; a key ``on``, ``off``, ``yes`` or
+    ``no`` is that word (:data:`WORD_KEYS`), not a boolean.
 
     Merge keys (``<<: *anchor``) may be overridden by explicit keys as usual; only
     explicit keys are checked against each other.
@@ -93,6 +180,9 @@ def _construct_mapping(loader, node, deep=False):
     for key_node, _ in node.value:
         if key_node.tag == "tag:yaml.org,2002:merge":
             continue
+        if (key_node.tag == "tag:yaml.org,2002:bool" and isinstance(key_node, yaml.ScalarNode)
+                and key_node.style is None and key_node.value.lower() in WORD_KEYS):
+            key_node.tag = "tag:yaml.org,2002:str"  # `on: C_x` is the key 'on', not True
         key = loader.construct_object(key_node, deep=deep)
         if not isinstance(key, Hashable):
             raise yaml.constructor.ConstructorError(
@@ -297,9 +387,15 @@ class Case:
 
 
 def parse_yaml(text: str, source: str) -> Any:
-    """YAML text to Python data, with syntax errors as :class:`CaseError`."""
+    """YAML text to Python data, with syntax errors, and a text or document beyond the bounds
+    (:data:`MAX_YAML_CHARS`, :class:`CaseLoader`), as :class:`CaseError`."""
+    if len(text) > MAX_YAML_CHARS:
+        raise CaseError([f"{source}: {len(text):,} characters long; expected at most {MAX_YAML_CHARS:,} (a case "
+                         f"file of a 100-link chain has about 15,000)"])
     try:
         return yaml.load(text, Loader=CaseLoader)
+    except YamlTooLarge as exc:
+        raise CaseError([f"{source}: {exc}"]) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""
@@ -333,6 +429,9 @@ def apply_overrides(data: dict, overrides: list[str]) -> dict:
             continue
         try:
             value = yaml.load(text, Loader=CaseLoader) if text else None
+        except YamlTooLarge as exc:
+            problems.append(f"--set {path}: the value is {exc}")
+            continue
         except (yaml.YAMLError, ValueError):
             value = text
         node = data
@@ -660,7 +759,7 @@ def _validate_combination(case: Case, problems):
         from csim.solver.driven import driven_problems
 
         problems += driven_problems(case)
-    if case.simulation.backend == "compiled":
+    if case.simulation.backend == "compiled" and integrator is not None:  # an unknown integrator: reported
         from csim.fast.support import unsupported
 
         for reason in unsupported(case):

@@ -10,6 +10,7 @@ from __future__ import annotations
 import copy
 import functools
 import inspect
+import os
 import signal
 import sys
 import tempfile
@@ -24,6 +25,7 @@ from typer.core import TyperCommand, TyperGroup
 
 from csim import __version__
 from csim.errors import CaseError, CsimError, ResultFileError
+from csim.schema import short_repr
 
 
 class _FlagsWithoutType:
@@ -71,6 +73,10 @@ EXIT_BAD_INPUT = 2
 #: 128 + SIGINT, as a shell reports a process that Ctrl-C stopped
 EXIT_INTERRUPTED = 130
 
+#: the longest file or folder name of an output path, in bytes (255 on most file systems,
+#: less what ``.NAME.XXXXXXXX.tmp`` and ``NAME.interrupted.h5`` add)
+MAX_NAME_BYTES = 200
+
 #: file name endings accepted for an HDF5 result or comparison file (``--output``)
 RESULT_SUFFIXES = (".h5", ".hdf5")
 
@@ -108,6 +114,15 @@ def check_writable(out: Path, protect: list[Path] = (), suffixes: tuple[str, ...
     ResultFileError
         Naming the option, the path and what was expected.
     """
+    too_long = next((part for part in out.parts if len(os.fsencode(part)) > MAX_NAME_BYTES), None)
+    if too_long is not None:  # a temporary file beside it, and OUT.interrupted.h5, add to the name
+        raise ResultFileError(f"{option} {short_repr(str(out))}: the name {short_repr(too_long)} is "
+                              f"{len(os.fsencode(too_long))} bytes long; expected at most {MAX_NAME_BYTES} (file "
+                              f"systems allow 255, and the temporary and interrupted files beside it add to it)")
+    folder = next((p for p in reversed(out.parents) if p.exists() and not p.is_dir()), None)
+    if folder is not None:
+        raise ResultFileError(f"{option} {out}: cannot write there, {folder} is a file, not a folder; expected a "
+                              f"path in a folder")
     if out.exists() and any(out.resolve() == p.resolve() for p in protect):
         raise ResultFileError(f"{option} {out}: that is an input file; choose another result path")
     if out.is_dir():
@@ -866,9 +881,11 @@ def describe(
     Example: csim describe configs/rrr3_planar.yaml --link 7
     """
     from csim.linkage.describe import describe_main
+    from csim.progress import reporting
 
     try:
-        text = describe_main(case, latex=latex, json=json_, links=link or None, overrides=set_ or [])
+        with reporting(True):  # a line on stderr for a step over a second (a long chain)
+            text = describe_main(case, latex=latex, json=json_, links=link or None, overrides=set_ or [])
     except CsimError as exc:
         _fail_input(exc)
     typer.echo(text, nl=False)
@@ -900,16 +917,32 @@ def schema(
     if output is None:
         typer.echo(text, nl=False)
         return
+    from csim.io.atomic import write_atomically
+
     try:
-        output.parent.mkdir(parents=True, exist_ok=True)
-        output.write_text(text)
+        check_writable(output, suffixes=(), option="--output")
+        write_atomically(output, text.encode())
+    except CsimError as exc:
+        _fail_input(exc)
     except OSError as exc:
         _fail_input(ResultFileError(f"--output {output}: cannot write there ({exc.strerror or exc})"))
 
 
 def main() -> None:
-    """Console-script entry point."""
-    app(prog_name="csim")
+    """Console-script entry point.
+
+    After Ctrl-C (exit 130) the process ends at once, without the interpreter's clean-up
+    of its objects (up to half a second with a derived model loaded): every file is
+    written and closed by then, and the user asked it to stop.
+    """
+    try:
+        app(prog_name="csim")
+    except SystemExit as exc:
+        if exc.code == EXIT_INTERRUPTED:
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os._exit(EXIT_INTERRUPTED)
+        raise
 
 
 if __name__ == "__main__":

@@ -10,8 +10,10 @@ import concurrent.futures as cf
 import multiprocessing
 import os
 import signal
+import sys
 import threading
-from contextlib import contextmanager
+import time
+from contextlib import contextmanager, suppress
 
 #: environment variables that set the thread count of numpy's linear algebra
 BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS", "VECLIB_MAXIMUM_THREADS")
@@ -24,9 +26,15 @@ def process_pool(jobs: int) -> cf.ProcessPoolExecutor:
                                   initializer=worker_init)
 
 
-def stop_processes(executor: cf.ProcessPoolExecutor) -> None:
-    """End the pool's worker processes now (after Ctrl-C), without waiting for their runs."""
-    processes = list((getattr(executor, "_processes", None) or {}).values())
+def worker_processes(executor: cf.ProcessPoolExecutor) -> list:
+    """The pool's worker processes (read them before ``shutdown``, which forgets them)."""
+    return list((getattr(executor, "_processes", None) or {}).values())
+
+
+def stop_processes(executor: cf.ProcessPoolExecutor, processes: list | None = None) -> None:
+    """End the pool's worker processes now (after Ctrl-C), without waiting for their runs
+    (``processes``: as :func:`worker_processes` gave them before a shutdown)."""
+    processes = worker_processes(executor) if processes is None else processes
     executor.shutdown(wait=False, cancel_futures=True)
     for process in processes:
         process.terminate()
@@ -62,9 +70,91 @@ class InterruptFlag:
         return False
 
 
+#: the signal by which a parent asks a worker to end its run with the samples so far
+#: (:func:`ask_to_stop`; POSIX only)
+STOP_SIGNAL = getattr(signal, "SIGUSR1", None)
+#: whether this (worker) process is inside a run that :data:`STOP_SIGNAL` may end
+_IN_RUN = {"active": False}
+
+
 def worker_init() -> None:
-    """Workers ignore Ctrl-C: the parent process stops them."""
+    """Workers ignore Ctrl-C (the parent process stops them), end a run on :data:`STOP_SIGNAL`
+    (:func:`stoppable_run`), and end when the parent dies (:func:`end_with_parent`)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if STOP_SIGNAL is not None:
+        signal.signal(STOP_SIGNAL, _stop_requested)
+    end_with_parent()
+
+
+def _stop_requested(signum, frame) -> None:
+    """:data:`STOP_SIGNAL` in a worker: Ctrl-C for the run under way (a run stopped this way
+    comes back with its samples so far); between runs nothing (the parent ends the process)."""
+    if _IN_RUN["active"]:
+        raise KeyboardInterrupt
+
+
+@contextmanager
+def stoppable_run():
+    """The block is a run that :data:`STOP_SIGNAL` (the parent's Ctrl-C) may end."""
+    _IN_RUN["active"] = True
+    try:
+        yield
+    finally:
+        _IN_RUN["active"] = False
+
+
+def ask_to_stop(executor: cf.ProcessPoolExecutor) -> list:
+    """After Ctrl-C: cancel the runs not started, and ask the workers to end theirs with the
+    samples so far (:data:`STOP_SIGNAL`). Returns the worker processes, for
+    :func:`stop_processes` to end after."""
+    processes = worker_processes(executor)
+    executor.shutdown(wait=False, cancel_futures=True)
+    for process in processes if STOP_SIGNAL is not None else ():
+        with suppress(OSError):
+            os.kill(process.pid, STOP_SIGNAL)
+    return processes
+
+
+#: PR_SET_PDEATHSIG of Linux's prctl(2): the signal a process gets when its parent ends
+PR_SET_PDEATHSIG = 1
+#: how often the watchdog of a system without PR_SET_PDEATHSIG looks for its parent [s]
+WATCHDOG_PERIOD = 0.2
+
+
+def end_with_parent() -> None:
+    """End this worker process when the process that started it ends, however it ends.
+
+    A parent killed with SIGKILL (``kill -9``, the out-of-memory killer) runs no clean-up,
+    and its workers would go on computing runs nobody collects, for minutes, as orphans.
+    On Linux the kernel sends this process SIGKILL when the parent ends (``prctl(2)``
+    PR_SET_PDEATHSIG, through ctypes); elsewhere a daemon thread looks for a new parent
+    process id every :data:`WATCHDOG_PERIOD` seconds and ends the process. Either way the
+    parent's death is checked once more after the arrangement, for a parent that died
+    before it.
+    """
+    parent = multiprocessing.parent_process()
+    expected = parent.pid if parent is not None else os.getppid()
+    if not _parent_death_signal():
+        def watch() -> None:
+            while os.getppid() == expected:
+                time.sleep(WATCHDOG_PERIOD)
+            os._exit(1)
+        threading.Thread(target=watch, name="csim-parent-watchdog", daemon=True).start()
+    if os.getppid() != expected:  # the parent died before the arrangement
+        os._exit(1)
+
+
+def _parent_death_signal() -> bool:
+    """Ask Linux to send this process SIGKILL when its parent ends; False where not available."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        return libc.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0) == 0
+    except (OSError, AttributeError):
+        return False
 
 
 @contextmanager

@@ -126,7 +126,7 @@ def run_case(case: Case, progress: Callable[[float], None] | None = None) -> Res
             return assemble_result(case, system, empty, 0.0, backend="compiled")
         start = time.perf_counter()  # loading (on a cold cache: compiling) the kernels is not the run's time
     if backend == "compiled":  # numba kernels, entered once per run (csim.fast)
-        trajectory = integrate_compiled(system, y0, settings)
+        trajectory = integrate_compiled(system, y0, settings, progress=progress)
         if progress is not None:
             progress(trajectory.t[-1] if trajectory.t.size else 0.0)
     else:

@@ -87,16 +87,67 @@ class Field:
         return self.choices() if callable(self.choices) else self.choices
 
 
+#: how many characters of a value a message shows (:func:`short_repr`)
+SHOWN_CHARS = 60
+
+
 def describe(value: Any) -> str:
     """``value`` as it reads in a message, with its YAML type (``null`` for None)."""
     if value is None:
         return "null"
     kind = {bool: "boolean", int: "integer", float: "number", str: "string",
             dict: "mapping", list: "list"}.get(type(value), type(value).__name__)
-    text = repr(value)
-    if len(text) > 60:
-        text = text[:57] + "..."
-    return f"{text} ({kind})"
+    return f"{short_repr(value)} ({kind})"
+
+
+def short_repr(value: Any, limit: int = SHOWN_CHARS) -> str:
+    """``repr(value)`` cut to ``limit`` characters (ending in ``...``), built piece by piece so
+    that only what is shown is ever formatted: a list of a billion entries, a string of a
+    megabyte, an integer of a million digits or a list that contains itself costs no more
+    than a short one."""
+    out, length = [], 0
+    for piece in _repr_pieces(value, set(), 0):
+        out.append(piece)
+        length += len(piece)
+        if length > limit:
+            break
+    text = "".join(out)
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+def _repr_pieces(value: Any, open_: set[int], depth: int):
+    """The text of ``repr(value)`` in pieces, lazily (for :func:`short_repr`)."""
+    if isinstance(value, (list, tuple, dict)):
+        if id(value) in open_ or depth > 20:
+            yield "[...]" if isinstance(value, list) else "{...}" if isinstance(value, dict) else "(...)"
+            return
+        open_.add(id(value))
+        left, right = {list: "[]", tuple: "()", dict: "{}"}.get(type(value), "[]")
+        yield left
+        items = value.items() if isinstance(value, dict) else value
+        for n, item in enumerate(items):
+            if n:
+                yield ", "
+            if isinstance(value, dict):
+                yield from _repr_pieces(item[0], open_, depth + 1)
+                yield ": "
+                yield from _repr_pieces(item[1], open_, depth + 1)
+            else:
+                yield from _repr_pieces(item, open_, depth + 1)
+        yield right
+        open_.discard(id(value))
+    elif isinstance(value, str):  # a longer string is cut (its closing quote dropped)
+        yield repr(value) if len(value) <= SHOWN_CHARS * 4 else repr(value[:SHOWN_CHARS * 4])[:-1]
+    elif isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 10_000:
+        # repr() refuses an integer beyond 4300 digits, and is slow long before
+        yield f"{'-' if value < 0 else ''}<an integer of {int(value.bit_length() * math.log10(2)) + 1:,} digits>"
+    else:
+        yield repr(value)[:SHOWN_CHARS * 4]
+
+
+def cut(text: str, limit: int = SHOWN_CHARS) -> str:
+    """``text`` cut to ``limit`` characters (ending in ``...``), for a message."""
+    return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
 def closest(word: str, candidates) -> str | None:

@@ -497,3 +497,25 @@ def test_the_validated_sections_are_typed_frozen_objects_generated_from_the_sche
         assert {f.name for f in dataclasses.fields(getattr(c, section))} == names
     hints = {f.name: f.type for f in dataclasses.fields(c.simulation)}
     assert hints["t_end"] is float and hints["max_steps"] is int and hints["max_step"] == (float | None)
+
+
+@pytest.mark.parametrize("text, fragment", [
+    ("a: &a [*a]\n", "an alias inside the value it names"),
+    ("- &x [1, 2]\n- &y [*x, *x, *x]\n- " + "[" * 40 + "]" * 40 + "\n", "nested more than 32"),
+    ("a: &a [1,1,1,1,1,1,1,1,1,1]\nb: &b [*a,*a,*a,*a,*a,*a,*a,*a,*a,*a]\nc: &c [*b,*b,*b,*b,*b,*b,*b,*b,*b,*b]\n"
+     "d: &d [*c,*c,*c,*c,*c,*c,*c,*c,*c,*c]\ne: &e [*d,*d,*d,*d,*d,*d,*d,*d,*d,*d]\n"
+     "f: &f [*e,*e,*e,*e,*e,*e,*e,*e,*e,*e]\n", "once its aliases (*name) are expanded"),
+    ("x: 1\n" + "#" * 100_001 + "\n", "characters long; expected at most 100,000"),
+])
+def test_yaml_beyond_the_bounds_is_a_case_error(text, fragment):
+    with pytest.raises(CaseError) as excinfo:
+        parse_yaml(text, "f.yaml")
+    assert excinfo.value.problems[0].startswith("f.yaml: ") and fragment in excinfo.value.problems[0]
+
+
+def test_yaml_aliases_within_the_bounds_are_read():
+    # 10**4 values with aliases expanded: each list is built once, and shared
+    text = ("a: &a [1,1,1,1,1,1,1,1,1,1]\nb: &b [*a,*a,*a,*a,*a,*a,*a,*a,*a,*a]\n"
+            "c: &c [*b,*b,*b,*b,*b,*b,*b,*b,*b,*b]\nd: [*c,*c,*c,*c,*c,*c,*c,*c,*c,*c]\n")
+    data = parse_yaml(text, "f.yaml")
+    assert sum(len(a) for c in data["d"] for b in c for a in b) == 10**4 and data["d"][0][0][0] is data["a"]

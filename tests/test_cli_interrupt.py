@@ -6,6 +6,7 @@ import signal
 from pathlib import Path
 
 import h5py
+import numpy as np
 import pytest
 from conftest import invoke
 
@@ -130,7 +131,7 @@ def test_ctrl_c_inside_compiled_code_is_an_interrupt_not_a_crash(tmp_path, monke
     """numba hands a KeyboardInterrupt raised during a kernel back as SystemError."""
     out = tmp_path / "compiled.h5"
 
-    def kernel(system, y0, settings):
+    def kernel(system, y0, settings, progress=None):
         try:
             ctrl_c()
         except KeyboardInterrupt as exc:
@@ -142,3 +143,68 @@ def test_ctrl_c_inside_compiled_code_is_an_interrupt_not_a_crash(tmp_path, monke
     partial = assert_interrupted(result, out, None)
     back = read_result(partial)
     assert back.failure == "interrupted" and back.backend == "compiled" and back.t.size == 0
+
+
+#: a compiled run that takes tens of seconds: the quick-return to 100 s with RK4 at 1e-5 s
+LONG_COMPILED = ("--set", "simulation.t_end=100", "--set", "simulation.integrator=RK4", "--set",
+                 "simulation.step=1e-5", "--set", "simulation.max_steps=100000000", "--set",
+                 "simulation.backend=compiled")
+
+
+def _start_and_interrupt(args: list[str], started: str | None, after: float = 1.0):
+    """Start ``python -m csim ARGS`` with Python's SIGINT handler, wait for the stderr line
+    ``started`` (None: none) then ``after`` seconds, send SIGINT; (exit code, seconds to
+    exit, stderr)."""
+    import os
+    import subprocess
+    import sys
+    import time
+
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
+    proc = subprocess.Popen([sys.executable, "-m", "csim", *args], env=env, stderr=subprocess.PIPE, text=True,
+                            stdout=subprocess.DEVNULL, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        lines = []
+        deadline = time.monotonic() + 300  # a cold cache compiles the kernels first
+        while started is not None and time.monotonic() < deadline:
+            line = proc.stderr.readline()
+            lines.append(line)
+            if started in line or not line:
+                break
+        assert started is None or any(started in line for line in lines), "".join(lines)
+        time.sleep(after)
+        sent = time.monotonic()
+        proc.send_signal(signal.SIGINT)
+        rest = proc.communicate(timeout=60)[1]
+        return proc.returncode, time.monotonic() - sent, "".join(lines) + rest
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+
+
+def test_ctrl_c_ends_a_long_compiled_run_at_once_with_its_samples(tmp_path):
+    """The kernel looks at its control array every few hundred steps: the issue's 0.5 s
+    bound, with a margin for a loaded machine (a run that ignored Ctrl-C would take 30 s)."""
+    out = tmp_path / "long.h5"
+    code, seconds, stderr = _start_and_interrupt(["run", str(QR), "-o", str(out), *LONG_COMPILED],
+                                                 "csim: simulating quick_return.yaml to t = 100 s")
+    assert code == 130, stderr
+    assert seconds < 1.5, seconds
+    back = read_result(out.with_name("long.interrupted.h5"))
+    assert back.failure == "interrupted" and back.backend == "compiled"
+    assert back.t.size > 10 and back.message.startswith("interrupted by the user after t = ")
+    assert np.all(np.diff(back.t) > 0) and back.t[-1] < 100
+
+
+@pytest.mark.slow
+def test_ctrl_c_of_a_parallel_comparison_keeps_each_groups_samples(tmp_path):
+    """The workers end their runs on the parent's request and send back the samples so far."""
+    out = tmp_path / "cmp.h5"
+    code, seconds, stderr = _start_and_interrupt(
+        ["compare", str(QR), "-o", str(out), "-m", "none,baumgarte", "-j", "2", "--reference-tol", "1e-6",
+         *LONG_COMPILED], None, after=25.0)  # the workers start, load the kernels and run
+    assert code == 130, stderr
+    partial = out.with_name("cmp.interrupted.h5")
+    for method in ("none", "baumgarte"):
+        back = read_result(partial, group=method)
+        assert back.failure == "interrupted" and back.t.size > 10, (method, back.message)

@@ -340,3 +340,193 @@ def check_cli(tmp_path_factory, doc: dict, kind: str, path: tuple, value) -> Non
         assert not must_reject(before, kind, path, value), f"ran: {kind} at {path_text(path)} = {value!r}"
         if result.exit_code == 1:
             assert "csim: simulation failed:" in result.output
+
+
+# --------------------------------------------------------------------------- issue 24: bounded work
+# Every input below returns within BOUND_S with a value or csim's own error (exit 0/1/2 at
+# the command line), whatever hypothesis draws: the size bounds are properties.
+
+import time  # noqa: E402
+
+from csim.errors import ResultFileError  # noqa: E402
+from csim.linkage.expressions import parse_expression  # noqa: E402
+from csim.linkage.forces import FORCE_KINDS  # noqa: E402
+
+#: the longest one validation may take on a loaded machine (a hang is minutes)
+BOUND_S = 5.0
+
+#: pieces of expressions: names of the four-bar's parameters, functions, huge and tiny numbers
+TOKENS = st.sampled_from(["9", "99", "999999999", "0", "0.5", "1e308", "1e-308", "a", "b", "m1", "t", "x", "pi",
+                          "deg", "sin(", "exp(", "sqrt(", "atan2(", ",", "(", ")", "^", "*", "/", "+", "-", "^-",
+                          "q_crank", "q_crank_dot", " "])
+EXPRESSIONS = st.one_of(st.lists(TOKENS, min_size=1, max_size=40).map("".join),
+                        st.integers(1, 6).map(lambda n: "(" * n + "9" + "^99)" * n),
+                        st.text(max_size=30))
+
+
+def _timed(call):
+    start = time.monotonic()
+    value = call()
+    assert time.monotonic() - start < BOUND_S, f"took {time.monotonic() - start:.1f} s"
+    return value
+
+
+@settings(max_examples=300, **FAST)
+@given(EXPRESSIONS)
+def test_any_expression_is_parsed_or_refused_within_the_bound(text):
+    import sympy as sp
+
+    symbols = {name: sp.Symbol(name, real=True) for name in ("a", "b", "m1")}
+    problems: list[str] = []
+    expr = _timed(lambda: parse_expression("k", text, symbols, problems, {s: 0.3 for s in symbols.values()}))
+    assert (expr is None) == bool(problems), (text, problems)
+    assert all(p.startswith("k: got ") for p in problems)
+
+
+def _element_values():
+    point = st.one_of(st.sampled_from(["A", "B", "C", "D", "Z"]), st.lists(EXPRESSIONS, min_size=3, max_size=3))
+    link = st.sampled_from(["ground", "crank", "coupler", "rocker", 0, 1, 2, 9, "nolink", ["crank"], None])
+    return st.one_of(EXPRESSIONS, point, link, st.lists(st.tuples(link, point).map(list), max_size=3),
+                     st.sampled_from([None, True, [], {}, float("nan"), 10**400, "crank", "q_B", "C_x", "global",
+                                      "link", "positive", [0, 0, 1], [1, 0, 0], [0, 0, 0], [-1, 1]]))
+
+
+@st.composite
+def force_elements(draw):
+    """A list of force-element rows: known and unknown types, each key of the type (and others)
+    with a value drawn from names, points, directions, expressions and junk."""
+    rows = []
+    for n in range(draw(st.integers(1, 3))):
+        kind = draw(st.sampled_from([*FORCE_KINDS, "damper", ["actuator"], None, 3]))
+        keys = FORCE_KINDS[kind].keys if isinstance(kind, str) and kind in FORCE_KINDS else ("joint", "value")
+        row = {"name": draw(st.sampled_from([f"e{n}", "e0", "1x", "", None])), "type": kind}
+        for key in draw(st.lists(st.sampled_from([*keys, "bogus"]), max_size=5, unique=True)):
+            row[key] = draw(_element_values())
+        rows.append(row)
+    return rows
+
+
+@settings(max_examples=60, **FAST)
+@given(force_elements())
+def test_any_force_element_is_built_or_refused_naming_its_row(rows):
+    doc = copy.deepcopy(DOCUMENTS["fourbar_gravity.yaml"])
+    doc["mechanism"]["forces"] = rows
+    try:
+        _timed(lambda: validate_case(doc))
+    except CaseError as exc:
+        assert all(p.startswith(("mechanism.forces", "mechanism.parameters", "initial", "mechanism.links"))
+                   for p in exc.problems), exc.problems
+
+
+SWEEP_SPECS = st.one_of(
+    st.tuples(st.sampled_from(["lin", "log", "x"]), st.lists(st.sampled_from(["0", "1", "-1", "1e-4", "1e999", "nan",
+                                                                             "10", "10000000", "a", ""]),
+                                                            max_size=4)).map(lambda t: t[0] + ":" + ":".join(t[1])),
+    st.lists(st.sampled_from(["1", "2.5", "none", "[1, 2]", "{a: 1}", "", "&a [*a]", "*b", "1e999"]), min_size=1,
+             max_size=5).map(",".join),
+    st.text(max_size=30),
+)
+
+
+@settings(max_examples=200, **FAST)
+@given(st.sampled_from(["stabilization.w", "simulation.step", "", "a.b", "x"]), SWEEP_SPECS, st.booleans())
+def test_any_sweep_values_are_read_or_refused_naming_the_option(key, spec, with_equals):
+    from csim.study import parse_variation
+
+    text = f"{key}={spec}" if with_equals else spec
+    try:
+        variation = _timed(lambda: parse_variation(text))
+    except CaseError as exc:
+        assert all(p.startswith("--vary") for p in exc.problems), exc.problems
+        return
+    assert variation.values or variation.bounds
+
+
+MANIFEST_VALUES = st.one_of(st.sampled_from([None, 0, -1, 1e-9, 5, "success", "failed", "compiled", [], {}, [1, 2],
+                                             {"min": 1, "max": 0}, {"max": -1}, {"min": 1e9}, {"name": "x", "t": 1},
+                                             float("nan"), True]),
+                            st.text(max_size=8))
+
+
+@st.composite
+def manifests(draw):
+    """A batch manifest of a few entries on the pendulum: keys and expectations drawn."""
+    from csim.batch.expectations import EXPECTATIONS
+
+    cases = []
+    for n in range(draw(st.integers(0, 2))):
+        entry = {"name": draw(st.sampled_from([f"c{n}", "c0", "", None, 3])),
+                 "case": draw(st.sampled_from([str(CONFIGS / "pendulum.yaml"), "missing.yaml", None, 1]))}
+        if draw(st.booleans()):
+            entry["set"] = draw(st.sampled_from([["simulation.t_end=0.01"], "x", [1], ["bogus=1"]]))
+        entry["expect"] = {k: draw(MANIFEST_VALUES) for k in draw(st.lists(st.sampled_from([*EXPECTATIONS, "bogus"]),
+                                                                            max_size=3, unique=True))}
+        if draw(st.booleans()):
+            entry[draw(st.sampled_from(["bogus", "only"]))] = draw(MANIFEST_VALUES)
+        cases.append(entry)
+    return draw(st.sampled_from([{"cases": cases}, {"cases": cases, "defaults": {"expect": {"wall_time": -1}}},
+                                 {"cases": cases, "bogus": 1}, cases, {"cases": "x"}]))
+
+
+@settings(max_examples=60, **FAST)
+@given(manifests())
+def test_any_manifest_is_loaded_or_refused_naming_the_key(tmp_path_factory, doc):
+    from csim.batch import load_manifest
+
+    path = tmp_path_factory.mktemp("manifest") / "m.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    try:
+        loaded = _timed(lambda: load_manifest(path))
+    except CaseError as exc:
+        assert exc.problems and all(p for p in exc.problems)
+        return
+    assert all(entry.name for entry in loaded.entries)
+
+
+@pytest.fixture(scope="module")
+def stored_result(tmp_path_factory):
+    """A small result file of the pendulum (Python path), to corrupt."""
+    out = tmp_path_factory.mktemp("stored") / "r.h5"
+    result = invoke("run", CONFIGS / "pendulum.yaml", "-o", out, "-q", "--set", "simulation.t_end=0.05",
+                    "--set", "simulation.backend=python")
+    assert result.exit_code == 0, result.output
+    return out.read_bytes()
+
+
+CORRUPTIONS = st.sampled_from(["delete", "string", "number", "empty", "matrix", "huge case", "bomb case",
+                               "kind sweep", "kind comparison"])
+
+
+@settings(max_examples=60, **FAST)
+@given(st.sampled_from(["t", "q", "qd", "phi", "coordinate_names", "case", "status", "mechanism", "kind",
+                        "load_names", "event_times", "energy"]), CORRUPTIONS)
+def test_any_corrupted_result_file_is_read_or_refused(tmp_path_factory, stored_result, name, how):
+    import h5py
+    import numpy as np
+
+    from csim.io.hdf5 import read_result
+    from csim.plot.source import run_data
+
+    path = tmp_path_factory.mktemp("corrupt") / "r.h5"
+    path.write_bytes(stored_result)
+    with h5py.File(path, "r+") as fh:
+        where = fh.attrs if name in fh.attrs or name in ("kind", "case") else fh
+        if name in where:
+            del where[name]
+        if how != "delete":
+            value = {"string": "x", "number": 3.5, "empty": np.zeros(0), "matrix": np.ones((2, 2)),
+                     "huge case": "mechanism: {name: pendulum, parameters: {m: '9^999999999'}}",
+                     "bomb case": "a: &a [1,1,1,1,1,1,1,1,1]\nb: &b [" + ",".join(["*a"] * 9) + "]\nc: &c ["
+                     + ",".join(["*b"] * 9) + "]\nd: &d [" + ",".join(["*c"] * 9) + "]\ne: [" + ",".join(["*d"] * 9)
+                     + "]\n", "kind sweep": "sweep", "kind comparison": "comparison"}[how]
+            if how.startswith("kind"):
+                fh.attrs["kind"] = value
+            elif where is fh:
+                fh.create_dataset(name, data=value)
+            else:
+                where[name] = value
+    try:
+        result = _timed(lambda: read_result(path))
+        _timed(lambda: run_data(result, path))
+    except (ResultFileError, CaseError):
+        return

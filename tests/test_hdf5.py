@@ -199,7 +199,8 @@ CODE_KINDS = {"NONFINITE_RHS": "blow-up", "NONFINITE_STATE": "blow-up", "MAX_PHI
               "MAX_EVENTS": "chatter", "RK4_RESOLUTION": "step", "SINGULAR_MASS": "singular",
               "NO_SIGN_CHANGE": "event location", "CHATTER": "chatter",
               "DEPENDENT_NONFINITE": "blow-up", "DEPENDENT_SINGULAR": "singular", "DEPENDENT_NO_CONVERGENCE": "newton",
-              "BRANCH_LEFT": "branch", "NO_BETTER_PARTITION": "branch", "BRANCH_LOST": "branch"}
+              "BRANCH_LEFT": "branch", "NO_BETTER_PARTITION": "branch", "BRANCH_LOST": "branch",
+              "INTERRUPTED": "interrupted"}
 
 
 def test_every_status_code_is_listed():

@@ -210,7 +210,7 @@ def test_quick_return_as_tables_agrees_with_the_registered_mechanism():
      "mechanism.forces[0] (f).between[0][1]: got 'Q' (string); link 1 'block' has no such point; expected one of "
      "its point names (G) or [x, y, z]"),
     ({"type": "force", "link": "wheel", "point": "G", "direction": [1, 0, 0], "value": 1},
-     "mechanism.forces[0] (f).point[0]: got 'wheel' (string); not a link of mechanism.links; expected 0, 1 or a "
+     "mechanism.forces[0] (f).link: got 'wheel' (string); not a link of mechanism.links; expected 0, 1 or a "
      "name (ground, block)"),
     ({"type": "actuator", "joint": "hinge", "force": 1},
      "mechanism.forces[0] (f).joint: got 'hinge' (string); no such joint; expected a coupling number or name "
@@ -219,7 +219,8 @@ def test_quick_return_as_tables_agrees_with_the_registered_mechanism():
      "mechanism.forces[0] (f).joint: coupling 1 'slide' P (0,1)-(1,1) has no rotation; expected a force on it, "
      "or another joint"),
     ({"type": "actuator", "joint": "slide", "force": "F0*sin(w*t)"},
-     "mechanism.forces[0] (f).force: got 'F0*sin(w*t)' (string); unknown name 'F0': expected a parameter"),
+     "mechanism.forces[0] (f).force: got 'F0*sin(w*t)' (string); unknown name 'F0', not a parameter of "
+     "mechanism.parameters (define it there)"),
     ({"type": "damper", "joint": "slide"},
      "mechanism.forces[0] (f).type: got 'damper' (string); expected one of spring, joint_spring, actuator, force, "
      "torque"),

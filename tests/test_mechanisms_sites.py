@@ -141,7 +141,7 @@ def test_andrews_spring_and_torque_as_elements_reach_the_test_sets_solution():
      "mechanism.forces[0] (f).torque: joint ram (ram on its guide: x_D, positive along +x) is a translation; "
      "expected force"),
     ({"type": "force", "link": "piston", "point": "D", "direction": [1, 0, 0], "value": 1},
-     "mechanism.forces[0] (f).point[0]: got 'piston' (string); not a body of quick_return; expected one of ground, "
+     "mechanism.forces[0] (f).link: got 'piston' (string); not a body of quick_return; expected one of ground, "
      "crank, rocker, rod, block, ram"),
     ({"type": "spring", "between": [["crank", "D"], ["ground", "O"]], "stiffness": 1},
      "mechanism.forces[0] (f).between[0][1]: got 'D' (string); body crank has no such point; expected one of its "

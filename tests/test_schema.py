@@ -197,3 +197,18 @@ def test_the_committed_schema_is_what_csim_schema_writes():
 @pytest.mark.parametrize("path", sorted(CONFIGS.glob("*.yaml")), ids=lambda p: p.name)
 def test_every_shipped_case_names_the_schema_on_its_first_line(path):
     assert path.read_text().splitlines()[0] == "# yaml-language-server: $schema=../csim-case.schema.json"
+
+
+def test_short_repr_formats_only_what_it_shows():
+    from csim.schema import SHOWN_CHARS, describe, short_repr
+
+    itself: list = []
+    itself.append(itself)
+    assert short_repr(itself) == "[[...]]"
+    assert short_repr(10**20_000) == "<an integer of 20,001 digits>"
+    assert short_repr(-(10**20_000)).startswith("-<an integer")
+    huge = [list(range(1000))] * 10**6  # a billion entries as written; only the first few are formatted
+    text = short_repr(huge)
+    assert len(text) == SHOWN_CHARS and text.startswith("[[0, 1, 2") and text.endswith("...")
+    assert short_repr("x" * 10**7) == "'" + "x" * (SHOWN_CHARS - 4) + "..."
+    assert describe({"a": [1, 2.5, None, True]}) == "{'a': [1, 2.5, None, True]} (mapping)"

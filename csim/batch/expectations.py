@@ -276,9 +276,32 @@ class Bounded(Expectation):
     #: whether ``window: [t0, t1]`` restricts the samples measured
     windowed: ClassVar[bool] = False
     unit: ClassVar[str] = ""
+    #: the least value the quantity takes (every bounded kind measures a size, a time or a count)
+    least: ClassVar[float] = 0.0
 
     def __init__(self, bounds: Range, window: tuple[float, float] | None = None):
         self.bounds, self.window = bounds, window
+
+    @classmethod
+    def greatest(cls, case: Case) -> float | None:
+        """The greatest value the quantity takes in a run of ``case`` (None: no such bound)."""
+        return None
+
+    @classmethod
+    def reachable(cls, path: str, bounds: Range, case: Case, problems: list[str]) -> bool:
+        """Whether some value of the quantity lies within ``bounds``; a problem saying why
+        not otherwise (``max_phi: -1``: no run could pass, so the manifest is wrong)."""
+        unit = f" {cls.unit}" if cls.unit else ""
+        if bounds.hi is not None and bounds.hi < cls.least:
+            problems.append(f"{path}: got an upper bound {bounds.hi:g}{unit}; {cls.name} is never below "
+                            f"{cls.least:g}{unit}, so no run could pass; expected a bound >= {cls.least:g}")
+            return False
+        top = cls.greatest(case)
+        if top is not None and bounds.lo is not None and bounds.lo > top:
+            problems.append(f"{path}: got a lower bound {bounds.lo:g}{unit}; {cls.name} is never above "
+                            f"{top:g}{unit} in this case, so no run could pass; expected a bound <= {top:g}")
+            return False
+        return True
 
     @classmethod
     def parse(cls, path, spec, case, problems):
@@ -289,7 +312,8 @@ class Bounded(Expectation):
         what = f"{kind} ({plain}), or a mapping with keys {', '.join(keys)}"
         if valid(spec) and not (cls.counts and spec < 0):
             value = float(spec)
-            return cls(Range(value if cls.shorthand == "exact" else None, value))
+            bounds = Range(value if cls.shorthand == "exact" else None, value)
+            return cls(bounds) if cls.reachable(path, bounds, case, problems) else None
         if not isinstance(spec, dict) or not spec or set(spec) - set(keys) or not ({"min", "max"} & set(spec)):
             problems.append(f"{path}: got {describe(spec)}; expected {what}")
             return None
@@ -303,7 +327,8 @@ class Bounded(Expectation):
         window = cls._window(f"{path}.window", spec.get("window"), case, problems) if "window" in spec else None
         if bad or ("window" in spec and window is None):
             return None
-        return cls(Range(None if lo is None else float(lo), None if hi is None else float(hi)), window)
+        bounds = Range(None if lo is None else float(lo), None if hi is None else float(hi))
+        return cls(bounds, window) if cls.reachable(path, bounds, case, problems) else None
 
     @staticmethod
     def _window(path: str, window: Any, case: Case, problems: list[str]) -> tuple[float, float] | None:
@@ -395,6 +420,10 @@ class FinalTime(Bounded):
     name = "final_time"
     doc = "the last output time [s]: where a failed run stopped"
     unit = "s"
+
+    @classmethod
+    def greatest(cls, case):
+        return case.simulation.t_end
 
     def measure(self, result):
         return (float(result.t[-1]), "") if result.t.size else (math.nan, "no samples")

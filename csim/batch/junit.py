@@ -17,11 +17,12 @@ gives one ``<failure>`` element (a test case may have several).
 from __future__ import annotations
 
 import datetime
-import os
-import tempfile
+import io
 import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import TYPE_CHECKING
+
+from csim.io.atomic import write_atomically
 
 if TYPE_CHECKING:
     from csim.batch.runner import Batch, CaseRun
@@ -58,20 +59,14 @@ def _testcase(run: CaseRun, classname: str) -> ET.Element:
 
 
 def write_junit(batch: Batch, path: str | Path) -> None:
-    """Write the report to ``path`` atomically (a temporary file beside it, then renamed).
+    """Write the report to ``path`` atomically (:func:`csim.io.atomic.write_atomically`: mode
+    0644 under umask 022, a symbolic link replaced, never written through).
 
     Raises
     ------
     OSError
         When the folder cannot be created or written.
     """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            junit_tree(batch).write(fh, encoding="utf-8", xml_declaration=True)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    buffer = io.BytesIO()
+    junit_tree(batch).write(buffer, encoding="utf-8", xml_declaration=True)
+    write_atomically(path, buffer.getvalue())

@@ -23,7 +23,14 @@ import numpy as np
 
 from csim.case import Case, validate_case
 from csim.compare.runs import INTERRUPTED, Run
-from csim.parallel import InterruptFlag, process_pool, stop_processes, worker_environment
+from csim.parallel import (
+    InterruptFlag,
+    ask_to_stop,
+    process_pool,
+    stop_processes,
+    stoppable_run,
+    worker_environment,
+)
 from csim.pipeline import numeric_model
 from csim.result import Result
 
@@ -75,7 +82,8 @@ def _execute(case_data: dict, source: str, repeat: int = 1) -> tuple[Result | No
         case = validate_case(copy.deepcopy(case_data), source=source)
         numeric_model(case)
         run_case = sys.modules[__package__].run_case
-        results = [run_case(case) for _ in range(max(1, repeat))]
+        with stoppable_run():  # in a worker, the parent's Ctrl-C ends the run with its samples so far
+            results = [run_case(case) for _ in range(max(1, repeat))]
         result = results[-1]
         result.wall_time = float(np.median([r.wall_time for r in results]))
         return result, ""
@@ -139,14 +147,23 @@ def _collect(futures: dict[cf.Future, Run], progress: Progress | None) -> None:
             progress(run, done, total)
 
 
+#: the longest the workers have, after Ctrl-C, to send back their runs' samples so far [s]
+#: (a run on the Python path evaluates its recorded quantities at every sample first)
+STOP_GRACE = 3.0
+
+
 def _stop(executor: cf.ProcessPoolExecutor, futures: dict[cf.Future, Run]) -> None:
-    """After Ctrl-C: keep the results that came in, end the workers, mark the rest interrupted."""
-    for future, run in futures.items():  # runs that finished before the interrupt keep their results
+    """After Ctrl-C: ask the workers to end their runs, keep every result that comes back
+    within :data:`STOP_GRACE` (the interrupted runs with their samples so far), end the
+    workers, mark the rest interrupted."""
+    processes = ask_to_stop(executor)
+    cf.wait([f for f, run in futures.items() if run.result is None and not f.done()], timeout=STOP_GRACE)
+    for future, run in futures.items():  # runs that finished, or stopped with their samples, keep them
         if run.result is None and future.done() and not future.cancelled() and future.exception() is None:
             run.set_result(*future.result())
-    stop_processes(executor)
-    for future, run in futures.items():
-        if run.result is None and (not future.done() or future.cancelled()):
+    stop_processes(executor, processes)
+    for run in futures.values():  # not started, or not back within the grace
+        if run.result is None:
             run.set_result(None, INTERRUPTED)
 
 

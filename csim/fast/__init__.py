@@ -13,11 +13,12 @@ from csim.fast.support import BACKENDS, resolve_backend, unsupported
 __all__ = ["BACKENDS", "integrate_compiled", "prepare_compiled", "resolve_backend", "unsupported"]
 
 
-def integrate_compiled(system, y0, settings):
-    """:func:`csim.solver.simulate.integrate` in compiled code (imports numba on first use)."""
+def integrate_compiled(system, y0, settings, progress=None):
+    """:func:`csim.solver.simulate.integrate` in compiled code (imports numba on first use);
+    ``progress(t)`` gets the time reached while it runs."""
     from csim.fast.runner import integrate_compiled as run
 
-    return run(system, y0, settings)
+    return run(system, y0, settings, progress=progress)
 
 
 def prepare_compiled(system, y0, settings):

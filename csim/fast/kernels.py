@@ -111,6 +111,7 @@ from csim.physics.partition import C_PENDING, D_HEAD, partition_sizes, partition
 from csim.physics.projection import max_abs
 from csim.physics.projection import project as project_state
 from csim.physics.status import (
+    INTERRUPTED,
     MAX_EVENTS,
     MAX_STEPS,
     NO_SIGN_CHANGE,
@@ -1252,14 +1253,22 @@ def _accept(ts_, y, ya):
     return ts_[T]
 
 
-@njit(cache=True, error_model="numpy")
-def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset):
+#: steps between two looks at ``control`` (the interrupt request, the time reached): reading
+#: one element costs nothing next to a step, and a few hundred steps take milliseconds
+POLL_STEPS = 256
+
+
+@njit(cache=True, error_model="numpy", nogil=True)
+def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset, control):
     """Integrate from t = 0, state y0 (n,), sampling at t_out (csim.solver.simulate.integrate).
 
     The problem arrays are the module docstring's; ``projects``: project after every step;
     ``iset`` = [locate, event_samples, max_events, max_steps, chatter_events]; ``fset`` = [t_end, rtol, atol,
-    step, max_step, first_step (NaN: automatic), max_phi, min_step]. Returns (n_rec, ts,
-    ys, modes, n_ev, ev_t, ev_switched, nfev, nsteps, status, info (2,)).
+    step, max_step, first_step (NaN: automatic), max_phi, min_step]; ``control`` (2,), shared
+    with the caller, which runs this without the GIL in a thread: every POLL_STEPS steps the
+    time reached goes to control[1], and a nonzero control[0] (Ctrl-C) ends the run with
+    status INTERRUPTED and the samples so far. Returns (n_rec, ts, ys, modes, n_ev, ev_t,
+    ev_switched, nfev, nsteps, status, info (2,)).
     """
     locate, n_interior, max_events, max_steps, n_chatter = iset[0] != 0, iset[1], iset[2], iset[3], iset[4]
     t_end, rtol, atol, fixed_h, max_step, first_step, max_phi, min_step = fset[0], fset[1], fset[2], fset[3], \
@@ -1296,6 +1305,12 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset):
                                 locate, w, piv, ytmp, f_new, scl, cs,
                                 info)
         while status == OK:
+            if cs[NSTEPS] % POLL_STEPS == 0:  # every sample up to ts_[T] is recorded here
+                control[1] = ts_[T]
+                if control[0] != 0.0:
+                    status = INTERRUPTED
+                    info[0] = ts_[T]
+                    break
             ts_[T_OLD] = ts_[T]
             status, t_new, ok, dense_kind = _take_step(method, ts_, t_end, rtol, tolv, fixed_h, max_step, y, f, K,
                                                        ytmp, y_new, f_new, par, pf, pi, rmode, locate, w, piv, cs, info)

@@ -7,6 +7,11 @@ driver (:func:`csim.solver.simulate.integrate`) gives for the same failure: both
 """
 from __future__ import annotations
 
+import signal
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager, suppress
+
 import numpy as np
 
 from csim.fast.layout import CONSTRAINED, PARTITIONED, PI_HEAD, workspace
@@ -59,7 +64,7 @@ def _arguments(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationS
                      np.nan if settings.first_step is None else settings.first_step, settings.max_phi,
                      settings.min_step], dtype=float)
     return (INTEGRATOR_CODES[settings.integrator], np.ascontiguousarray(y0, dtype=float), t_out,
-            *pack_problem(system), system.stabilizer.projects, iset, fset)
+            *pack_problem(system), system.stabilizer.projects, iset, fset, np.zeros(2))
 
 
 def _kernels_for(system: ConstrainedSystem):
@@ -91,15 +96,24 @@ def prepare(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSett
         mod.integrate(*args)
 
 
-def integrate_compiled(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSettings) -> Trajectory:
+#: how often the waiting thread reports progress and lets Python's signal handlers run [s]
+WAIT_PERIOD = 0.05
+
+
+def integrate_compiled(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSettings,
+                       progress: Callable[[float], None] | None = None) -> Trajectory:
     """:func:`csim.solver.simulate.integrate`, in compiled code (same arguments and result).
 
-    The caller has checked the combination with :func:`csim.fast.support.unsupported`.
+    The kernel runs without the GIL in a thread while this thread waits: Python's signal
+    handlers run here, so Ctrl-C (KeyboardInterrupt) asks the kernel to stop through its
+    ``control`` array, and it returns within a few hundred steps with the samples so far (a
+    run failed with the kind ``interrupted``, as on the Python path); ``progress(t)`` gets the
+    time reached every :data:`WAIT_PERIOD` seconds. The caller has checked the combination
+    with :func:`csim.fast.support.unsupported`.
     """
     args = _arguments(system, y0, settings, settings.max_steps)
     mod = _kernels_for(system)
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        n_rec, ts, ys, modes, n_ev, ev_t, ev_sw, nfev, nsteps, code, info = mod.integrate(*args)
+    n_rec, ts, ys, modes, n_ev, ev_t, ev_sw, nfev, nsteps, code, info = _run_kernel(mod, args, progress)
     labels = system.loads.switch_labels
     status, message, failure = "success", f"reached t_end = {settings.t_end:g} s", ""
     if code != OK:
@@ -112,6 +126,67 @@ def integrate_compiled(system: ConstrainedSystem, y0: np.ndarray, settings: Inte
         status=status, message=message, failure=failure, nfev=int(nfev), njev=0, nlu=0, nsteps=int(nsteps),
         event_times=ev_t[:n_ev].tolist(), event_labels=_event_labels(ev_sw[:n_ev], labels),
     )
+
+
+def _run_kernel(mod, args: tuple, progress: Callable[[float], None] | None) -> tuple:
+    """``mod.integrate(*args)`` in a thread, this one waiting (see :func:`integrate_compiled`)."""
+    control = args[-1]
+    out: dict = {}
+
+    def target() -> None:
+        try:
+            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+                out["value"] = mod.integrate(*args)
+        except BaseException as exc:  # handed to the waiting thread
+            out["error"] = exc
+
+    worker = threading.Thread(target=target, name="csim-kernel", daemon=True)
+    with _stop_on_ctrl_c(control):
+        worker.start()
+        try:
+            while worker.is_alive():
+                worker.join(WAIT_PERIOD)
+                if progress is not None:
+                    progress(float(control[1]))
+        finally:  # the progress callback raised: stop the kernel too, not leave it computing
+            if worker.is_alive():
+                control[0] = 1.0
+                worker.join()
+    if "error" in out:
+        raise out["error"]
+    return out["value"]
+
+
+@contextmanager
+def _stop_on_ctrl_c(control: np.ndarray) -> Iterator[None]:
+    """While the block runs, Ctrl-C (SIGINT; in a worker process, the parent's
+    :data:`csim.parallel.STOP_SIGNAL`) sets control[0], which stops the kernel with its
+    samples so far, instead of raising KeyboardInterrupt here (which would lose them).
+
+    The handler that was there is still called, so that whoever watches for Ctrl-C (the CLI,
+    :class:`csim.parallel.InterruptFlag`) records it; the KeyboardInterrupt it raises is
+    dropped: the run comes back as failed with the kind ``interrupted``, as on the Python
+    path. Outside the main thread, or with SIGINT ignored, nothing changes.
+    """
+    from csim.parallel import STOP_SIGNAL
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    watched = {signum: signal.getsignal(signum) for signum in (signal.SIGINT, STOP_SIGNAL) if signum is not None}
+    watched = {signum: previous for signum, previous in watched.items() if callable(previous)}
+
+    def handler(signum, frame):
+        control[0] = 1.0
+        with suppress(KeyboardInterrupt):  # recorded by the handler; the run returns its samples
+            watched[signum](signum, frame)
+    for signum in watched:
+        signal.signal(signum, handler)
+    try:
+        yield
+    finally:
+        for signum, previous in watched.items():
+            signal.signal(signum, previous)
 
 
 def _event_labels(switched: np.ndarray, labels: list[str]) -> list[str]:

@@ -35,8 +35,7 @@ Table columns and their units: :data:`COMPARISON_COLUMNS`.
 """
 from __future__ import annotations
 
-import os
-import tempfile
+import uuid
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -46,6 +45,7 @@ import numpy as np
 
 from csim import __version__
 from csim.errors import ResultFileError
+from csim.io.atomic import write_atomically
 from csim.io.units import (
     DIMENSIONLESS,
     FIXED_UNITS,
@@ -56,6 +56,7 @@ from csim.io.units import (
     per_time,
 )
 from csim.result import JointReaction, Result
+from csim.schema import cut
 
 #: 2: parsable units, dimension scales, a ``description`` attribute on every dataset
 FORMAT_VERSION = 2
@@ -64,29 +65,35 @@ _STR = h5py.string_dtype()
 
 @contextmanager
 def atomic_h5(path: str | Path):
-    """Open a temporary HDF5 file beside ``path``; it replaces ``path`` only when complete.
+    """Build an HDF5 file in memory; it replaces ``path`` only when complete.
 
-    A crash or an exception inside the block leaves ``path`` untouched (or absent) and
-    removes the temporary file.
+    The file is built with HDF5's in-memory driver and written by
+    :func:`csim.io.atomic.write_atomically`, so that HDF5 never meets a failing write (a
+    full disk left it in a state that crashed the process at exit): an exception inside
+    the block, or a write that fails, leaves ``path`` untouched (or absent) and no
+    temporary file. The file's image is held in memory once more while it is written.
+
+    Raises
+    ------
+    OSError
+        When the file cannot be written (``strerror`` says why).
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
+    fh = h5py.File(f"{path.name}.{uuid.uuid4().hex}", "w", driver="core", backing_store=False)
     try:
-        with h5py.File(tmp, "w") as fh:
-            yield fh
-        # durable before it becomes visible; mode as for any new file (mkstemp makes 0600)
-        with open(tmp, "rb+") as raw:
-            os.fsync(raw.fileno())
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-        raise
+        yield fh
+        fh.flush()
+        image = fh.id.get_file_image()
+    finally:
+        fh.close()
+    write_atomically(path, image)
+
+
+def damage(exc: Exception) -> str:
+    """What reading a damaged or crafted file ran into, for a message: the exception's kind
+    and the start of its text (h5py's KeyError names the missing attribute or dataset)."""
+    text = str(exc.args[0]) if exc.args else ""
+    return f"{type(exc).__name__}: {cut(text, 120)}"
 
 
 def units_attr(unit: str | list[str]):
@@ -342,7 +349,7 @@ def read_result_group(group: h5py.Group) -> Result:
         if obs_names:
             observables = np.column_stack([group["observables"][n][()] for n in obs_names])
             rates = np.column_stack([group["observables"][f"{n}_rate"][()] for n in obs_names])
-        return Result(
+        result = Result(
             mechanism=_text(a["mechanism"]),
             coordinate_names=[_text(x) for x in a["coordinate_names"]],
             load_names=[_text(x) for x in a["load_names"]],
@@ -362,8 +369,30 @@ def read_result_group(group: h5py.Group) -> Result:
             backend_reason=_text(a.get("backend_reason", "")),
             **_read_extras(group), **_read_units(group, len(obs_names)),
         )
+        _check_shapes(result)
+        return result
     except KeyError as exc:
         raise ResultFileError(f"{group.file.filename}: not a csim result (missing {exc})") from None
+    except (ValueError, TypeError, AttributeError, IndexError) as exc:  # a damaged or crafted file
+        raise ResultFileError(f"{group.file.filename}: a csim result with a damaged part ({damage(exc)})") \
+            from None
+
+
+def _check_shapes(result: Result) -> None:
+    """Raise ValueError unless the signals have the shapes their names give: t (N,), q, qd
+    and qdd (N, m), phi and phi_dot (N, r) (a crafted or damaged file, read by plot)."""
+    n, m = result.t.shape[0] if result.t.ndim == 1 else -1, len(result.coordinate_names)
+    if n < 0:
+        raise ValueError(f"t has the shape {result.t.shape}; expected (N,)")
+    for name in ("q", "qd", "qdd"):
+        shape = getattr(result, name).shape
+        if shape != (n, m):
+            raise ValueError(f"{name} has the shape {shape}; expected ({n}, {m}): a sample per time, a column per "
+                             f"coordinate")
+    for name in ("phi", "phi_dot", "kinetic", "potential"):
+        shape = getattr(result, name).shape
+        if len(shape) not in (1, 2) or shape[0] != n:
+            raise ValueError(f"{name} has the shape {shape}; expected {n} samples")
 
 
 def read_result(path: str | Path, group: str = "/") -> Result:
@@ -375,6 +404,9 @@ def read_result(path: str | Path, group: str = "/") -> Result:
         with h5py.File(path, "r") as fh:
             if group not in fh:
                 raise ResultFileError(f"{path}: no group {group!r}; groups: {', '.join(fh.keys())}")
+            if group.strip("/") == "" and _text(fh.attrs.get("kind", "")) == "sweep":
+                raise ResultFileError(f"{path}: a sweep file (csim sweep), a table of runs without their motion; "
+                                      f"expected a result file of csim run, or a comparison file and --group")
             if group.strip("/") == "" and _text(fh.attrs.get("kind", "")) == COMPARISON_KIND:
                 runs = [k for k in fh if isinstance(fh[k], h5py.Group) and "t" in fh[k]]
                 raise ResultFileError(f"{path}: a comparison file, with one run per group; read one with "
@@ -599,5 +631,8 @@ def read_comparison(path: str | Path) -> ComparisonFile:
             work = _read_table(fh["work_precision"], units) if "work_precision" in fh else None
             return ComparisonFile(path=path, methods=list(attrs.get("methods", [])), attrs=attrs, summary=summary,
                                   work_precision=work, has_reference="reference" in fh, units=units)
+    except (KeyError, ValueError, TypeError, AttributeError, IndexError) as exc:  # a damaged or crafted file
+        raise ResultFileError(f"{path}: a comparison file with a missing or damaged part ({damage(exc)})") \
+            from None
     except OSError as exc:
         raise ResultFileError(f"{path}: not a readable HDF5 file ({exc})") from None

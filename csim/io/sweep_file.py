@@ -28,7 +28,7 @@ import numpy as np
 
 from csim import __version__
 from csim.errors import ResultFileError
-from csim.io.hdf5 import FORMAT_VERSION, _dataset, atomic_h5, scale, unit_text
+from csim.io.hdf5 import FORMAT_VERSION, _dataset, atomic_h5, damage, scale, unit_text
 from csim.io.units import DIMENSIONLESS, common_unit, per_time
 
 SWEEP_KIND = "sweep"
@@ -206,7 +206,11 @@ def read_sweep(path: str | Path) -> SweepTable:
             kind = fh.attrs.get("kind", "")
             if (kind.decode() if isinstance(kind, bytes) else str(kind)) != SWEEP_KIND:
                 raise ResultFileError(f"{path}: not a csim sweep file")
-            return _read(fh)
+            try:
+                return _read(fh)
+            except (KeyError, ValueError, TypeError, AttributeError, IndexError) as exc:  # json errors included
+                raise ResultFileError(f"{path}: a sweep file with a missing or damaged part ({damage(exc)}); "
+                                      f"expected a file written by csim sweep") from None
     except OSError as exc:
         raise ResultFileError(f"{path}: not a readable HDF5 file ({exc})") from None
 

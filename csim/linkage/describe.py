@@ -288,6 +288,11 @@ def describe_main(path: str | Path, latex: bool = False, json: bool = False, lin
     CaseError
         Bad input (see :func:`load_linkage`), naming the table row.
     """
+    from csim.progress import status
+
     mechanism, initial = read_mechanism(path, overrides)
-    linkage = build_linkage(mechanism, initial, tol=initial["tol"], max_iter=initial["max_iter"])
-    return describe_case(linkage, latex=latex, as_json=json, links=links, mode=drive_mode(linkage, mechanism))
+    with status(f"deriving the kinematics of {Path(path).name}", delay=1.0):
+        linkage = build_linkage(mechanism, initial, tol=initial["tol"], max_iter=initial["max_iter"],
+                                definition=False)
+    with status(f"writing the description of {Path(path).name}", delay=1.0):
+        return describe_case(linkage, latex=latex, as_json=json, links=links, mode=drive_mode(linkage, mechanism))

@@ -3,11 +3,18 @@
 A number may be written as an expression of the ``parameters`` (``l1``, ``xB/2``,
 ``90*deg``, ``pi/2``), built from + - * / ^, parentheses and :data:`FUNCTIONS`. It must be
 finite and real at the parameter values (``acos(2)`` is not).
+
+Before sympy sees an expression, its size is bounded (:func:`bound_problem`): at most
+:data:`MAX_EXPRESSION_CHARS` characters, every constant part within the float range
+(``9^999999999`` and ``((9^99)^99)^99`` are refused, not computed exactly), and a power
+of anything not constant at most :data:`MAX_EXPONENT` (``(a+b)^100000``).
 """
 from __future__ import annotations
 
+import ast
 import keyword
 import math
+import operator
 import re
 from dataclasses import dataclass
 from typing import Any
@@ -15,7 +22,7 @@ from typing import Any
 import sympy as sp
 from sympy.parsing.sympy_parser import parse_expr
 
-from csim.schema import describe, finite_number
+from csim.schema import cut, describe, finite_number
 
 #: Functions and constants an expression may use besides the parameters.
 FUNCTIONS: dict[str, Any] = {
@@ -31,6 +38,113 @@ _IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 _EXPRESSION_CHARS = re.compile(r"^[A-Za-z0-9_+\-*/().,^ \t]*$")
 _GLOBALS = {"Integer": sp.Integer, "Float": sp.Float, "Rational": sp.Rational, "Symbol": sp.Symbol,
             "__builtins__": {}}
+
+
+#: the longest expression, in characters
+MAX_EXPRESSION_CHARS = 1000
+#: the largest |exponent| of a power of a non-constant expression (of the parameters, the
+#: coordinates or t), whose expansion or derivatives would otherwise grow without bound
+MAX_EXPONENT = 64
+#: the deepest nesting of parentheses and calls
+MAX_NESTING = 50
+#: the largest |exponent| of a number written 1e-5 (floats reach 1e308; below 1e-324 they are 0)
+MAX_DECIMAL_EXPONENT = 400
+_EXPONENT = re.compile(r"[0-9.][eE]([-+]?[0-9]+)")
+
+_BINARY = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul, ast.Div: operator.truediv,
+           ast.Pow: operator.pow}
+_FLOAT_FUNCTIONS = {"sin": math.sin, "cos": math.cos, "tan": math.tan, "asin": math.asin, "acos": math.acos,
+                    "atan": math.atan, "atan2": math.atan2, "sqrt": math.sqrt, "exp": math.exp}
+_FLOAT_CONSTANTS = {"pi": math.pi, "deg": math.pi / 180}
+
+
+class _TooLarge(Exception):
+    """An expression that :func:`bound_problem` refuses (the message says why)."""
+
+
+def bound_problem(text: str) -> str | None:
+    """Why the expression ``text`` (``^`` for powers) is too large to hand to sympy, or None.
+
+    Walks Python's parse of the text, computing every constant part in floating point:
+    a constant beyond the float range (``9^999999999``, ``((9^99)^99)^99``) or a power
+    of a non-constant part beyond :data:`MAX_EXPONENT` is refused, so that sympy never
+    computes a huge exact integer or expansion. The cost is that of the text.
+    """
+    if len(text) > MAX_EXPRESSION_CHARS:
+        return f"{len(text):,} characters long; expected at most {MAX_EXPRESSION_CHARS:,}"
+    depth = deepest = 0
+    for char in text:
+        depth += (char == "(") - (char == ")")
+        deepest = max(deepest, depth)
+    if deepest > MAX_NESTING:
+        return f"nested {deepest} parentheses deep; expected at most {MAX_NESTING}"
+    for match in _EXPONENT.finditer(text):  # sympy turns 1e-400000000 into an exact fraction
+        if abs(int(match.group(1))) > MAX_DECIMAL_EXPONENT:
+            return (f"a number with the exponent {cut(match.group(1), 20)}; expected a number within the float "
+                    f"range (an exponent of at most {MAX_DECIMAL_EXPONENT} in magnitude)")
+    try:
+        tree = ast.parse(text.replace("^", "**"), mode="eval")
+    except (SyntaxError, ValueError, RecursionError, MemoryError):
+        return None  # not an expression: sympy's parser reports it
+    try:
+        _constant_value(tree.body)
+    except _TooLarge as exc:
+        return str(exc)
+    return None
+
+
+def _constant_value(node: ast.AST) -> float | None:
+    """The float value of a constant part of an expression, None for a part that is not
+    constant (or not a real number); raises :class:`_TooLarge` for a part out of bounds."""
+    if isinstance(node, ast.Constant):
+        if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
+            return None
+        try:
+            value = float(node.value)
+        except OverflowError:
+            value = math.inf
+        if math.isinf(value):  # 1e999 reads as inf
+            raise _TooLarge("a number beyond the float range (about 1.8e308); expected a finite number")
+        return value
+    if isinstance(node, ast.Name):
+        return _FLOAT_CONSTANTS.get(node.id)
+    if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.UAdd)):
+        value = _constant_value(node.operand)
+        return None if value is None else (-value if isinstance(node.op, ast.USub) else value)
+    if isinstance(node, ast.BinOp) and type(node.op) in _BINARY:
+        left, right = _constant_value(node.left), _constant_value(node.right)
+        if isinstance(node.op, ast.Pow) and left is None and right is not None and abs(right) > MAX_EXPONENT:
+            raise _TooLarge(f"a power ^{right:g} of an expression that is not constant; expected an exponent of at "
+                            f"most {MAX_EXPONENT} in magnitude")
+        if left is None or right is None:
+            return None
+        return _checked(lambda: _BINARY[type(node.op)](left, right))
+    if isinstance(node, ast.Call) and isinstance(node.func, ast.Name):
+        args = [_constant_value(a) for a in node.args]
+        function = _FLOAT_FUNCTIONS.get(node.func.id)
+        if function is None or None in args or node.keywords:
+            return None
+        return _checked(lambda: function(*args))
+    for child in ast.iter_child_nodes(node):  # anything else: its parts are still bounded
+        _constant_value(child)
+    return None
+
+
+def _checked(compute) -> float | None:
+    """``compute()`` as a real float; :class:`_TooLarge` when it leaves the float range;
+    None for a domain error, a division by zero or a complex value (sympy reports those)."""
+    try:
+        value = compute()
+    except OverflowError:
+        value = math.inf
+    except (ValueError, ZeroDivisionError, TypeError):
+        return None
+    if isinstance(value, complex):
+        return None
+    if math.isinf(value):
+        raise _TooLarge("a constant beyond the float range (about 1.8e308), which sympy would compute exactly; "
+                        "expected constants within it")
+    return value
 
 
 def valid_name(name: Any) -> bool:
@@ -80,6 +194,8 @@ def evaluate(expr: sp.Expr, values: dict[sp.Symbol, float]) -> complex | None:
     exact = sp.sympify(expr).xreplace({s: sp.Float(v) for s, v in values.items()}).evalf()
     try:
         return complex(exact)
+    except OverflowError:  # beyond the float range
+        return complex(math.inf)
     except (TypeError, ValueError):
         return complex(math.nan)
 
@@ -120,11 +236,16 @@ def _parse(path: str, value: Any, symbols: dict[str, sp.Symbol], problems: list[
         problems.append(f"{path}: got {describe(value)}; expected an expression of numbers, the parameters "
                         f"({allowed}), + - * / ^ ( ) and {', '.join(FUNCTIONS)}")
         return None
+    too_large = bound_problem(text)
+    if too_large is not None:
+        problems.append(f"{path}: got {describe(value)}; {too_large}")
+        return None
     unknown = [name for name in _IDENT.findall(re.sub(r"\d+\.?\d*[eE][-+]?\d+", "0", text))
                if name not in symbols and name not in FUNCTIONS]
     if unknown:
-        problems.append(f"{path}: got {describe(value)}; unknown name {unknown[0]!r}: expected a parameter "
-                        f"({allowed}) or one of {', '.join(FUNCTIONS)}")
+        problems.append(f"{path}: got {describe(value)}; unknown name {unknown[0]!r}, not a parameter of "
+                        f"mechanism.parameters (define it there) nor a name this value may use; expected one of "
+                        f"{allowed} or {', '.join(FUNCTIONS)}")
         return None
     try:
         expr = parse_expr(text.replace("^", "**"), local_dict={**FUNCTIONS, **symbols}, global_dict=dict(_GLOBALS))

@@ -569,7 +569,17 @@ def build_spring(element: Element, geo: ElementGeometry, problems: list[str]) ->
         return None
     a, b = ends
     d = b[0] - a[0]
+    if all(simplify_entry(x) == 0 for x in d):
+        problems.append(f"{element.key('between')}: got {describe(element.row.get('between'))}; the two points are "
+                        f"one point in every position (length 0: no direction to pull along); expected two distinct "
+                        f"points")
+        return None
     length = sp.sqrt(simplify_entry((d.T * d)[0]))
+    if not length.free_symbols & set(geo.q):
+        problems.append(f"{element.key('between')}: got {describe(element.row.get('between'))}; the distance between "
+                        f"the points never changes (both on the fixed link, or on one link), so the spring does "
+                        f"nothing; expected points on two links that move relative to each other")
+        return None
     rate = geo.rate(length)
     out = Contribution(observables=[Observable(f"{element.name}_length", length, "m", "m/s",
                                                f"length of spring {element.name!r}")])
@@ -672,20 +682,47 @@ def build_force(element: Element, geo: ElementGeometry, problems: list[str]) -> 
     e is fixed in the global frame (then the force works along s = e . r_P, its default
     switching coordinate) or in the link's frame (e = R e_link).
     """
-    point = geo.point(element.key("point"), [element.row.get("link"), element.row.get("point")], problems)
+    point = None
+    if geo.link(element.key("link"), element.row.get("link"), problems) is not None:
+        if "point" not in element.row:
+            problems.append(f"{element.key('point')}: missing; expected a point name of the link or [x, y, z] (in the "
+                            f"link frame, m)")
+        else:  # point_of names the point [LINK, POINT][1]: here it is the key point
+            found: list[str] = []
+            point = geo.point(element.key("point"), [element.row["link"], element.row["point"]], found)
+            problems += [line.replace(f"{element.key('point')}[1]", element.key("point"), 1) for line in found]
     e = _direction(geo, element, "direction", problems)
     frame = _frame(element, problems)
     if point is None or e is None or frame is None:
         return None
     r, link = point
+    if not r.free_symbols & set(geo.q):
+        problems.append(f"{element.key('link')}: got {describe(element.row.get('link'))}; the point "
+                        f"{describe(element.row.get('point'))} does not move (it is on the fixed link), so the force "
+                        f"does no work; expected a point of a moving link")
+        return None
     if frame == "global":
         s = simplify_entry((e.T * r)[0])
+        if not s.free_symbols & set(geo.q):
+            problems.append(_out_of_plane(element, "direction", "the point never moves along it"))
+            return None
         return _applied_load(element, geo, "value", (s, "m"), None, {}, "N", f"force on {element.name!r} along "
                              f"{list(e)}", problems)
     e_global = geo.rotation(link) * e
     direction = [simplify_entry(x) for x in (r.jacobian(geo.q).T * e_global)]
+    if all(x == 0 for x in direction):
+        problems.append(_out_of_plane(element, "direction", "the point never moves along it"))
+        return None
     return _applied_load(element, geo, "value", None, direction, {}, "N", f"force on {element.name!r} along "
                          f"{list(e)} in the frame of link {link}", problems)
+
+
+def _out_of_plane(element: Element, key: str, why: str) -> str:
+    """The problem of a force direction or torque axis that does no work in any motion."""
+    return (f"{element.key(key)}: got {describe(element.row.get(key))}; {why} (in a planar mechanism, "
+            f"{'a direction out of' if key == 'direction' else 'an axis in'} the plane of motion), so it does no work; "
+            f"expected {'a direction' if key == 'direction' else 'an axis'} with a component the mechanism moves "
+            f"along")
 
 
 def build_torque(element: Element, geo: ElementGeometry, problems: list[str]) -> Contribution | None:
@@ -697,9 +734,17 @@ def build_torque(element: Element, geo: ElementGeometry, problems: list[str]) ->
     if link is None or e is None or frame is None:
         return None
     R = geo.rotation(link)
+    if not R.free_symbols & set(geo.q):
+        problems.append(f"{element.key('link')}: got {describe(element.row.get('link'))}; the link never turns (the "
+                        f"fixed link, or one that only slides), so the torque does no work; expected a link that "
+                        f"turns")
+        return None
     e_link = R.T * e if frame == "global" else e  # omega is in link axes
     power = simplify_entry((e_link.T * geo.omega(link))[0])  # e . omega, linear in qd
     direction = [simplify_entry(sp.diff(power, v)) for v in geo.qd]
+    if all(x == 0 for x in direction):
+        problems.append(_out_of_plane(element, "axis", "the link never turns about it"))
+        return None
     return _applied_load(element, geo, "value", None, direction, {}, "N m", f"torque on {element.name!r} about "
                          f"{list(e)}", problems)
 
@@ -738,7 +783,7 @@ def _element(n: int, row: Any, names: set[str], problems: list[str]) -> Element 
         return None
     names.add(name)
     path = f"{path} ({name})"
-    kind = FORCE_KINDS.get(row.get("type"))
+    kind = FORCE_KINDS.get(row.get("type")) if isinstance(row.get("type"), str) else None
     if kind is None:
         problems.append(f"{path}.type: got {describe(row.get('type'))}; expected one of {FORCE_KINDS.names()}")
         return None

@@ -252,7 +252,8 @@ def drawing_and_observables(tables: Tables, frames: Frames, planar: bool = True)
     return Drawing(points=points, links=links, ground=ground), observables
 
 
-def build_linkage(mechanism: dict, initial: dict | None = None, tol: float = 1e-12, max_iter: int = 50) -> Linkage:
+def build_linkage(mechanism: dict, initial: dict | None = None, tol: float = 1e-12, max_iter: int = 50,
+                  definition: bool = True) -> Linkage:
     """Derive the whole link-coupling model of a case's ``mechanism`` section.
 
     Parameters
@@ -265,6 +266,10 @@ def build_linkage(mechanism: dict, initial: dict | None = None, tol: float = 1e-
         a run without drive, ``q`` (held fixed while assembling).
     tol, max_iter : float, int
         Newton settings of the assembly.
+    definition : bool
+        Also derive the dynamics model (:attr:`Linkage.definition`: the energies, the
+        drawing, the partition); ``csim describe``, which reports the kinematics, leaves it
+        out (most of a long chain's derivation time).
 
     Raises
     ------
@@ -307,7 +312,8 @@ def build_linkage(mechanism: dict, initial: dict | None = None, tol: float = 1e-
                       drive_source=drive_source, forces=forces)
     if drive and len(drive) != dof:
         raise CaseError(_drive_count(drive, dof))
-    linkage.definition = _definition(linkage)
+    if definition:
+        linkage.definition = _definition(linkage)
     return linkage
 
 

@@ -543,6 +543,12 @@ def _shared_point_names(links: dict[int, Link], couplings: list[Coupling]) -> li
     return problems
 
 
+#: the most rows of mechanism.links, mechanism.couplings and mechanism.forces
+MAX_LINKS = 100
+MAX_COUPLINGS = 200
+MAX_FORCES = 200
+
+
 def parse_tables(mechanism: dict, problems: list[str]) -> Tables | None:
     """Check the link-coupling keys of a ``mechanism`` section.
 
@@ -559,6 +565,14 @@ def parse_tables(mechanism: dict, problems: list[str]) -> Tables | None:
     Tables, or None when a problem was found.
     """
     start = len(problems)
+    for key, limit in (("links", MAX_LINKS), ("couplings", MAX_COUPLINGS), ("forces", MAX_FORCES)):
+        rows = mechanism.get(key)
+        if isinstance(rows, list) and len(rows) > limit:
+            problems.append(f"mechanism.{key}: got {len(rows):,} rows; expected at most {limit} (the symbolic "
+                            f"derivation grows with the square of a chain's length or faster: a 30-link chain "
+                            f"takes seconds, hundreds of links hours)")
+    if len(problems) > start:
+        return None
     values, symbols = _parameters(mechanism.get("parameters"), problems)
     scope = Scope(symbols, {symbols[k]: v for k, v in values.items()})
     rows = _links(mechanism.get("links"), scope, problems)

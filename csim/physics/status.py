@@ -29,6 +29,7 @@ DEPENDENT_NO_CONVERGENCE = 17  # Newton for v did not converge (a breakdown)
 BRANCH_LEFT = 18  # Newton's solution left the assembly branch (a breakdown)
 NO_BETTER_PARTITION = 19  # a breakdown other than BRANCH_LEFT, and no better partition at the accepted state
 BRANCH_LOST = 20  # BRANCH_LEFT again after MAX_BRANCH_RESTARTS restarts from the same accepted state
+INTERRUPTED = 21  # a: t (Ctrl-C: the compiled loop saw the caller's request)
 
 #: the kind of failure each code is (:data:`csim.result.FAILURES`): what HDF5's ``failure``
 #: attribute, the sweep tables and ``csim batch`` call it
@@ -39,7 +40,7 @@ KINDS = {
     MAX_EVENTS: "chatter", RK4_RESOLUTION: "step", SINGULAR_MASS: "singular",
     NO_SIGN_CHANGE: "event location", CHATTER: "chatter",
     DEPENDENT_NONFINITE: "blow-up", DEPENDENT_SINGULAR: "singular", DEPENDENT_NO_CONVERGENCE: "newton",
-    BRANCH_LEFT: "branch", NO_BETTER_PARTITION: "branch", BRANCH_LOST: "branch",
+    BRANCH_LEFT: "branch", NO_BETTER_PARTITION: "branch", BRANCH_LOST: "branch", INTERRUPTED: "interrupted",
 }
 
 
@@ -119,6 +120,8 @@ def failure_message(code: int, a: float, b: float, settings, method=None, switch
         return f"numerical error after t = {a:.6g} s: ValueError: f(a) and f(b) must have different signs"
     if code == CHATTER:
         return _chatter_message(a, b, settings, switches)
+    if code == INTERRUPTED:  # as the Python driver words it
+        return f"interrupted by the user after t = {a:.6g} s"
     if DEPENDENT_NONFINITE <= code <= BRANCH_LOST:
         return _partition_message(code, detail, method, coordinates)
     return f"integration failed with status {code}"

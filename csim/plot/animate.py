@@ -18,7 +18,7 @@ from matplotlib.animation import FFMpegWriter, writers
 from PIL import Image
 
 from csim.plot.drawing import MechanismArtists, geometry, setup_axes, symbol_size
-from csim.plot.errors import PlotError
+from csim.plot.errors import PlotError, check_dpi
 from csim.plot.source import COMPARISON, RunData, file_kind, load_run
 from csim.plot.style import RC, SIZE, new_figure, title
 
@@ -191,8 +191,7 @@ class MechanismAnimation:
         if suffix not in ANIMATION_FORMATS:
             raise PlotError(f"--output {path}: unknown animation format {suffix or '(no suffix)'!r}; "
                             f"valid: {', '.join(ANIMATION_FORMATS)}")
-        if not dpi > 0:
-            raise PlotError(f"--dpi: got {dpi}; expected a positive number")
+        check_dpi(dpi)
         if suffix == ".mp4" and not ffmpeg_available():
             raise PlotError(f"--output {path}: MP4 needs ffmpeg, which is not on the PATH; "
                             f"write a GIF instead (-o {path.with_suffix('.gif')})")
@@ -257,6 +256,7 @@ def animate_file(path: str | Path, output: str | Path, group: str | None = None,
     if output.suffix.lower() not in ANIMATION_FORMATS:
         raise PlotError(f"--output {output}: unknown animation format {output.suffix or '(no suffix)'!r}; "
                         f"valid: {', '.join(ANIMATION_FORMATS)}")
+    check_dpi(dpi)
     if file_kind(path) == COMPARISON and not group:
         from csim.io.hdf5 import read_comparison
 

@@ -8,7 +8,7 @@ from pathlib import Path
 from matplotlib.figure import Figure
 
 from csim.io.sweep_file import read_sweep
-from csim.plot.errors import PlotError
+from csim.plot.errors import PlotError, check_dpi
 from csim.plot.registry import COMPARISON_FIGURES, SWEEP_FIGURES, run_figure_kinds, select
 from csim.plot.source import COMPARISON, SWEEP, file_kind, load_comparison, load_run
 from csim.plot.style import FORMATS, save
@@ -126,8 +126,8 @@ def plot_file(path: str | Path, out_dir: str | Path, fmt: str = "png", only: Seq
         See :func:`figures`; PlotError also when ``out_dir`` cannot be written.
     """
     fmt = check_format(fmt)
-    if dpi is not None and not dpi > 0:
-        raise PlotError(f"--dpi: got {dpi}; expected a positive number")
+    if dpi is not None:
+        check_dpi(dpi)
     names, skipped, built = figures(path, only, group)
     out_dir = Path(out_dir)
     if out_dir.exists() and not out_dir.is_dir():

@@ -27,8 +27,9 @@ from typing import Any
 import numpy as np
 import yaml
 
-from csim.case import CaseLoader
+from csim.case import MAX_YAML_CHARS, CaseLoader, YamlTooLarge
 from csim.errors import CaseError
+from csim.schema import short_repr
 
 #: range kinds
 RANGES = ("lin", "log")
@@ -78,11 +79,14 @@ class Variation:
         return [self.values[min(int(x * n), n - 1)] for x in u]
 
 
-def _scalar(text: str) -> Any:
-    """One value as a case file would read it (``1e-3`` a float, ``none`` a name)."""
+def _scalar(text: str, option: str) -> Any:
+    """One value as a case file would read it (``1e-3`` a float, ``none`` a name); a value
+    beyond the YAML bounds is a CaseError naming ``option``."""
     text = text.strip()
     try:
         return yaml.load(text, Loader=CaseLoader) if text else None
+    except YamlTooLarge as exc:
+        raise CaseError([f"{option}: the value {short_repr(text)} is {exc}"]) from None
     except (yaml.YAMLError, ValueError):
         return text
 
@@ -133,12 +137,18 @@ def _from_file(option: str, name: str, base: Path) -> tuple:
         text = path.read_text()
     except OSError as exc:
         raise CaseError([f"{option}: cannot read the values file {str(path)!r}: {exc.strerror or exc}"]) from None
+    if len(text) > MAX_YAML_CHARS:
+        raise CaseError([f"{option}: the values file {str(path)!r} is {len(text):,} characters long; expected at "
+                         f"most {MAX_YAML_CHARS:,}"])
     try:
         data = yaml.load(text, Loader=CaseLoader)
+    except YamlTooLarge as exc:
+        raise CaseError([f"{option}: the values file {str(path)!r} is {exc}"]) from None
     except (yaml.YAMLError, ValueError):
         data = None
     if not isinstance(data, list):  # one value per line
-        data = [_scalar(line.split("#", 1)[0]) for line in text.splitlines() if line.split("#", 1)[0].strip()]
+        data = [_scalar(line.split("#", 1)[0], option) for line in text.splitlines()
+                if line.split("#", 1)[0].strip()]
     return tuple(data)
 
 
@@ -150,7 +160,7 @@ def parse_variation(text: str, base: Path = Path(".")) -> Variation:
     CaseError
         Naming the option, when it is malformed or gives no values.
     """
-    option = f"--vary {text!r}"
+    option = f"--vary {short_repr(text)}"
     if "=" not in text:
         raise CaseError([f"{option}: expected KEY=VALUES, e.g. --vary stabilization.w=lin:1:40:20"])
     key, spec = (part.strip() for part in text.split("=", 1))
@@ -163,10 +173,10 @@ def parse_variation(text: str, base: Path = Path(".")) -> Variation:
         values, bounds = _range(option, head, rest.split(":"))
     elif spec.startswith("@"):
         values = _from_file(option, spec[1:], base)
-    elif spec.startswith("[") and spec.endswith("]") and isinstance(_scalar(spec), list):
-        values = tuple(_scalar(spec))
+    elif spec.startswith("[") and spec.endswith("]") and isinstance(_scalar(spec, option), list):
+        values = tuple(_scalar(spec, option))
     else:
-        values = tuple(_scalar(item) for item in spec.split(","))
+        values = tuple(_scalar(item, option) for item in spec.split(","))
     if kind == "list" and (not values or any(v is None for v in values)):
         raise CaseError([f"{option}: no value, or an empty one; expected e.g. {key}=1,2,5 or {key}=lin:0:1:11"])
     return Variation(key=key, values=values, kind=kind, bounds=bounds, text=text)

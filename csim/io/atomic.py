@@ -1,0 +1,55 @@
+"""Files written whole or not at all: a temporary file beside the target, renamed over it.
+
+Every file csim writes (results, comparisons, sweeps, JUnit reports, the JSON schema) goes
+through :func:`write_atomically`: a failure while writing (a full disk, ``ulimit -f``, a
+vanished folder) is an ``OSError`` naming the cause, the temporary file is removed, and
+the target is left as it was. The rename replaces a symbolic link at the target by the
+file; it never writes through the link into the file it points at. A new file gets the
+mode any new file gets (0666 less the umask, 0644 under the usual umask 022), not
+``mkstemp``'s 0600.
+"""
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+#: bytes written per ``os.write`` call
+CHUNK = 1 << 24
+
+
+def write_atomically(path: str | Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file beside it, then rename it over ``path``.
+
+    Parameters
+    ----------
+    path : str or Path
+        The target; its folder is created when missing.
+    data : bytes
+        The whole content.
+
+    Raises
+    ------
+    OSError
+        When the folder cannot be created or the data cannot be written (``errno`` and
+        ``strerror`` say why, e.g. EFBIG "File too large", ENOSPC "No space left on
+        device"); no temporary file is left and ``path`` is as it was.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        try:
+            view = memoryview(data)
+            while view:
+                view = view[os.write(fd, view[:CHUNK]):]
+            os.fsync(fd)  # durable before it becomes visible
+        finally:
+            os.close(fd)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
