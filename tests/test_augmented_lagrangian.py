@@ -50,6 +50,7 @@ def test_bricard_runs_on_every_equation_and_matches_minimal_coordinates():
     assert np.max(np.abs(al.q - ref.q)) < 1e-4  # trapezoidal, h = 1 ms: O(h^2)
     assert al.energy_error_relative < 1e-4
     assert al.removed_names and np.max(np.abs(al.removed_phi)) < 1e-10
+    assert al.nsteps == 1000 and al.nfev > al.nsteps  # Newton residuals: at least one per step
 
 
 @pytest.mark.parametrize(("overrides", "words"), [

@@ -58,6 +58,9 @@ class ALI3P(OdeSolver):
         if system is None or not hasattr(system, "accelerations"):
             raise ValueError("the trapezoidal integrator runs stabilization.method augmented_lagrangian only")
         self.h, self.t_start, self.n_steps = float(step), t0, 0
+        #: evaluations of the equations of motion (Newton residuals, accelerations): the
+        #: "RHS evaluations" of a run, as fun's calls are for the other integrators
+        self.n_residuals = 1
         self.system, self.mode = system, mode
         m = system.m
         q, qd = self.y[:m], self.y[m:2 * m]
@@ -147,6 +150,7 @@ class ALI3P(OdeSolver):
             p, _ = s.forces(t, q, qd, mode)
             # f(q) = (h^2/4) [M qdd + Phi_q^T (lambda* + alpha Phi) - p]
             f = c * (M @ qdd + J.T @ (lam + alpha * phi) - p)
+            self.n_residuals += 1
             # tangent f_q = M + (h/2) C + (h^2/4) (Phi_q^T alpha Phi_q + K), at the current iterate
             # (near a singular configuration Phi_q turns quickly)
             factor = self._factor(M + 0.5 * h * C + c * (alpha * (J.T @ J) + K), t)

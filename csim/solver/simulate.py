@@ -169,7 +169,7 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
                     y = system.repartition(y, exc)
                     restarted = True
                 finally:  # count the work of every segment, the failed one included
-                    all_nfev += counter.n
+                    all_nfev += counter.n + getattr(solver, "n_residuals", 0)  # ALI3-P evaluates its own
                     if solver is not None:
                         counters["njev"] += solver.njev
                         counters["nlu"] += solver.nlu
