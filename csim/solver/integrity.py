@@ -114,54 +114,105 @@ def removed_limit(max_kept: float) -> float:
 def relative_sigma(J: np.ndarray, k: int, scale: float | None = None) -> float:
     """sigma_k / scale of J (k: the k-th largest singular value, 1-based); ``scale`` defaults
     to sigma_1 of J itself. 1 for k = 0 or an empty J, 0 where J has fewer than k values."""
-    if k == 0 or J.size == 0:
-        return 1.0
-    s = np.linalg.svd(J, compute_uv=False)
-    scale = s[0] if scale is None else scale
-    if scale == 0.0:
-        return 1.0
-    return float(s[k - 1] / scale) if k <= s.size else 0.0
+    return float(_sigma_ratios(J[None], k, scale)[0])
 
 
-def jacobian_scale(phi_q: Callable[[np.ndarray], np.ndarray], q: np.ndarray) -> float:
-    """The largest sigma_1 of Phi_q over the samples q (N, m): the scale a singular value is
-    measured against (a single equation's Jacobian loses rank by vanishing as a whole)."""
-    return max((float(np.linalg.norm(phi_q(x), 2)) for x in q if np.all(np.isfinite(x))), default=0.0)
+def _sigma_ratios(J: np.ndarray, k: int, scale: float | None = None) -> np.ndarray:
+    """sigma_k / scale of each of the stacked matrices J (N, r, m), in one batched SVD
+    (``scale`` None: each one's own sigma_1); NaN for a matrix with a non-finite entry."""
+    N = J.shape[0]
+    if k == 0 or J.shape[1] == 0 or J.shape[2] == 0:
+        return np.ones(N)
+    out = np.full(N, np.nan)
+    finite = np.all(np.isfinite(J), axis=(1, 2))
+    if not finite.any():
+        return out
+    s = np.linalg.svd(J[finite], compute_uv=False)
+    top = s[:, 0] if scale is None else np.full(s.shape[0], scale)
+    kth = s[:, k - 1] if k <= s.shape[1] else np.zeros(s.shape[0])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out[finite] = np.where(top > 0.0, kth / np.where(top > 0.0, top, 1.0), 1.0)
+    return out
 
 
-def hermite(qa, qda, qb, qdb, h: float, tau: float) -> np.ndarray:
-    """q at tau in [0, 1] of the step of length h [s] on the cubic Hermite interpolant."""
+def _singular_values(J: np.ndarray) -> np.ndarray:
+    """The singular values (N, min(r, m)) of the stacked Jacobians J (N, r, m), NaN where J is
+    not finite. Their largest sigma_1 is the scale a singular value is measured against (a
+    single equation's Jacobian loses rank by vanishing as a whole)."""
+    out = np.full((J.shape[0], min(J.shape[1], J.shape[2])), np.nan)
+    finite = np.all(np.isfinite(J), axis=(1, 2)) if J.size else np.zeros(J.shape[0], bool)
+    if finite.any() and out.shape[1]:
+        out[finite] = np.linalg.svd(J[finite], compute_uv=False)
+    return out
+
+
+def hermite(qa, qda, qb, qdb, h: float, tau):
+    """q at tau in [0, 1] (a number, or an array (n,): then (n, m)) of the step of length h [s]
+    on the cubic Hermite interpolant."""
+    tau = np.asarray(tau, dtype=float)[..., None] if np.ndim(tau) else tau
     t2, t3 = tau * tau, tau * tau * tau
     return ((2 * t3 - 3 * t2 + 1) * qa + (t3 - 2 * t2 + tau) * h * qda
             + (-2 * t3 + 3 * t2) * qb + (t3 - t2) * h * qdb)
 
 
-def _refine(ratio: Callable[[np.ndarray], float], t, q, qd, i: int) -> tuple[float, float]:
-    """The smallest ratio on the interpolants of the intervals beside sample i: (t, ratio)."""
+#: points per interval at which a candidate minimum is looked at before it is refined
+GRID = 17
+
+
+def _refine(ratios: Callable[[np.ndarray], np.ndarray], t, q, qd, i: int) -> tuple[float, float]:
+    """The smallest ratio on the interpolants of the intervals beside sample i: (t, ratio).
+
+    A grid of :data:`GRID` points per interval first (one batched SVD); the bounded scalar
+    minimisation only where the grid comes within ten times :data:`SINGULAR`.
+    """
     from scipy.optimize import minimize_scalar
 
-    best = (t[i], ratio(q[i]))
+    best = (t[i], float(ratios(q[i][None])[0]))
+    taus = np.linspace(0.0, 1.0, GRID)
     for a in (i - 1, i):
         if a < 0 or a + 1 >= t.size:
             continue
         h = t[a + 1] - t[a]
         ends = (q[a], qd[a], q[a + 1], qd[a + 1], h)
-        res = minimize_scalar(lambda tau, ends=ends: ratio(hermite(*ends, tau)),
-                              bounds=(0.0, 1.0), method="bounded", options=dict(xatol=1e-6))
-        if res.fun < best[1]:
-            best = (t[a] + res.x * h, float(res.fun))
+        grid = ratios(hermite(*ends, taus))
+        if not np.isfinite(grid).any():
+            continue
+        j = int(np.nanargmin(grid))
+        candidate = (t[a] + taus[j] * h, float(grid[j]))
+        if candidate[1] < 10 * SINGULAR:
+            lo, hi = taus[max(j - 1, 0)], taus[min(j + 1, GRID - 1)]
+            res = minimize_scalar(lambda tau, ends=ends: float(ratios(hermite(*ends, tau)[None])[0]),
+                                  bounds=(lo, hi), method="bounded", options=dict(xatol=1e-7))
+            if res.fun < candidate[1]:
+                candidate = (t[a] + res.x * h, float(res.fun))
+        if candidate[1] < best[1]:
+            best = candidate
     return best
 
 
-def _crossings(ratio: Callable[[np.ndarray], float], t, q, qd) -> list[tuple[float, float]]:
-    """The refined local minima of ratio along the samples that fall below :data:`SINGULAR`."""
-    values = np.array([ratio(x) for x in q])
+def _v_shaped(v: float, left: float, right: float) -> bool:
+    """Whether a sampled minimum v between its neighbours may be a zero: near a loss of rank the
+    singular value is |a (t - t*)|, a V whose two sides give (v + min side) = (max side - v)
+    (equal sample spacing), where a smooth minimum m above zero gives (v + min side) far above
+    (max side - v). Also any sample below 2 % of the scale."""
+    low, high = min(left, right), max(left, right)
+    if not np.isfinite(high):
+        high = low
+    return v < 0.02 or v + low <= 2.0 * (high - v)
+
+
+def _crossings(ratios: Callable[[np.ndarray], np.ndarray], t, q, qd,
+               values: np.ndarray | None = None) -> list[tuple[float, float]]:
+    """The refined local minima of the ratio along the samples that fall below :data:`SINGULAR`
+    (``ratios`` maps configurations (n, m) to ratios (n,); ``values``: its values at q)."""
+    values = ratios(q) if values is None else values
+    values = np.where(np.isfinite(values), values, np.inf)
     found = []
     for i in range(t.size):
         left = values[i - 1] if i > 0 else np.inf
         right = values[i + 1] if i + 1 < t.size else np.inf
-        if values[i] < COARSE and values[i] <= left and values[i] <= right:
-            tc, rc = _refine(ratio, t, q, qd, i)
+        if values[i] < COARSE and values[i] <= left and values[i] <= right and _v_shaped(values[i], left, right):
+            tc, rc = _refine(ratios, t, q, qd, i)
             if rc < SINGULAR and not (found and abs(tc - found[-1][0]) < 1e-9):
                 found.append((tc, rc))
     return found
@@ -200,7 +251,9 @@ def check_integrity(watch: ConstraintWatch, t: np.ndarray, q: np.ndarray, qd: np
         moved, :mod:`csim.solver.redundant`, and where the first ones lose rank is no news).
     """
     N = t.size
-    phi_all = np.array([watch.phi(x) for x in q]).reshape(N, len(watch.labels))
+    # the removed equations at every sample (a registered mechanism has none: nothing to evaluate)
+    phi_all = (np.array([watch.phi(x) for x in q]).reshape(N, len(watch.labels)) if watch.removed.size
+               else np.zeros((N, len(watch.labels))))
     kept_max = float(np.max(np.abs(phi_all[:, watch.kept]))) if N and watch.kept.size else 0.0
     limit = removed_limit(kept_max)
     removed_phi = phi_all[:, watch.removed]
@@ -216,15 +269,24 @@ def check_integrity(watch: ConstraintWatch, t: np.ndarray, q: np.ndarray, qd: np
                                 f"first above {limit:.3g} at t = {t[first]:.6g} s while the kept equations stay "
                                 f"within {kept_max:.3g}: a joint came apart where the kept equations lost rank; "
                                 f"use stabilization.method minimal or augmented_lagrangian")
-    scale = jacobian_scale(watch.phi_q, q) if N > 2 else 0.0
-    full = lambda x: relative_sigma(watch.phi_q(x), watch.rank, scale)  # noqa: E731
-    crossings = _crossings(full, t, q, qd) if N > 2 else []
+    jacobians = _jacobians(watch.phi_q, q, len(watch.labels))
+    sigma = _singular_values(jacobians)
+    scale = float(np.nanmax(sigma[:, 0])) if sigma.size and np.isfinite(sigma[:, 0]).any() else 0.0
+
+    def full(x):
+        return _sigma_ratios(_jacobians(watch.phi_q, x, len(watch.labels)), watch.rank, scale)
+
+    sampled = (sigma[:, watch.rank - 1] / scale if 0 < watch.rank <= sigma.shape[1] and scale > 0
+               else np.ones(N))
+    crossings = _crossings(full, t, q, qd, sampled) if N > 2 else []
     kept_times = np.zeros(0)
     if watch.removed.size and N > 2 and kept_fixed:
         def kept(x):
-            return relative_sigma(watch.phi_q(x)[watch.kept], watch.kept.size, scale)
+            return _sigma_ratios(_jacobians(watch.phi_q, x, len(watch.labels))[:, watch.kept], watch.kept.size, scale)
 
-        kept_times = np.array([tc for tc, _ in _crossings(kept, t, q, qd)
+        kept_times = np.array([tc for tc, _ in _crossings(kept, t, q, qd,
+                                                          _sigma_ratios(jacobians[:, watch.kept], watch.kept.size,
+                                                                        scale))
                                if all(abs(tc - tf) > 1e-6 for tf, _ in crossings)])
         if kept_times.size:
             held = "" if failure else f"; they were watched and held within {limit:.3g}"
@@ -243,6 +305,14 @@ def check_integrity(watch: ConstraintWatch, t: np.ndarray, q: np.ndarray, qd: np
                      singular_times=np.array([c[0] for c in crossings]),
                      singular_sigma=np.array([c[1] for c in crossings]),
                      kept_singular_times=kept_times, failure=failure, warnings=warnings)
+
+
+def _jacobians(phi_q: Callable[[np.ndarray], np.ndarray], q: np.ndarray, r: int) -> np.ndarray:
+    """Phi_q at each configuration q (n, m), stacked (n, r, m); NaN at a non-finite q."""
+    out = np.full((q.shape[0], r, q.shape[1]), np.nan)
+    for i in np.flatnonzero(np.isfinite(q).all(axis=1)):
+        out[i] = phi_q(q[i])
+    return out
 
 
 def _times(times, shown: int = 5) -> str:
