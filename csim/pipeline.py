@@ -47,7 +47,7 @@ def build_system(case: Case) -> ConstrainedSystem:
         from csim.solver.redundant import RedundantModel
 
         par = model.parameter_vector(case.parameters)
-        model = RedundantModel(model, constraint_watch(case, _Bare(model, par)), par)
+        model = RedundantModel(model, constraint_watch(case, model, par), par)
     form = case.formulation
     settings = {}
     if form.method == "elimination":
@@ -71,7 +71,7 @@ def build_system(case: Case) -> ConstrainedSystem:
         stabilizer=stabilizer,
     )
     if hasattr(system, "use_constraints"):  # integrates every non-trivial equation, the removed ones too
-        system.use_constraints(constraint_watch(case, system))
+        system.use_constraints(constraint_watch(case, system.model, system.par))
     return system
 
 
@@ -156,16 +156,10 @@ def reselects_rows(case: Case) -> bool:
             and case.stabilization.method not in ("minimal", "augmented_lagrangian"))
 
 
-class _Bare:
-    """What :func:`constraint_watch` reads of a system (its model and parameters) before the system exists."""
-
-    def __init__(self, model, par):
-        self.model, self.par, self.r = model, par, model.n_constraints
-
-
-def constraint_watch(case: Case, system: ConstrainedSystem):
-    """Every non-trivial constraint equation of the case's mechanism (:class:`ConstraintWatch`):
-    a linkage's removed ones too; a registered mechanism's are the model's own."""
+def constraint_watch(case: Case, model: NumericModel, par: np.ndarray):
+    """Every non-trivial constraint equation of the case's mechanism (:class:`ConstraintWatch`)
+    at the parameter values ``par``: a linkage's removed ones too; a registered mechanism's are
+    the model's own."""
     from csim.solver.integrity import ConstraintWatch
 
     if case.linkage is not None:
@@ -173,10 +167,10 @@ def constraint_watch(case: Case, system: ConstrainedSystem):
 
         linkage = case.linkage
         values = dict(linkage.tables.values)  # with the run's parameter values
-        values.update({linkage.tables.symbols[p.name]: v for p, v in zip(case.mechanism.parameters, system.par)
+        values.update({linkage.tables.symbols[p.name]: v for p, v in zip(case.mechanism.parameters, par)
                        if p.name in linkage.tables.symbols})
         return linkage_watch(linkage.reduction, linkage.topology.variables, values)
-    model, par, r = system.model, system.par, system.r
+    r = model.n_constraints
     return ConstraintWatch(phi=lambda q: model.phi(q, par), phi_q=lambda q: model.phi_q(q, par),
                            labels=[f"Phi_{i + 1}" for i in range(r)], kept=np.arange(r),
                            removed=np.zeros(0, dtype=int), rank=r)
@@ -192,7 +186,9 @@ def record_integrity(case: Case, system: ConstrainedSystem, result: Result) -> N
         return
     finite = np.all(np.isfinite(result.q), axis=1) & np.all(np.isfinite(result.qd), axis=1)
     n = int(np.argmin(finite)) if not finite.all() else finite.size  # the samples before a blow-up
-    watch = constraint_watch(case, system)
+    # the full set the run integrated (an overconstrained linkage's), else built here
+    watch = getattr(system, "watch", None) or getattr(system.model, "watch", None) or \
+        constraint_watch(case, system.model, system.par)
     with np.errstate(all="ignore"):
         found = check_integrity(watch, result.t[:n], result.q[:n], result.qd[:n],
                                 result.qdd[:n], case.mechanism.coordinate_names,
