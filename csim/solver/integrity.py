@@ -73,6 +73,16 @@ class ConstraintWatch:
     gamma_removed: Callable | None = None
     units: list[str] = field(default_factory=list)
 
+    def gamma(self, gamma_kept: np.ndarray, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
+        """gamma (n_all,) of every equation: ``gamma_kept`` (the model's, on the kept rows) and
+        the removed rows' own."""
+        if self.removed.size == 0:
+            return gamma_kept
+        out = np.empty(len(self.labels))
+        out[self.kept] = gamma_kept
+        out[self.removed] = self.gamma_removed(q, qd)
+        return out
+
 
 @dataclass
 class Integrity:

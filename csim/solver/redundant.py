@@ -85,11 +85,7 @@ class RedundantModel:
 
     def gamma_all(self, q, qd) -> np.ndarray:
         """gamma (n_all,) of every equation."""
-        out = np.empty(self.n_recorded)
-        out[self.watch.kept] = self._model.gamma(q, qd, self._par)
-        if self.watch.removed.size:
-            out[self.watch.removed] = self.watch.gamma_removed(q, qd)
-        return out
+        return self.watch.gamma(self._model.gamma(q, qd, self._par), q, qd)
 
     def gamma(self, q, qd, par):
         return self.gamma_all(q, qd)[self.selected(q)]

@@ -94,12 +94,7 @@ class AugmentedLagrangianSystem(ConstrainedSystem):
     def gamma_all(self, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
         """gamma = -(dPhi_q/dt) qd (n_all,): the model's on the kept rows, the watch's on the removed ones."""
         gamma_kept = self.model.gamma(q, qd, self.par)
-        if self.watch is None or self.watch.removed.size == 0:
-            return gamma_kept
-        out = np.empty(len(self.watch.labels))
-        out[self.watch.kept] = gamma_kept
-        out[self.watch.removed] = self.watch.gamma_removed(q, qd)
-        return out
+        return gamma_kept if self.watch is None else self.watch.gamma(gamma_kept, q, qd)
 
     def forces(self, t: float, q: np.ndarray, qd: np.ndarray, mode: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(p, u): p = B u - C qd - h (m,) and the loads u (k,)."""
