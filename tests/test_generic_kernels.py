@@ -131,3 +131,19 @@ def test_integers_beyond_64_bits_are_printed_as_doubles_in_c():
     x = sp.Symbol("x")
     assert _Printer().doprint(10**19 * x) == "1e+19*s_x"
     assert _Printer().doprint(12 * x) == "12*s_x"
+
+
+def test_either_copy_of_the_kernels_is_importable_by_name(monkeypatch):
+    """numba rebuilds a cached core function by importing the copy that compiled it first: a
+    process that loaded only the common copy must find the partitioned one by its name."""
+    import importlib
+    import sys
+
+    from csim.fast import module
+
+    module.load_kernels(False)
+    name = f"csim_fast_{module.kernels_path(True).stem}"
+    monkeypatch.delitem(sys.modules, name, raising=False)
+    imported = importlib.import_module(name)
+    assert imported.__file__.endswith(module.kernels_path(True).name)
+    assert imported.WITH_PARTITION is True

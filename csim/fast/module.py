@@ -123,18 +123,47 @@ def load_kernels(partitioned: bool = False) -> ModuleType:
     """
     if partitioned in _KERNELS:
         return _KERNELS[partitioned]
+    if _KernelsFinder not in sys.meta_path:
+        sys.meta_path.append(_KernelsFinder)
+    path = _kernels_file(partitioned)
+    name = f"csim_fast_{path.stem}"
+    module = sys.modules.get(name)  # imported already by the finder below
+    if module is None:
+        spec = importlib.util.spec_from_file_location(name, path)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module  # numba's cache locates functions through their module
+        spec.loader.exec_module(module)
+    _KERNELS[partitioned] = module
+    return module
+
+
+def _kernels_file(partitioned: bool) -> Path:
+    """The kernels' copy for a variant, written into the cache if it is not there yet."""
     path = kernels_path(partitioned)
     if not path.is_file():
         path = _writable(path)
         if not path.is_file():
             _write_atomic(path, kernels_source(partitioned))
-    name = f"csim_fast_{path.stem}"
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module  # numba's cache locates functions through their module
-    spec.loader.exec_module(module)
-    _KERNELS[partitioned] = module
-    return module
+    return path
+
+
+class _KernelsFinder:
+    """Imports either copy of the kernels by its module name (last on ``sys.meta_path``).
+
+    numba caches a core function compiled from one copy with a reference to that copy's
+    module, and rebuilds it by importing that module by name: a process that runs only the
+    other copy (``none`` after ``minimal`` filled the cache) must still find it. Importing a
+    copy only defines its functions; nothing is compiled until one is called.
+    """
+
+    @staticmethod
+    def find_spec(name, path=None, target=None):
+        if not name.startswith("csim_fast_kernels"):
+            return None
+        for partitioned in (False, True):
+            if name == f"csim_fast_{kernels_path(partitioned).stem}":
+                return importlib.util.spec_from_file_location(name, _kernels_file(partitioned))
+        return None
 
 
 # ---------------------------------------------------------------------------------------
