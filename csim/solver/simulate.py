@@ -100,8 +100,8 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
             mode[:] = system.mode_at(y)
             record(t, y)
             while t < settings.t_end and i_out <= len(t_out):
-                frozen = mode.copy()
                 if locate:
+                    frozen = mode.copy()
                     fun = lambda t_, y_, frozen=frozen: system.rhs(t_, y_, frozen)  # noqa: E731
                 else:
                     fun = system.rhs_unlocated

@@ -98,10 +98,12 @@ class AugmentedLagrangianSystem(ConstrainedSystem):
 
     def forces(self, t: float, q: np.ndarray, qd: np.ndarray, mode: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(p, u): p = B u - C qd - h (m,) and the loads u (k,)."""
-        model, par = self.model, self.par
         u = self.load_values(t, q, qd, mode)
-        p = model.load_matrix(q, par) @ u - model.velocity_terms(q, qd, par) - model.gravity(q, par)
-        return p, u
+        return self._generalized(q, qd, u, self.model.load_matrix(q, self.par)), u
+
+    def _generalized(self, q, qd, u, B):
+        """p = B u - C qd - h (m,) for the loads u with their matrix B (m, k)."""
+        return B @ u - self.model.velocity_terms(q, qd, self.par) - self.model.gravity(q, self.par)
 
     def accelerations(self, M: np.ndarray, J: np.ndarray, p: np.ndarray, gamma: np.ndarray,
                       lam0: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -133,7 +135,7 @@ class AugmentedLagrangianSystem(ConstrainedSystem):
         model, par = self.model, self.par
         M = model.mass(q, par)
         B = model.load_matrix(q, par)
-        p = B @ u - model.velocity_terms(q, qd, par) - model.gravity(q, par)
+        p = self._generalized(q, qd, u, B)
         J = self.phi_q_all(q)
         qdd, lam = self.accelerations(M, J, p, self.gamma_all(q, qd))
         return qdd, lam, self.phi_all(q), J @ qd, B @ u, B
