@@ -574,16 +574,7 @@ def _build_linkage(out: dict, problems: list[str]) -> Linkage:
     linkage = build_linkage(out["mechanism"], ini, tol=ini.get("tol") or 1e-12, max_iter=ini.get("max_iter") or 50)
     mech = linkage.definition
     if linkage.drive:
-        u, ud, _ = linkage.drive_function(linkage.tables.parameters)(0.0)
-        at_start = {"q": dict(zip(linkage.drive, u.tolist())), "qd": dict(zip(linkage.drive, ud.tolist()))}
-        for key in ("q", "qd"):
-            given = ini.get(key)
-            # the drive's own values at t = 0 are what a validated (stored) case holds: they may stay
-            if given is not None and not _same_values(given, at_start[key]):
-                problems.append(f"initial.{key}: got {describe(ini[key])} with mechanism.drive; the driving joint "
-                                f"variables ({', '.join(linkage.drive)}) set the motion; expected initial.{key} left "
-                                f"out (initial.guess chooses the assembly branch)")
-        mech.default_independent_velocities = at_start["qd"]
+        _drive_start(out, linkage, problems)
         if out["mechanism"].get("drive_mode") is None:
             out["mechanism"]["drive_mode"] = "kinematic"
         # drive_mode dynamic: its combinations are checked on the typed case (_validate_combination)
@@ -600,6 +591,39 @@ def _build_linkage(out: dict, problems: list[str]) -> Linkage:
         problems.append("mechanism.links: no link has mass or inertia, and there is no mechanism.drive; expected "
                         "mechanism.drive (a kinematic analysis) or mass and inertia on the moving links (dynamics)")
     return linkage
+
+
+def _drive_start(out: dict, linkage: Linkage, problems: list[str]) -> None:
+    """The start of a driven linkage: the drives at t = 0 set their variables and rates.
+
+    With one drive per degree of freedom ``initial.q`` and ``qd`` are left out (a stored,
+    validated case holds the drives' own values, which may stay). Driven dynamics with
+    fewer drives (``drive_mode: dynamic``) takes the free joints' start from ``initial.q``
+    and ``qd`` as a simulation does (default: the assembled values, at rest); they may not
+    name a driven variable except with its drive's value.
+    """
+    ini, mech = out["initial"], linkage.definition
+    u, ud, _ = linkage.drive_function(linkage.tables.parameters)(0.0)
+    at_start = {"q": dict(zip(linkage.drive, u.tolist())), "qd": dict(zip(linkage.drive, ud.tolist()))}
+    partial = len(linkage.drive) < linkage.dof
+    for key in ("q", "qd"):
+        given = ini.get(key)
+        if given is None:
+            continue
+        driven = {k: v for k, v in given.items() if str(k) in linkage.drive} if isinstance(given, dict) else given
+        if partial and isinstance(given, dict) and (not driven or _same_values(driven, at_start[key])):
+            ini[key] = {**at_start[key], **{k: v for k, v in given.items() if str(k) not in linkage.drive}}
+        elif partial:
+            problems.append(f"initial.{key}: got {describe(given)} with mechanism.drive; the drives set "
+                            f"{', '.join(linkage.drive)}; expected initial.{key} for the free joint variables only")
+        elif not _same_values(given, at_start[key]):
+            # the drive's own values at t = 0 are what a validated (stored) case holds: they may stay
+            problems.append(f"initial.{key}: got {describe(given)} with mechanism.drive; the driving joint "
+                            f"variables ({', '.join(linkage.drive)}) set the motion; expected initial.{key} left "
+                            f"out (initial.guess chooses the assembly branch)")
+    if partial and ini.get("q") is not None and ini.get("qd") is None:  # the free joints start at rest
+        ini["qd"] = {**{k: 0.0 for k in ini["q"]}, **at_start["qd"]}
+    mech.default_independent_velocities = {**mech.default_independent_velocities, **at_start["qd"]}
 
 
 def _same_values(given, expected: dict[str, float]) -> bool:

@@ -189,6 +189,9 @@ def record_integrity(case: Case, system: ConstrainedSystem, result: Result) -> N
     # the full set the run integrated (an overconstrained linkage's), else built here
     watch = getattr(system, "watch", None) or getattr(system.model, "watch", None) or \
         constraint_watch(case, system.model, system.par)
+    if case.driven:  # the drive rows are constraints too: a dead centre is a singular crossing
+        names = case.mechanism.coordinate_names
+        watch = watch.with_drives(system.driven, [names[j] for j in system.driven], len(names))
     with np.errstate(all="ignore"):
         found = check_integrity(watch, result.t[:n], result.q[:n], result.qd[:n],
                                 result.qdd[:n], case.mechanism.coordinate_names,

@@ -201,3 +201,94 @@ def test_projection_puts_the_state_on_the_drives_and_keeps_the_drive_torque():
     tau_ref, _, _ = _reference()
     scale = np.max(np.abs(result.drive_forces[:, 0]))
     assert np.max(np.abs(result.drive_forces[:, 0] - tau_ref(result.q[:, crank]))) < 1e-7 * scale
+
+
+# --- fewer drives than degrees of freedom ------------------------------------------------
+
+def _five_bar(**changes) -> dict:
+    """A planar five-bar (2 DOF) under gravity, its left crank driven at 4 rad/s and its
+    right crank free, started at rest relative to the drive."""
+    data = {
+        "mechanism": {
+            "label": "five_bar_half_driven",
+            "parameters": {"d": 0.4, "a": 0.2, "b": 0.35, "m": 1.0, "w": 4.0},
+            "gravity": [0, -GRAVITY, 0],
+            "links": [
+                {"link": 0, "name": "ground", "joints": [["R", 0, "A"], ["R", ["d", 0, 0], "E"]]},
+                {"link": 1, "name": "left", "joints": [["R", 0, "A"], ["R", ["a", 0, 0], "B"]], "mass": "m",
+                 "com": ["a/2", 0, 0], "inertia": "m*a^2/12"},
+                {"link": 2, "name": "upper_left", "joints": [["R", 0, "B"], ["R", ["b", 0, 0], "C"]], "mass": "m",
+                 "com": ["b/2", 0, 0], "inertia": "m*b^2/12"},
+                {"link": 3, "name": "upper_right", "joints": [["R", 0, "C"], ["R", ["b", 0, 0], "D"]], "mass": "m",
+                 "com": ["b/2", 0, 0], "inertia": "m*b^2/12"},
+                {"link": 4, "name": "right", "joints": [["R", 0, "D"], ["R", ["a", 0, 0], "E"]], "mass": "m",
+                 "com": ["a/2", 0, 0], "inertia": "m*a^2/12"},
+            ],
+            "couplings": [{"name": "A", "couple": ["ground", "A", "left", "A"]},
+                          {"name": "B", "couple": ["left", "B", "upper_left", "B"]},
+                          {"name": "C", "couple": ["upper_left", "C", "upper_right", "C"]},
+                          {"name": "D", "couple": ["upper_right", "D", "right", "D"]},
+                          {"name": "E", "couple": ["right", "E", "ground", "E"]}],
+            "drive": {"A": "1.2 + w*t"},
+            "drive_mode": "dynamic",
+        },
+        "initial": {"q": {"q_D": 4.0}, "guess": {"q_B": -0.6, "q_C": -1.2}},
+        "stabilization": {"method": "projection"},
+        "simulation": {"t_end": 0.15, "rtol": 1e-10, "atol": 1e-10, "backend": "python"},
+        "output": {"dt": 0.005},
+    }
+    for section, values in changes.items():
+        data[section].update(values)
+    return data
+
+
+@pytest.fixture(scope="module")
+def half_driven():
+    case = validate_case(_five_bar())
+    return case, run_case(case)
+
+
+def test_a_drive_on_one_of_two_degrees_of_freedom_keeps_its_motion_and_balances_energy(half_driven):
+    """The driven crank follows its drive, the other moves under gravity, and the work of the
+    drive torque (the drive multiplier, integrated with the motion) closes the energy balance:
+    a wrong multiplier or a wrong free motion would leave T + V - T0 - V0 - W_drive != 0."""
+    case, result = half_driven
+    assert case.linkage.dof == 2 and len(case.linkage.drive) == 1
+    assert result.ok, result.message
+    names = result.coordinate_names
+    crank = names.index("q_A")
+    assert np.max(np.abs(result.q[:, crank] - (1.2 + 4.0 * result.t))) < 1e-10
+    free = result.q[:, names.index("q_D")]
+    assert np.ptp(free) > 0.05  # the free crank does move
+    assert result.max_phi < 1e-9
+    energy = result.kinetic + result.potential
+    scale = np.max(np.abs(energy - energy[0]))
+    assert np.max(np.abs(result.energy_error)) < 1e-7 * scale
+    assert np.max(np.abs(result.drive_forces[:, 0])) > 0.1
+
+
+def test_each_method_gives_the_same_half_driven_motion(half_driven):
+    """Baumgarte and no stabilization (other equations, other rows stabilized) against
+    projection: the free crank's motion agrees to the tolerance."""
+    _, reference = half_driven
+    d = reference.coordinate_names.index("q_D")
+    for method in ({"method": "none"}, {"method": "baumgarte", "d": 1.0, "w": 20.0}):
+        result = run_case(validate_case(_five_bar(stabilization=method)))
+        assert result.ok, result.message
+        assert np.max(np.abs(result.q[:, d] - reference.q[:, d])) < 1e-7
+
+
+@pytest.mark.parametrize("changes, expected", [
+    ({"mechanism": {"drive": {"A": "w*t", "D": 1.0, "B": 0.3}}},
+     "mechanism.drive: 3 drives for 2 degrees of freedom (q_A, q_D, q_B driven); expected at most 2"),
+    ({"mechanism": {"drive_mode": "kinematic"}}, "expected exactly 2 driven joint variable(s) (under-driven"),
+    ({"initial": {"q": {"q_A": 0.3, "q_D": 4.0}}}, "initial.q: got"),
+    ({"initial": {"q": {"q_D": 4.0, "q_C": -1.2}}}, "initial.q: 2 coordinates besides 1 drive for 2 degrees"),
+])
+def test_half_driven_input_errors_name_the_key(changes, expected):
+    data = _five_bar()
+    for section, values in changes.items():
+        data[section] = {**data[section], **values}
+    with pytest.raises(CaseError) as err:
+        validate_case(data)
+    assert expected in str(err.value)

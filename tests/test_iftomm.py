@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from conftest import CONFIGS
-from iftomm_reference import a01_point, a02_b0
+from iftomm_reference import a01_point, a02_b0, a05_motion
 
 from csim.case import load_case
 from csim.pipeline import run_case
@@ -75,3 +75,42 @@ def test_a04_bricard_energy_and_a_second_formulation():
         assert run.status == "success", run.message
         assert run.energy_error_relative < energy
         assert np.max(np.abs(run.q - ref.q)) < bound
+
+
+def _a05_errors(result):
+    """Largest |s - s_ref| [m], |theta - theta_ref| [rad] (both rods) and |tau - tau_ref| [N m]."""
+    names = result.coordinate_names
+    y, tau = a05_motion(result.t)
+    s_err = np.max(np.abs(result.q[:, names.index("s_slide")] - y[:, 0]))
+    th_err = max(np.max(np.abs(result.q[:, names.index(n)] - y[:, i])) for i, n in ((1, "q_A"), (2, "q_B")))
+    return s_err, th_err, np.max(np.abs(result.drive_forces[:, 0] - tau))
+
+
+def test_a05_governor_against_its_rotating_frame_equations():
+    """The shaft driven at 2 pi rad/s (one drive for four degrees of freedom): the slider, the
+    rods and the drive torque against Lagrange's equations in the rotating frame, over 1 s
+    at the shipped tolerance and at a tight one (the error must shrink: not a match by
+    construction)."""
+    errors, energy = [], []
+    for tol in ("1e-5", "1e-9"):
+        result = run_case(load_case(IFTOMM / "a05_flyball_governor.yaml",
+                                    ["simulation.t_end=1", f"simulation.rtol={tol}", f"simulation.atol={tol}"]))
+        assert result.status == "success", result.message
+        assert not result.warnings
+        assert np.max(np.abs(result.qd[:, 0] - 2 * np.pi)) < 1e-9  # the shaft keeps its speed
+        energy.append(result.energy_error_relative)
+        errors.append(_a05_errors(result))
+    shipped, tight = errors
+    assert energy[0] < 1e-4 and energy[1] < 1e-8  # the drive's and dampers' work included: 3.7e-6, 3.3e-10
+    assert shipped[0] < 1e-4 and tight[0] < 1e-8  # measured 1.6e-6 and 1.3e-10 m
+    assert tight[1] < 1e-8 and tight[2] < 1e-6  # torque up to 49 N m; measured 2.2e-8 N m
+    assert tight[0] < shipped[0] / 100
+
+
+@pytest.mark.slow
+def test_a05_governor_meets_the_benchmark_tolerance():
+    """The slider coordinate over 10 s within 1e-3 m, with the shipped settings."""
+    result = run_case(load_case(IFTOMM / "a05_flyball_governor.yaml"))
+    assert result.status == "success", result.message
+    assert result.t.size == 1001
+    assert _a05_errors(result)[0] < 1e-3  # measured 2.7e-6 m

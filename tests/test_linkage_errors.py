@@ -106,7 +106,8 @@ def test_drive_must_match_the_degrees_of_freedom():
     del data["mechanism"]["drive"][5]
     msg = problems(data["mechanism"], data["initial"])
     assert msg == ["mechanism.drive: 2 drives for 3 degrees of freedom (q1, q4 driven); expected exactly 3 driven "
-                   "joint variable(s) (under-driven: the drives leave the motion undetermined)"]
+                   "joint variable(s) (under-driven: a kinematic analysis needs the whole motion prescribed; "
+                   "mechanism.drive_mode: dynamic lets the other joints move freely)"]
     msg = problems(changed(drive={"crankshaft": 1.0}))
     assert msg[0].startswith("mechanism.drive.crankshaft: no such joint; expected a coupling number or name")
 

@@ -295,13 +295,15 @@ def build_linkage(mechanism: dict, initial: dict | None = None, tol: float = 1e-
     forces = build_forces(mechanism.get("forces"), Geometry(tables, topology, frames), problems)
     equations = [e for c in topology.cut_joints for e in cut_joint_equations(c, frames)]
     names = [v.name for v in topology.variables]
-    start, fixed = _start(tables, names, drive, drive_source, initial or {}, problems)
+    partial = mechanism.get("drive_mode") == "dynamic"  # driven dynamics may leave joints free
+    start, fixed = _start(tables, names, drive, drive_source, initial or {}, problems, partial)
     plane = plane_of_motion(tables, frames, topology.variables)
     problems += _inertia_problems(tables, plane)
     if problems:
         raise CaseError(problems)
     # the count of drives (or of initial.q) against the DOF, before the assembly that holds them
-    count = (lambda dof: _drive_count(drive, dof)) if drive else (lambda dof: _held_count(fixed, dof))
+    count = ((lambda dof: _drive_count(drive, dof, partial) + _held_count(fixed, dof, drive)) if drive else
+             (lambda dof: _held_count(fixed, dof)))
     reduction = reduce_equations(equations, topology.variables, tables, start, fixed, tol=tol, max_iter=max_iter,
                                  mobility_check=count)
     planar = plane is not None
@@ -310,17 +312,19 @@ def build_linkage(mechanism: dict, initial: dict | None = None, tol: float = 1e-
                       grubler=grubler_kutzbach(tables, planar), dof=dof, drive=drive,
                       start=dict(zip(names, reduction.q_start.tolist())), notes=list(reduction.notes),
                       drive_source=drive_source, forces=forces)
-    if drive and len(drive) != dof:
-        raise CaseError(_drive_count(drive, dof))
+    if drive and _drive_count(drive, dof, partial):
+        raise CaseError(_drive_count(drive, dof, partial))
     if definition:
         linkage.definition = _definition(linkage)
     return linkage
 
 
 def _start(tables: Tables, names: list[str], drive: dict[str, sp.Expr], drive_source: dict[str, str],
-           initial: dict, problems: list[str]) -> tuple[dict[str, float], list[str]]:
+           initial: dict, problems: list[str], partial: bool = False) -> tuple[dict[str, float], list[str]]:
     """Start values of the assembly (``initial.guess``, ``initial.q``, the drives at t = 0)
-    and the variables it holds fixed (the drives, else ``initial.q``)."""
+    and the variables it holds fixed: the drives, else ``initial.q``; with ``partial``
+    (driven dynamics, which may drive fewer joints than degrees of freedom) the drives and
+    the free variables ``initial.q`` names."""
     start: dict[str, float] = {}
     for source in ("guess", "q"):
         for key, value in (initial.get(source) or {}).items():
@@ -339,7 +343,8 @@ def _start(tables: Tables, names: list[str], drive: dict[str, sp.Expr], drive_so
                             f"finite real value")
         else:
             start[key] = evaluate(expr, at_zero).real
-    return start, list(drive)
+    free = [k for k in (initial.get("q") or {}) if partial and k in names and k not in drive]
+    return start, [*drive, *free]
 
 
 def _inertia_problems(tables: Tables, plane: Plane | None) -> list[str]:
@@ -353,24 +358,32 @@ def _plural(count: int, word: str) -> str:
     return f"{count} {word}{'' if count == 1 else 's'}"
 
 
-def _drive_count(drive: dict[str, sp.Expr], dof: int) -> list[str]:
-    """The problem of driving ``len(drive)`` joint variables of a mechanism with ``dof`` DOF."""
+def _drive_count(drive: dict[str, sp.Expr], dof: int, partial: bool = False) -> list[str]:
+    """The problem of driving ``len(drive)`` joint variables of a mechanism with ``dof`` DOF:
+    a kinematic analysis needs one drive per degree of freedom; driven dynamics
+    (``partial``) at most that many, the others moving freely."""
     n = len(drive)
-    if n == dof:
+    if n == dof or (partial and n < dof):
         return []
-    why = ("over-driven: the drives would contradict the constraints" if n > dof else
-           "under-driven: the drives leave the motion undetermined")
+    if n > dof:
+        why, expected = "over-driven: the drives would contradict the constraints", f"at most {dof}" if partial \
+            else f"exactly {dof}"
+    else:
+        why, expected = ("under-driven: a kinematic analysis needs the whole motion prescribed; "
+                         "mechanism.drive_mode: dynamic lets the other joints move freely"), f"exactly {dof}"
     return [f"mechanism.drive: {_plural(n, 'drive')} for {_plural(dof, 'degree')} of freedom "
-            f"({', '.join(drive)} driven); expected exactly {dof} driven joint variable(s) ({why})"]
+            f"({', '.join(drive)} driven); expected {expected} driven joint variable(s) ({why})"]
 
 
-def _held_count(held: list[str], dof: int) -> list[str]:
-    """The problem of holding more coordinates (``initial.q``) than the mechanism has DOF;
-    fewer are reported by the case's own check of ``initial.q``."""
-    if len(held) <= dof:
+def _held_count(held: list[str], dof: int, drive: dict | None = None) -> list[str]:
+    """The problem of holding more coordinates (the drives and ``initial.q``) than the
+    mechanism has DOF; fewer are reported by the case's own check of ``initial.q``."""
+    if len(held) <= dof or (drive and len(drive) > dof):  # too many drives: said by _drive_count
         return []
-    return [f"initial.q: {_plural(len(held), 'coordinate')} for {_plural(dof, 'degree')} of freedom "
-            f"({', '.join(held)}); expected exactly {dof} independent coordinate(s)"]
+    free = [name for name in held if not drive or name not in drive]
+    driven = f" besides {_plural(len(drive), 'drive')}" if drive else ""
+    return [f"initial.q: {_plural(len(free), 'coordinate')}{driven} for {_plural(dof, 'degree')} of freedom "
+            f"({', '.join(free)}); expected exactly {dof - len(held) + len(free)} independent coordinate(s)"]
 
 
 def _definition(linkage: Linkage) -> MechanismDefinition:
@@ -403,12 +416,13 @@ def _definition(linkage: Linkage) -> MechanismDefinition:
 
 
 def _partition(linkage: Linkage) -> tuple[list[str], list[str]]:
-    """Independent coordinates at the start: the drives, or the columns left out of the
-    best-conditioned dependent block (pivoted QR of Phi_q at the assembled start)."""
+    """Independent coordinates at the start: the drives, and the columns left out of the
+    best-conditioned dependent block among the others (pivoted QR of Phi_q at the assembled
+    start)."""
     names = linkage.variable_names
-    if linkage.drive:
-        return list(linkage.drive), [n for n in names if n not in linkage.drive]
     kept = linkage.reduction.kept
+    if linkage.drive and len(linkage.drive) == linkage.dof:
+        return list(linkage.drive), [n for n in names if n not in linkage.drive]
     if not kept:
         return names, []
     import scipy.linalg
@@ -419,8 +433,10 @@ def _partition(linkage: Linkage) -> tuple[list[str], list[str]]:
     at = {k: sp.Float(v) for k, v in subs.items()}
     J = np.array(sparse_jacobian([e.expression for e in kept], [v.symbol for v in linkage.topology.variables])
                  .xreplace(at).evalf(), dtype=float)
-    _, _, piv = scipy.linalg.qr(J, pivoting=True)
-    dependent = set(piv[:len(kept)].tolist())
+    # the dependent block among the columns not driven (a drive is independent by definition)
+    columns = [i for i, n in enumerate(names) if n not in linkage.drive]
+    _, _, piv = scipy.linalg.qr(J[:, columns], pivoting=True)
+    dependent = {columns[i] for i in piv[:len(kept)].tolist()}
     return [n for i, n in enumerate(names) if i not in dependent], [n for i, n in enumerate(names) if i in dependent]
 
 

@@ -13,7 +13,9 @@ Phi_d,q = e_j^T (a constant row), Phi_d,t = -f_j', Phi_d,qt = 0, Phi_d,tt = -f_j
 
 (gamma = -(Phi_q qd)_q qd - 2 Phi_qt qd - Phi_tt). With as many drives as degrees of
 freedom, the KKT system has a square, regular Phi_q: the motion is the prescribed one and
-the multipliers are the forces that keep it. The constraint force of a drive is
+the multipliers are the forces that keep it. With fewer drives (a governor's shaft turned
+at a set speed while its arms swing freely) the other joints move under the forces, and
+the drive multipliers are still the forces that hold the driven joints to their motion. The constraint force of a drive is
 -Phi_d,q^T lambda_d = -e_j lambda_d, a generalized force along q_j alone: the drive's
 torque (R joint) or force (P joint) is
 
@@ -27,12 +29,12 @@ The drive rows are stabilized like the mechanism's constraints: ``baumgarte`` an
 ``sliding_mode`` take the stacked rows [Phi; Phi_d] with their rates
 [Phi_q qd; qd_j - f_j'(t)] (for Baumgarte the drive error e = q_j - f_j(t) then obeys
 e'' + 2 d w e' + w^2 e = 0 exactly), and ``projection`` projects onto both after every
-step. With one drive per degree of freedom the stacked Jacobian J = [Phi_q; e_j^T] is
-square and regular, so the positions go by the method's Gauss-Newton iteration on
-[Phi(q); q_j - f_j(t)] = 0 and the velocities are the one solution of
-J qd = [0; f_j'(t)]. Not offered (:func:`driven_problems`, exit 2): ``ggl`` and
-``minimal`` (they integrate a system of their own), the elimination (no coordinate is
-independent), per-constraint gain lists (the drive rows need gains too), the compiled
+step: the positions by the method's Gauss-Newton iteration on [Phi(q); q_j - f_j(t)] = 0,
+the velocities to the nearest (in the kinetic-energy metric) that satisfy
+J qd = [0; f_j'(t)] with J = [Phi_q; e_j^T]; with one drive per degree of freedom J is
+square and that is its one solution. Not offered (:func:`driven_problems`, exit 2):
+``ggl``, ``minimal`` and ``augmented_lagrangian`` (they integrate a system of their own),
+the elimination, per-constraint gain lists (the drive rows need gains too), the compiled
 kernels.
 """
 from __future__ import annotations
@@ -59,9 +61,8 @@ def driven_problems(case) -> list[str]:
     method = case.stabilization.method
     if method not in DRIVEN_METHODS:
         problems.append(f"stabilization.method: got {method!r} with mechanism.drive_mode 'dynamic'; {method} "
-                        f"integrates a system of its own in the free coordinates, and with one drive per degree of "
-                        f"freedom the drives and constraints fix q(t) and qd(t) entirely (nothing is left free "
-                        f"to integrate); expected one of {', '.join(DRIVEN_METHODS)}")
+                        f"integrates a system of its own, which does not take the drives as constraints that "
+                        f"depend on time; expected one of {', '.join(DRIVEN_METHODS)}")
     for key in GAIN_KEYS:
         if method in DRIVEN_METHODS and isinstance(getattr(case.stabilization, key, None), list | tuple):
             problems.append(f"stabilization.{key}: got a list (one per constraint) with mechanism.drive_mode "
@@ -69,8 +70,8 @@ def driven_problems(case) -> list[str]:
                             f"number")
     if case.formulation.method != "kkt":
         problems.append(f"formulation.method: got {case.formulation.method!r} with mechanism.drive_mode "
-                        f"'dynamic'; with one drive per degree of freedom no coordinate is independent, so "
-                        f"there is nothing to eliminate onto; expected 'kkt'")
+                        f"'dynamic'; the drives are rows the elimination does not take (with one drive per "
+                        f"degree of freedom no coordinate is left independent); expected 'kkt'")
     return problems
 
 
@@ -134,10 +135,14 @@ class DrivenSystem(ConstrainedSystem):
         q, qd, work = self.split(y)
         view = _DriveRows(self.model, self.driven, self.drive(t))
         q, _ = self.stabilizer.project(view, self.par, q, qd)  # Gauss-Newton on [Phi; q_j - f_j(t)]
-        # J qd = [0; f_j'(t)], J = [Phi_q; e_j^T] square and regular: its one solution
+        # the velocities nearest qd in the kinetic-energy metric with J qd = b = [0; f_j'(t)],
+        # J = [Phi_q; e_j^T]:  qd <- qd + M^-1 J^T mu,  (J M^-1 J^T) mu = b - J qd
+        # (with one drive per degree of freedom J is square and this is J^-1 b)
         J = np.vstack((self.model.phi_q(q, self.par).reshape(self.r, self.m), self._rows))
+        b = np.concatenate((np.zeros(self.r), view.rates))
         try:
-            qd = np.linalg.solve(J, np.concatenate((np.zeros(self.r), view.rates)))
+            MinvJt = np.linalg.solve(self.model.mass(q, self.par), J.T)
+            qd = qd + MinvJt @ np.linalg.solve(J @ MinvJt, b - J @ qd)
         except np.linalg.LinAlgError:
             raise SimulationFailure(f"driven dynamics at t = {t:.6g} s: the constraint Jacobian with the drive rows "
                                     f"is singular (a singular position of the driven mechanism)", "singular") from None

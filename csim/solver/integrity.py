@@ -73,6 +73,26 @@ class ConstraintWatch:
     gamma_removed: Callable | None = None
     units: list[str] = field(default_factory=list)
 
+    def with_drives(self, driven: np.ndarray, names: list[str], m: int) -> ConstraintWatch:
+        """The watch of driven dynamics: the drive rows Phi_d = q_j - f_j(t) appended, kept.
+
+        Their Jacobian rows e_j^T (constant) join Phi_q, so a configuration where the
+        constraints and the drives together lose rank (a driven mechanism at a dead centre,
+        where the drive torque is unbounded) is a singular crossing. Their residual depends
+        on time, which the watch does not see: it reads 0 (the run records the drive error
+        in q itself).
+        """
+        d = len(driven)
+        rows = np.eye(m)[np.asarray(driven, dtype=int)]
+        n_all = len(self.labels)
+        return ConstraintWatch(
+            phi=lambda q: np.concatenate((np.ravel(self.phi(q)), np.zeros(d))),
+            phi_q=lambda q: np.vstack((np.asarray(self.phi_q(q)).reshape(n_all, m), rows)),
+            labels=[*self.labels, *(f"drive {name}" for name in names)],
+            kept=np.concatenate((self.kept, np.arange(n_all, n_all + d))), removed=self.removed,
+            rank=self.rank + d, gamma_removed=self.gamma_removed,
+            units=[*self.units, *(["1"] * d)] if self.units else [])
+
     def gamma(self, gamma_kept: np.ndarray, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
         """gamma (n_all,) of every equation: ``gamma_kept`` (the model's, on the kept rows) and
         the removed rows' own."""
@@ -304,8 +324,12 @@ def check_integrity(watch: ConstraintWatch, t: np.ndarray, q: np.ndarray, qd: np
                             f"does not: the equations removed at the start ({', '.join(names)}) are needed there"
                             f"{held}")
     if crossings:
-        warnings.append(f"singular configuration (Phi_q below its rank {watch.rank}) at t = "
-                        f"{_times([c[0] for c in crossings])}: the motion after it may follow another assembly branch")
+        drives = [label[6:] for label in watch.labels if label.startswith("drive ")]
+        what = (f"Phi_q with the drive rows of {', '.join(drives)} below its rank {watch.rank}: a dead centre of the "
+                f"driven mechanism, where the drive force is unbounded" if drives else
+                f"Phi_q below its rank {watch.rank}")
+        warnings.append(f"singular configuration ({what}) at t = {_times([c[0] for c in crossings])}: the motion "
+                        f"after it may follow another assembly branch")
         for tc, _ in crossings:
             jump = _branch_jump(t, qd, qdd, tc, coordinate_names)
             if jump is not None and failure is None:
