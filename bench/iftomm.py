@@ -3,7 +3,7 @@
 Run with ``make bench`` (after bench/run.py) or ``python bench/iftomm.py [--repeat N]``. For each
 shipped case: the benchmark's error against a motion computed independently of csim
 (tests/iftomm_reference.py; Andrews: the IVP test set's solution; Bricard: the energy balance,
-having no closed form), the median integration time over ``--repeat`` warm runs in this process
+having no closed form; the governor: Lagrange's equations in the rotating frame), the median integration time over ``--repeat`` warm runs in this process
 (``Result.wall_time``: the integration and the evaluation of the samples), and the median
 whole-process time of ``csim run CASE`` (warm cache), beside the CPU times of the OpenSim
 reproduction of the benchmark (rehabenggroup.github.io/MBSbenchmarksInOpenSim, Intel i5-4570).
@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))
 
-from iftomm_reference import a01_point, a02_b0  # noqa: E402
+from iftomm_reference import a01_point, a02_b0, a05_motion  # noqa: E402
 from test_andrews import Q_END  # noqa: E402
 
 from csim.case import load_case  # noqa: E402
@@ -55,12 +55,18 @@ def a04_error(r):
     return float(r.energy_error_relative), "relative energy balance (no closed form)"
 
 
+def a05_error(r):
+    s = r.q[:, r.coordinate_names.index("s_slide")]
+    return float(np.max(np.abs(s - a05_motion(r.t)[0][:, 0]))), "m (largest slider error)"
+
+
 #: (problem, case file, error, tolerance, OpenSim CPU time [s] or None, what that time is for)
 CASES = [
     ("A01 pendulum, 2000 s", "a01_pendulum.yaml", a01_error, 1e-3, 0.637, "10 s"),
     ("A02 N-four-bar, N = 2", "a02_n_four_bar_2.yaml", a02_error(2), 1e-3, 0.455, "20 s"),
     ("A03 Andrews", "a03_andrews.yaml", a03_error, 1e-6, 0.384, "0.03 s"),
     ("A04 Bricard, 10 s", "a04_bricard.yaml", a04_error, 1e-6, 0.258, "10 s"),
+    ("A05 flyball governor, 10 s", "a05_flyball_governor.yaml", a05_error, 1e-3, 0.233, "10 s"),
 ]
 
 

@@ -268,6 +268,18 @@ class ReleasedGeometry(Geometry):
     def q(self):
         return [v.symbol for v in self.topology.variables] + list(EPS)
 
+    # The reactions take the elements' potentials and their directions along eps only, with
+    # the load values the run recorded: the rates in the laws and the directions along q
+    # (sympy derivatives of long expressions, most of a run's reaction work) are not needed.
+    def rate(self, expr: sp.Expr) -> sp.Expr:
+        """A stand-in for d expr/dt (the laws are not evaluated here)."""
+        return sp.Dummy("rate")
+
+    def gradient(self, expr: sp.Expr) -> list[sp.Expr]:
+        """d expr/d(q, eps) with the q entries left 0 (only the eps rows are read)."""
+        m = len(self.topology.variables)
+        return [sp.Integer(0)] * m + [sp.diff(expr, e) for e in EPS]
+
     @property
     def qd(self):
         return [v.velocity for v in self.topology.variables] + list(EPS_DOT)
