@@ -26,8 +26,8 @@ RUN_KINDS = {
     None: "forward dynamics (no mechanism.drive): the motion under the masses, gravity and force elements",
     "kinematic": "kinematic analysis (mechanism.drive, drive_mode kinematic): the motion prescribed by the drives, "
                  "no forces",
-    "dynamic": "driven dynamics (mechanism.drive, drive_mode dynamic): the drives are rheonomic constraints; the "
-               "torques and forces they need are recorded (forces/drive)",
+    "dynamic": "driven dynamics (mechanism.drive, drive_mode dynamic): the drives are rheonomic constraints, the "
+               "joints not driven move freely; the torques and forces the drives need are recorded (forces/drive)",
 }
 
 
