@@ -75,3 +75,21 @@ def test_a_lazy_kernel_compiles_on_first_call_and_is_typed_in_compiled_callers()
     compiled = twice.compiled() if isinstance(twice, LazyKernel) else twice
     assert compiled.signatures  # a numba dispatcher
     assert np.isclose(twice(np.float64(0.25)), 0.5)
+
+
+def test_plain_runs_a_core_function_not_yet_compiled_as_python(monkeypatch):
+    """Inside ``plain()`` a LazyKernel that has not been compiled calls its Python function and
+    leaves numba alone; outside, or once compiled, it is the compiled one."""
+    from csim.physics import jit
+
+    calls = []
+
+    def fn(x):
+        calls.append(x)
+        return x + 1
+
+    lazy = jit.LazyKernel(fn, {})
+    monkeypatch.setattr(lazy, "compiled", lambda: pytest.fail("compiled inside plain()"))
+    with jit.plain():
+        assert lazy(1) == 2
+    assert calls == [1] and jit._PLAIN["depth"] == 0

@@ -12,6 +12,7 @@ import numpy as np
 
 from csim.errors import SimulationFailure
 from csim.model.numeric import NumericModel
+from csim.physics.jit import plain
 from csim.solver.newton import DependentSolveError, dependent_velocities, solve_dependent
 
 #: the dependent block Phi_v counts as singular beyond this 2-norm condition number
@@ -78,7 +79,8 @@ def consistent_initial_state(model: NumericModel, par: np.ndarray, independent: 
             f"independent coordinates cannot drive the mechanism here, or the guess is poor", "assembly")
 
     try:
-        solution = solve_dependent(model, par, q, v, tol, max_iter, max_condition=MAX_CONDITION)
+        with plain():  # a few iterations: plain Python beats loading compiled code (csim.physics.jit)
+            solution = solve_dependent(model, par, q, v, tol, max_iter, max_condition=MAX_CONDITION)
     except DependentSolveError as exc:
         if exc.reason == "singular":
             raise singular(exc.q) from None
@@ -96,7 +98,8 @@ def consistent_initial_state(model: NumericModel, par: np.ndarray, independent: 
     qd = np.zeros(m)
     for name, value in velocities.items():
         qd[names.index(name)] = value
-    qd = dependent_velocities(phi_q, qd, v)  # Phi_v vd = -Phi_u ud
+    with plain():
+        qd = dependent_velocities(phi_q, qd, v)  # Phi_v vd = -Phi_u ud
     return InitialState(q=q, qd=qd, iterations=solution.iterations, residual=solution.residual)
 
 
