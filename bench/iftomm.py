@@ -3,7 +3,8 @@
 Run with ``make bench`` (after bench/run.py) or ``python bench/iftomm.py [--repeat N]``. For each
 shipped case: the benchmark's error against a motion computed independently of csim
 (tests/iftomm_reference.py; Andrews: the IVP test set's solution; Bricard: the energy balance,
-having no closed form; the governor: Lagrange's equations in the rotating frame), the median integration time over ``--repeat`` warm runs in this process
+having no closed form; the governor: Lagrange's equations in the rotating frame), the median
+integration time over ``--repeat`` warm runs in this process
 (``Result.wall_time``: the integration and the evaluation of the samples), and the median
 whole-process time of ``csim run CASE`` (warm cache), beside the CPU times of the OpenSim
 reproduction of the benchmark (rehabenggroup.github.io/MBSbenchmarksInOpenSim, Intel i5-4570).

@@ -572,7 +572,6 @@ def _build_linkage(out: dict, problems: list[str]) -> Linkage:
 
     ini = out["initial"]
     linkage = build_linkage(out["mechanism"], ini, tol=ini.get("tol") or 1e-12, max_iter=ini.get("max_iter") or 50)
-    mech = linkage.definition
     if linkage.drive:
         _drive_start(out, linkage, problems)
         if out["mechanism"].get("drive_mode") is None:

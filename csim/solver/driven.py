@@ -15,8 +15,8 @@ Phi_d,q = e_j^T (a constant row), Phi_d,t = -f_j', Phi_d,qt = 0, Phi_d,tt = -f_j
 freedom, the KKT system has a square, regular Phi_q: the motion is the prescribed one and
 the multipliers are the forces that keep it. With fewer drives (a governor's shaft turned
 at a set speed while its arms swing freely) the other joints move under the forces, and
-the drive multipliers are still the forces that hold the driven joints to their motion. The constraint force of a drive is
--Phi_d,q^T lambda_d = -e_j lambda_d, a generalized force along q_j alone: the drive's
+the drive multipliers are still the forces that hold the driven joints to their motion. The
+constraint force of a drive is -Phi_d,q^T lambda_d = -e_j lambda_d, a generalized force along q_j alone: the drive's
 torque (R joint) or force (P joint) is
 
     tau_j = -lambda_d      [N m or N],
