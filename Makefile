@@ -10,9 +10,10 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[test]'
+	$(BIN)/python -m csim.fast.warm
 	touch $(STAMP)
 
-install: $(STAMP)  ## create .venv and install csim with its test dependencies
+install: $(STAMP)  ## create .venv, install csim with its test dependencies, compile the kernels once
 
 run: $(STAMP)  ## run the default case
 	$(BIN)/csim run configs/quick_return.yaml -o results/quick_return.h5

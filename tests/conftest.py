@@ -14,20 +14,29 @@ CONFIGS = ROOT / "configs"
 def _cache_dir(tmp_path_factory):
     """Keep generated model code of the test run out of the user's cache.
 
+    The compiled kernels are the installation's (``csim.model.cache.kernels_dir`` as the
+    user's environment gives it, which ``make install`` fills): they do not depend on any
+    mechanism and are filed under the hash of their sources and versions, so the test
+    session loads them instead of compiling them again (two to five minutes on 2 cores).
     ``CSIM_TEST_CACHE_DIR`` names a cache to reuse across test sessions instead (its files
-    are filed under hashes of their sources, so an edit never reuses a stale copy): the
-    compiled kernels then compile once, not once per ``pytest``.
+    are filed under hashes of their sources, so an edit never reuses a stale copy), the
+    kernels included.
     """
     import os
 
-    old = os.environ.get("CSIM_CACHE_DIR")
+    from csim.model.cache import kernels_dir
+
+    saved = {key: os.environ.get(key) for key in ("CSIM_CACHE_DIR", "CSIM_KERNELS_DIR")}
     shared = os.environ.get("CSIM_TEST_CACHE_DIR")
+    if not shared:
+        os.environ["CSIM_KERNELS_DIR"] = str(kernels_dir())
     os.environ["CSIM_CACHE_DIR"] = shared or str(tmp_path_factory.mktemp("csim-cache"))
     yield
-    if old is None:
-        os.environ.pop("CSIM_CACHE_DIR", None)
-    else:
-        os.environ["CSIM_CACHE_DIR"] = old
+    for key, value in saved.items():
+        if value is None:
+            os.environ.pop(key, None)
+        else:
+            os.environ[key] = value
 
 
 @pytest.fixture(scope="session")

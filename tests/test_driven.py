@@ -292,3 +292,28 @@ def test_half_driven_input_errors_name_the_key(changes, expected):
     with pytest.raises(CaseError) as err:
         validate_case(data)
     assert expected in str(err.value)
+
+
+def test_no_dead_centre_is_reported_where_the_free_joints_keep_their_rank_at_any_scale():
+    """The dead-centre test looks at Phi_q over the joints not driven, in the mechanism's own
+    units: the same five-bar, 300 times smaller, reports no singular crossing either."""
+    data = _five_bar()
+    for name in ("d", "a", "b"):
+        data["mechanism"]["parameters"][name] *= 0.003
+    result = run_case(validate_case(data))
+    assert result.ok, result.message
+    assert not result.warnings and result.singular_times.size == 0
+
+
+def test_half_driven_projection_with_massless_links_and_the_minimum_norm_metric():
+    """The velocity projection with fewer drives than degrees of freedom uses the method's
+    metric: with ``minimum_norm`` a singular mass matrix is no obstacle."""
+    data = _five_bar(stabilization={"method": "projection", "projection_metric": "minimum_norm"})
+    for link in data["mechanism"]["links"][2:4]:  # the two upper links without mass
+        for key in ("mass", "com", "inertia"):
+            link.pop(key)
+    result = run_case(validate_case(data))
+    assert result.ok, result.message
+    assert result.max_phi < 1e-9
+    crank = result.coordinate_names.index("q_A")
+    assert np.max(np.abs(result.qd[:, crank] - 4.0)) < 1e-9

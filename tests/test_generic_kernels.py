@@ -35,7 +35,8 @@ stats = {name: getattr(kernels, name).stats for name in ("integrate", "evaluate_
 print(json.dumps(dict(backend=res.backend, ok=res.ok,
                       hits={k: sum(s.cache_hits.values()) for k, s in stats.items()},
                       misses={k: sum(s.cache_misses.values()) for k, s in stats.items()},
-                      models=sorted(p.name for p in (module.cache_dir() / "fast").iterdir()))))
+                      models=sorted(p.name for d in {module.cache_dir() / "fast", module.kernels_path().parent}
+                                    for p in d.iterdir()))))
 """
 
 

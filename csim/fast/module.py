@@ -1,8 +1,9 @@
 """Load the compiled kernels (once per installation) and a mechanism's model functions.
 
 The kernels (:mod:`csim.fast.kernels`) are the same for every mechanism. They are imported
-from a copy, ``<cache>/fast/kernels_<key>.py``, where ``<cache>`` is csim's cache
-(``$CSIM_CACHE_DIR``, default ``~/.cache/csim``) and ``<key>`` hashes everything their
+from a copy, ``<kernels>/kernels_<key>.py``, where ``<kernels>`` is
+:func:`csim.model.cache.kernels_dir` (``$CSIM_KERNELS_DIR``, default ``fast/`` in csim's
+cache, ``$CSIM_CACHE_DIR`` or ``~/.cache/csim``) and ``<key>`` hashes everything their
 machine code depends on: the kernels, the layout, the core (:mod:`csim.physics`), the
 built-in methods' files, and the numba, numpy, scipy and Python versions. numba compiles
 them on first use and keeps the machine code next to the copy (``__pycache__``); every
@@ -46,7 +47,7 @@ from types import ModuleType
 import numpy as np
 
 from csim.fast.layout import BUILTIN_GAMMA, EXTERNAL, MODEL_FUNCTIONS, c_symbol
-from csim.model.cache import cache_dir, definition_key
+from csim.model.cache import cache_dir, definition_key, kernels_dir
 from csim.model.definition import MechanismDefinition
 from csim.solver.methods import STABILIZERS
 
@@ -94,7 +95,7 @@ def kernels_key() -> str:
 
 def kernels_path(partitioned: bool = False) -> Path:
     """The kernels' copy in the cache: ``kernels_<key>.py``, or ``kernels_partitioned_<key>.py``."""
-    return cache_dir() / "fast" / f"kernels{'_partitioned' if partitioned else ''}_{kernels_key()}.py"
+    return kernels_dir() / f"kernels{'_partitioned' if partitioned else ''}_{kernels_key()}.py"
 
 
 def kernels_source(partitioned: bool = False) -> str:

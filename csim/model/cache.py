@@ -70,6 +70,17 @@ def cache_dir() -> Path:
     return Path(root) if root else Path.home() / ".cache" / "csim"
 
 
+def kernels_dir() -> Path:
+    """Where the compiled kernels live (one copy per installation, filed under the hash of
+    their sources and versions): ``$CSIM_KERNELS_DIR``, else ``fast/`` in :func:`cache_dir`.
+
+    The test suite keeps its generated models in a private cache but uses the kernels that
+    ``make install`` compiled here (tests/conftest.py), so no test session compiles them again.
+    """
+    root = os.environ.get("CSIM_KERNELS_DIR")
+    return Path(root) if root else cache_dir() / "fast"
+
+
 def cached_source(definition: MechanismDefinition, use_cache: bool = True) -> str:
     """Generated source for ``definition``, derived anew only when not cached."""
     path = cache_dir() / f"{definition.name}-{definition_key(definition)}.py"

@@ -30,12 +30,12 @@ The drive rows are stabilized like the mechanism's constraints: ``baumgarte`` an
 [Phi_q qd; qd_j - f_j'(t)] (for Baumgarte the drive error e = q_j - f_j(t) then obeys
 e'' + 2 d w e' + w^2 e = 0 exactly), and ``projection`` projects onto both after every
 step: the positions by the method's Gauss-Newton iteration on [Phi(q); q_j - f_j(t)] = 0,
-the velocities to the nearest (in the kinetic-energy metric) that satisfy
-J qd = [0; f_j'(t)] with J = [Phi_q; e_j^T]; with one drive per degree of freedom J is
-square and that is its one solution. Not offered (:func:`driven_problems`, exit 2):
-``ggl``, ``minimal`` and ``augmented_lagrangian`` (they integrate a system of their own),
-the elimination, per-constraint gain lists (the drive rows need gains too), the compiled
-kernels.
+the velocities to the one solution of J qd = [0; f_j'(t)], J = [Phi_q; e_j^T], where there
+is one drive per degree of freedom (J square), else to the nearest solution in the
+projection's metric (``projection_metric``: the mass matrix, or the identity). Not offered
+(:func:`driven_problems`, exit 2): ``ggl``, ``minimal`` and ``augmented_lagrangian`` (they
+integrate a system of their own), the elimination, per-constraint gain lists (the drive
+rows need gains too), the compiled kernels.
 """
 from __future__ import annotations
 
@@ -135,14 +135,21 @@ class DrivenSystem(ConstrainedSystem):
         q, qd, work = self.split(y)
         view = _DriveRows(self.model, self.driven, self.drive(t))
         q, _ = self.stabilizer.project(view, self.par, q, qd)  # Gauss-Newton on [Phi; q_j - f_j(t)]
-        # the velocities nearest qd in the kinetic-energy metric with J qd = b = [0; f_j'(t)],
-        # J = [Phi_q; e_j^T]:  qd <- qd + M^-1 J^T mu,  (J M^-1 J^T) mu = b - J qd
-        # (with one drive per degree of freedom J is square and this is J^-1 b)
+        # J qd = b = [0; f_j'(t)] with J = [Phi_q; e_j^T]: with one drive per degree of
+        # freedom J is square and qd = J^-1 b; with fewer, the velocities nearest the
+        # integrated ones in the projection's metric W (M, or I for minimum_norm):
+        #   [W J^T; J 0] [dqd; mu] = [0; b - J qd]
+        # (regular where W is positive definite on the null space of J, as the dynamics need)
         J = np.vstack((self.model.phi_q(q, self.par).reshape(self.r, self.m), self._rows))
         b = np.concatenate((np.zeros(self.r), view.rates))
+        n = J.shape[0]
         try:
-            MinvJt = np.linalg.solve(self.model.mass(q, self.par), J.T)
-            qd = qd + MinvJt @ np.linalg.solve(J @ MinvJt, b - J @ qd)
+            if n == self.m:
+                qd = np.linalg.solve(J, b)
+            else:
+                W = self.model.mass(q, self.par) if self.stabilizer.metric == "mass" else np.eye(self.m)
+                K = np.block([[W, J.T], [J, np.zeros((n, n))]])
+                qd = qd + np.linalg.solve(K, np.concatenate((np.zeros(self.m), b - J @ qd)))[:self.m]
         except np.linalg.LinAlgError:
             raise SimulationFailure(f"driven dynamics at t = {t:.6g} s: the constraint Jacobian with the drive rows "
                                     f"is singular (a singular position of the driven mechanism)", "singular") from None

@@ -25,7 +25,7 @@ either backend, against the full set of non-trivial constraint equations:
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -72,26 +72,23 @@ class ConstraintWatch:
     rank: int
     gamma_removed: Callable | None = None
     units: list[str] = field(default_factory=list)
+    #: the driven coordinates of driven dynamics (:meth:`with_drives`), for the messages
+    driven: list[str] = field(default_factory=list)
 
     def with_drives(self, driven: np.ndarray, names: list[str], m: int) -> ConstraintWatch:
-        """The watch of driven dynamics: the drive rows Phi_d = q_j - f_j(t) appended, kept.
+        """The watch of driven dynamics, whose rows are Phi and the drives q_j - f_j(t).
 
-        Their Jacobian rows e_j^T (constant) join Phi_q, so a configuration where the
-        constraints and the drives together lose rank (a driven mechanism at a dead centre,
-        where the drive torque is unbounded) is a singular crossing. Their residual depends
-        on time, which the watch does not see: it reads 0 (the run records the drive error
-        in q itself).
+        The stacked Jacobian [Phi_q; e_j^T] loses rank exactly where Phi_q restricted to the
+        columns not driven does (rank = d + rank Phi_q[:, free]): that block is watched
+        instead, so that a dead centre of the driven mechanism (where the drive torque is
+        unbounded) is a singular crossing, judged on the mechanism's own rows and units
+        (unit drive rows beside rows in metres would make the test depend on the length
+        unit). The residuals and the other rows are the mechanism's.
         """
-        d = len(driven)
-        rows = np.eye(m)[np.asarray(driven, dtype=int)]
+        free = np.array([i for i in range(m) if i not in set(int(j) for j in driven)], dtype=int)
         n_all = len(self.labels)
-        return ConstraintWatch(
-            phi=lambda q: np.concatenate((np.ravel(self.phi(q)), np.zeros(d))),
-            phi_q=lambda q: np.vstack((np.asarray(self.phi_q(q)).reshape(n_all, m), rows)),
-            labels=[*self.labels, *(f"drive {name}" for name in names)],
-            kept=np.concatenate((self.kept, np.arange(n_all, n_all + d))), removed=self.removed,
-            rank=self.rank + d, gamma_removed=self.gamma_removed,
-            units=[*self.units, *(["1"] * d)] if self.units else [])
+        return replace(self, phi_q=lambda q: np.asarray(self.phi_q(q)).reshape(n_all, m)[:, free],
+                       driven=list(names))
 
     def gamma(self, gamma_kept: np.ndarray, q: np.ndarray, qd: np.ndarray) -> np.ndarray:
         """gamma (n_all,) of every equation: ``gamma_kept`` (the model's, on the kept rows) and
@@ -324,10 +321,9 @@ def check_integrity(watch: ConstraintWatch, t: np.ndarray, q: np.ndarray, qd: np
                             f"does not: the equations removed at the start ({', '.join(names)}) are needed there"
                             f"{held}")
     if crossings:
-        drives = [label[6:] for label in watch.labels if label.startswith("drive ")]
-        what = (f"Phi_q with the drive rows of {', '.join(drives)} below its rank {watch.rank}: a dead centre of the "
-                f"driven mechanism, where the drive force is unbounded" if drives else
-                f"Phi_q below its rank {watch.rank}")
+        what = (f"Phi_q over the coordinates not driven ({', '.join(watch.driven)} driven) below its rank "
+                f"{watch.rank}: a dead centre of the driven mechanism, where the drive force is unbounded"
+                if watch.driven else f"Phi_q below its rank {watch.rank}")
         warnings.append(f"singular configuration ({what}) at t = {_times([c[0] for c in crossings])}: the motion "
                         f"after it may follow another assembly branch")
         for tc, _ in crossings:
@@ -342,11 +338,15 @@ def check_integrity(watch: ConstraintWatch, t: np.ndarray, q: np.ndarray, qd: np
 
 
 def _jacobians(phi_q: Callable[[np.ndarray], np.ndarray], q: np.ndarray, r: int) -> np.ndarray:
-    """Phi_q at each configuration q (n, m), stacked (n, r, m); NaN at a non-finite q."""
-    out = np.full((q.shape[0], r, q.shape[1]), np.nan)
+    """Phi_q at each configuration q (n, m), stacked (n, r, c) (c: the columns ``phi_q`` gives,
+    m or fewer); NaN at a non-finite q."""
+    out = None
     for i in np.flatnonzero(np.isfinite(q).all(axis=1)):
-        out[i] = phi_q(q[i])
-    return out
+        J = np.asarray(phi_q(q[i]), dtype=float).reshape(r, -1)
+        if out is None:
+            out = np.full((q.shape[0], r, J.shape[1]), np.nan)
+        out[i] = J
+    return np.full((q.shape[0], r, q.shape[1]), np.nan) if out is None else out
 
 
 def _times(times, shown: int = 5) -> str:
