@@ -96,8 +96,8 @@ def convert(value: str, unit: str | None) -> tuple[float | None, str | None]:
     Returns
     -------
     (number, None), or (None, problem): ``problem`` says why the value is refused and what
-    was expected, e.g. ``"'kg' is a mass ([mass]), not a time; expected a number in s, or a
-    value with a unit of [time] (10 ms)"``.
+    was expected, e.g. ``"'kg' is the unit of a mass ([mass]), not of a time; expected a
+    number in s, or a time ([time]) with its unit (such as 10 ms)"``.
     """
     parts = split(value)
     if parts is None:
@@ -121,7 +121,8 @@ def convert(value: str, unit: str | None) -> tuple[float | None, str | None]:
     try:
         given = ureg.parse_units(unit_text.replace("·", "*"))
     except pint.UndefinedUnitError as exc:
-        names = [str(n) for n in getattr(exc, "unit_names", ()) or ()]
+        names = getattr(exc, "unit_names", None) or ()
+        names = [names] if isinstance(names, str) else [str(n) for n in names]
         where = f" in {unit_text!r}" if names and names != [unit_text] else ""
         unknown = ", ".join(repr(n) for n in names) or repr(unit_text)
         return None, f"unknown unit {unknown}{where}; expected a number{_in(unit)}{_example(ureg, unit)}"

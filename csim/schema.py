@@ -237,9 +237,10 @@ def _with_units(path: str, value: Any, unit: str, problems: list[str]) -> Any:
     if isinstance(value, list):
         if not any(is_quantity(v) for v in value):
             return value
+        before = len(problems)
         entries = [_with_units(f"{path}[{n}]", v, unit, problems) if is_quantity(v) else v
                    for n, v in enumerate(value)]
-        return None if any(e is None for e in entries) else entries
+        return None if len(problems) > before else entries
     number, problem = convert(value, unit)
     if problem is not None:
         problems.append(f"{path}: got {describe(value)}; {problem}")

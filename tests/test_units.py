@@ -99,6 +99,11 @@ def test_loads_and_their_windows_take_units():
 def test_a_gain_per_constraint_may_carry_units():
     case = validate_case(pendulum(stabilization={"method": "baumgarte", "w": ["20 1/s"], "K": "0.5 kHz"}))
     assert case.data["stabilization"]["w"] == [20.0] and case.data["stabilization"]["K"] == 500.0
+    # an entry that is not a number is still reported as such
+    problems: list[str] = []
+    assert check_value("stabilization.w", [None, "10 1/s"], Field("any", unit="1/s", check=lambda v: "positive"),
+                       problems) is None
+    assert problems == ["stabilization.w: got [None, '10 1/s'] (list) = [None, 10.0] 1/s; expected positive"]
 
 
 def test_plain_numbers_are_unchanged_and_taken_in_the_keys_unit():
@@ -304,3 +309,22 @@ def test_a_unit_where_a_table_entry_has_none_is_refused_and_expressions_are_unch
     doc = read("fourbar_gravity.yaml")
     doc["mechanism"]["parameters"]["a"] = "10 blorbs"
     assert problems_of(doc)[0].startswith("mechanism.parameters.a: got '10 blorbs' (string); unknown unit 'blorbs'")
+
+
+def test_a_drive_takes_its_joint_variables_unit_and_expressions_stay_expressions():
+    doc = read("fourbar.yaml")
+    doc["mechanism"]["drive"] = {"crank": "30 deg"}
+    assert validate_case(copy.deepcopy(doc)).linkage.drive == {"q_crank": sp.pi / 6}
+    doc["mechanism"]["drive"] = {"crank": "2*pi*t"}  # pi (and deg, a parameter, t) make an expression
+    assert validate_case(copy.deepcopy(doc)).linkage.drive == {"q_crank": 2 * sp.pi * sp.Symbol("t", real=True)}
+    doc["mechanism"]["drive"] = {"crank": "2*pi*t rad"}  # a unit inside an expression is not read
+    (msg,) = problems_of(doc)
+    assert msg.startswith("mechanism.drive.crank: got '2*pi*t rad' (string); unknown name 'rad'"), msg
+
+
+def test_set_takes_a_value_with_a_unit():
+    from csim.case import load_case
+
+    case = load_case(CONFIGS / "quick_return.yaml", ["initial.q.q1=172 deg", "simulation.t_end=250 ms"])
+    assert case.data["initial"]["q"]["q1"] == pytest.approx(math.radians(172), rel=1e-14)
+    assert case.data["simulation"]["t_end"] == 0.25
