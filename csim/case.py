@@ -15,6 +15,7 @@ Units are SI throughout (m, kg, s, rad, N, N m, J); see ``csim.io.units``.
 """
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 import re
@@ -27,9 +28,11 @@ import numpy as np
 import yaml
 
 from csim.errors import CaseError
+from csim.io.units import per_time
 from csim.loads import VELOCITY_CONDITIONS, LoadLaw, LoadSet
 from csim.mechanisms import MECHANISMS, light_mechanism
 from csim.model.definition import MechanismDefinition
+from csim.quantities import JSON_QUANTITY, JSON_QUANTITY_DEFINITION, SI_BASE, convert, is_quantity
 from csim.schema import (
     REQUIRED,
     Field,
@@ -518,6 +521,7 @@ def validate_case(data: dict, source: str = "<dict>") -> Case:
         if name not in MECHANISMS:
             raise CaseError(problems)
         mech = light_mechanism(name)
+        _parameter_units(section, mech, problems)
         if section.get("forces") is not None:
             from csim.mechanisms.sites import with_forces
 
@@ -572,6 +576,9 @@ def _build_linkage(out: dict, problems: list[str]) -> Linkage:
 
     ini = out["initial"]
     linkage = build_linkage(out["mechanism"], ini, tol=ini.get("tol") or 1e-12, max_iter=ini.get("max_iter") or 50)
+    given = out["mechanism"].get("parameters")
+    if isinstance(given, dict):  # as the tables read them: written with a unit (50 mm), converted (0.05)
+        out["mechanism"]["parameters"] = {k: linkage.tables.parameters.get(str(k), v) for k, v in given.items()}
     if linkage.drive:
         _drive_start(out, linkage, problems)
         if out["mechanism"].get("drive_mode") is None:
@@ -634,6 +641,27 @@ def _same_values(given, expected: dict[str, float]) -> bool:
                for k, v in given.items())
 
 
+def _parameter_units(section: dict, mech, problems: list[str]) -> None:
+    """``mechanism.parameters`` of a registered mechanism written with a unit (``l1: 1500 mm``),
+    converted before anything reads them (the force elements too): a parameter of the
+    mechanism to its unit, another (a force element's own) to SI base units. One that
+    cannot be converted is reported and left out (its default stays)."""
+    given = section.get("parameters")
+    if not isinstance(given, dict) or not any(is_quantity(v) for v in given.values()):
+        return
+    units = {p.name: p.unit for p in mech.parameters}
+    converted = {}
+    for key, value in given.items():
+        if is_quantity(value):
+            unit = units.get(str(key), SI_BASE)
+            value, problem = convert(value, unit)
+            if problem is not None:
+                problems.append(f"mechanism.parameters.{key} [{unit}]: got {describe(given[key])}; {problem}")
+                continue
+        converted[key] = value
+    section["parameters"] = converted
+
+
 def _validate_parameters(out, mech, problems):
     given = out["mechanism"]["parameters"] or {}
     values = {}
@@ -650,13 +678,15 @@ def _validate_parameters(out, mech, problems):
     out["mechanism"]["parameters"] = {p.name: values.get(p.name, p.default) for p in mech.parameters}
 
 
-def _coordinate_map(path, given, allowed, problems, what):
+def _coordinate_map(path, given, allowed, problems, what, units):
+    """``given`` (name: value) checked: names from ``allowed``, each a number in its unit
+    (``units``: name -> unit; ``30 deg`` is converted to it)."""
     result = {}
     for key, value in (given or {}).items():
         if str(key) not in allowed:
             problems.append(f"{path}.{key}: not {what}; expected one of {', '.join(allowed) or '(none)'}")
             continue
-        checked = check_value(f"{path}.{key}", value, Field("number"), problems)
+        checked = check_value(f"{path}.{key}", value, Field("number", unit=units[str(key)]), problems)
         if checked is not None:
             result[str(key)] = checked
     return result
@@ -665,9 +695,11 @@ def _coordinate_map(path, given, allowed, problems, what):
 def _validate_initial(out, mech, problems):
     ini = out["initial"]
     names = mech.coordinate_names
+    units = dict(zip(names, mech.coordinate_units))
+    rates = {name: per_time(unit) for name, unit in units.items()}
     n_dof = len(names) - mech.n_constraints
     given = ini["q"] if ini["q"] is not None else dict(mech.default_independent)
-    q = _coordinate_map("initial.q", given, names, problems, "a coordinate of " + mech.name)
+    q = _coordinate_map("initial.q", given, names, problems, "a coordinate of " + mech.name, units)
     # Judge the count and the other maps by the coordinates named, valid values or not, so
     # that one bad entry gives one message.
     independent = [n for n in names if n in map(str, given)]
@@ -679,13 +711,15 @@ def _validate_initial(out, mech, problems):
         )
     qd = ini["qd"] if ini["qd"] is not None else \
         {k: v for k, v in mech.default_independent_velocities.items() if k in independent}
-    qd = _coordinate_map("initial.qd", qd, independent, problems, "an independent coordinate (listed in initial.q)")
+    qd = _coordinate_map("initial.qd", qd, independent, problems, "an independent coordinate (listed in initial.q)",
+                         rates)
     dependent = [n for n in names if n not in independent]
     guess = {**{k: v for k, v in mech.default_guess.items() if k in dependent}, **(ini["guess"] or {})}
-    guess = _coordinate_map("initial.guess", guess, dependent, problems, "a dependent coordinate")
-    q_offset = _coordinate_map("initial.q_offset", ini["q_offset"], names, problems, "a coordinate of " + mech.name)
+    guess = _coordinate_map("initial.guess", guess, dependent, problems, "a dependent coordinate", units)
+    q_offset = _coordinate_map("initial.q_offset", ini["q_offset"], names, problems, "a coordinate of " + mech.name,
+                               units)
     qd_offset = _coordinate_map("initial.qd_offset", ini["qd_offset"], names, problems,
-                                "a coordinate of " + mech.name)
+                                "a coordinate of " + mech.name, rates)
     ini.update(q=q, qd=qd, guess=guess, q_offset=q_offset, qd_offset=qd_offset)
 
 
@@ -704,18 +738,22 @@ def _validate_loads(out, mech, problems):
                             f"expected no loads.{key} (change the element in mechanism.forces)")
             continue
         if isinstance(spec, dict):
-            law = validate_section(path, spec, LOAD_SCHEMA, problems)
+            law = validate_section(path, spec, _load_schema(unit), problems)
             window = law.get("window")
             if window is not None:
-                bounds = [_window_bound(w) for w in window]
+                bounds = [_window_bound(f"{path}.window[{n}]", w, load.coordinate_unit, problems)
+                          for n, w in enumerate(window)]
+                if any(b is _REPORTED for b in bounds):
+                    continue
                 if len(bounds) != 2 or None in bounds or not bounds[0] < bounds[1]:
-                    problems.append(f"{path}.window: got {describe(window)}; expected [lo, hi] with lo < hi "
-                                    f"(use .inf for an open end)")
+                    problems.append(f"{path}.window: got {describe(window)}; expected [lo, hi] with lo < hi, "
+                                    f"numbers in {load.coordinate_unit or '1'} or written with a unit (use .inf for "
+                                    f"an open end)")
                 else:
                     law["window"] = bounds
             result[key] = law
-        elif isinstance(spec, (int, float)) and not isinstance(spec, bool):
-            checked = check_value(f"{path} [{unit}]", spec, Field("number"), problems)
+        elif (isinstance(spec, (int, float)) and not isinstance(spec, bool)) or is_quantity(spec):
+            checked = check_value(f"{path} [{unit}]", spec, Field("number", unit=unit), problems)
             if checked is not None:
                 result[key] = checked
         else:
@@ -724,11 +762,27 @@ def _validate_loads(out, mech, problems):
     out["loads"] = result
 
 
-def _window_bound(value) -> float | None:
-    """A load window's bound as a float (+-.inf allowed: an open end); None for anything else
-    (not a number, .nan, an integer beyond the float range)."""
+def _load_schema(unit: str) -> Section:
+    """:data:`LOAD_SCHEMA` with the magnitude in ``unit`` (the load's: N or N m)."""
+    return Section({**LOAD_SCHEMA.fields, "magnitude": dataclasses.replace(LOAD_SCHEMA.fields["magnitude"], unit=unit)})
+
+
+#: a window bound whose unit was wrong (reported)
+_REPORTED = object()
+
+
+def _window_bound(path: str, value, unit: str, problems: list[str]):
+    """A load window's bound as a float (+-.inf allowed: an open end; ``30 deg`` converted to
+    ``unit``, the load coordinate's); None for anything else (not a number, .nan, an integer
+    beyond the float range); :data:`_REPORTED` for a value whose unit cannot be converted."""
     if isinstance(value, float) and math.isinf(value):
         return value
+    if is_quantity(value):
+        number, problem = convert(value, unit)
+        if problem is not None:
+            problems.append(f"{path}: got {describe(value)}; {problem}")
+            return _REPORTED
+        value = number
     return float(value) if finite_number(value) else None
 
 
@@ -836,9 +890,12 @@ def json_schema() -> dict:
         mechanism["properties"][key].update(extra)
     law = section_json_schema(LOAD_SCHEMA)
     law["type"] = "object"
-    schema["properties"]["loads"]["additionalProperties"] = {"anyOf": [{"type": "number"}, law]}
+    law["properties"]["magnitude"] = {**law["properties"]["magnitude"], "anyOf": [{"type": "number"}, JSON_QUANTITY]}
+    del law["properties"]["magnitude"]["type"]
+    schema["properties"]["loads"]["additionalProperties"] = {"anyOf": [{"type": "number"}, JSON_QUANTITY, law]}
     schema["required"] = ["mechanism"]
     schema["allOf"] = [_mechanism_json_schema(name) for name in sorted(MECHANISMS)]
+    schema["definitions"] = {"quantity": JSON_QUANTITY_DEFINITION}  # a value with its unit (JSON_QUANTITY)
     return schema
 
 
@@ -851,7 +908,8 @@ def _mechanism_json_schema(name: str) -> dict:
     units = dict(zip(mech.coordinate_names, mech.coordinate_units))
 
     def coordinates(what: str, per: str) -> dict:
-        return {"properties": {n: {"type": "number", "description": described(f"{what} {n}", units[n] + per)}
+        return {"properties": {n: {"anyOf": [{"type": "number"}, JSON_QUANTITY],
+                                   "description": described(f"{what} {n}", units[n] + per)}
                                for n in units}, "additionalProperties": False}
     loads = {ld.name: {"description": described(f"load {ld.name}", ld.unit)} for ld in mech.loads}
     return {
@@ -862,7 +920,8 @@ def _mechanism_json_schema(name: str) -> dict:
             "mechanism": {"properties": {"parameters": {"properties": parameters}},
                           "if": {"required": ["forces"], "properties": {"forces": {"type": "array"}}},
                           "then": {"properties": {"parameters": {"additionalProperties": {
-                              "type": "number", "description": "a parameter the force elements use"}}}},
+                              "anyOf": [{"type": "number"}, JSON_QUANTITY],
+                              "description": "a parameter the force elements use [SI units]"}}}},
                           "else": {"properties": {"parameters": {"properties": dict.fromkeys(parameters, True),
                                                                  "additionalProperties": False}}}},
             "initial": {"properties": {

@@ -15,6 +15,8 @@ from dataclasses import dataclass, make_dataclass
 from dataclasses import field as dataclass_field
 from typing import Any
 
+from csim.quantities import JSON_QUANTITY, convert, convertible, is_quantity
+
 REQUIRED = object()
 
 TYPE_NAMES = {
@@ -176,6 +178,14 @@ def check_value(path: str, value: Any, spec: Field, problems: list[str]) -> Any:
         problems.append(f"{path}: got null; expected {spec.expected()}")
         return None
     ok = True
+    shown = None  # a value written with a unit, as given and converted (for messages)
+    if spec.type in ("number", "any") and (is_quantity(value) or (spec.type == "any" and isinstance(value, list))):
+        converted = _with_units(path, value, spec.unit, problems)
+        if converted is None:
+            return None
+        if converted is not value:
+            shown = f"{describe(value)} = {short_repr(converted)} {spec.unit}"
+        value = converted
     if spec.type == "number":
         ok = isinstance(value, (int, float)) and not isinstance(value, bool)
         if ok:
@@ -184,7 +194,7 @@ def check_value(path: str, value: Any, spec: Field, problems: list[str]) -> Any:
             except OverflowError:  # an integer beyond the float range
                 number = math.inf
             if not math.isfinite(number):
-                problems.append(f"{path}: got {describe(value)}; expected {spec.expected()} "
+                problems.append(f"{path}: got {shown or describe(value)}; expected {spec.expected()} "
                                 f"(.inf, .nan and numbers beyond the float range are not allowed)")
                 return None
             value = number
@@ -204,7 +214,7 @@ def check_value(path: str, value: Any, spec: Field, problems: list[str]) -> Any:
     out_of_bounds = (spec.gt is not None and not value > spec.gt) or (spec.ge is not None and not value >= spec.ge) \
         or (spec.le is not None and not value <= spec.le)
     if spec.type in ("number", "integer") and out_of_bounds:
-        problems.append(f"{path}: got {describe(value)}; expected {spec.expected()}")
+        problems.append(f"{path}: got {shown or describe(value)}; expected {spec.expected()}")
         return None
     choices = spec.valid_choices()
     if choices is not None and value not in choices:
@@ -215,9 +225,26 @@ def check_value(path: str, value: Any, spec: Field, problems: list[str]) -> Any:
     if spec.check is not None:
         expectation = spec.check(value)
         if expectation:
-            problems.append(f"{path}: got {describe(value)}; expected {expectation}")
+            problems.append(f"{path}: got {shown or describe(value)}; expected {expectation}")
             return None
     return value
+
+
+def _with_units(path: str, value: Any, unit: str, problems: list[str]) -> Any:
+    """``value`` with a number written with a unit (``10 ms``), or each such entry of a list
+    (a gain per constraint), converted to ``unit`` (:func:`csim.quantities.convert`); the
+    value itself when nothing has a unit; None when a conversion fails (appended to ``problems``)."""
+    if isinstance(value, list):
+        if not any(is_quantity(v) for v in value):
+            return value
+        before = len(problems)
+        entries = [_with_units(f"{path}[{n}]", v, unit, problems) if is_quantity(v) else v
+                   for n, v in enumerate(value)]
+        return None if len(problems) > before else entries
+    number, problem = convert(value, unit)
+    if problem is not None:
+        problems.append(f"{path}: got {describe(value)}; {problem}")
+    return number
 
 
 @dataclass
@@ -309,7 +336,8 @@ def field_json_schema(spec: Field) -> dict:
     """The JSON Schema (draft-07) of one field: type, bounds, choices, default, description.
 
     Non-finite numbers, which :func:`check_value` rejects, cannot be told apart in JSON
-    Schema; everything else a field declares can.
+    Schema; everything else a field declares can, but the bounds of a number written with
+    its unit (``10 ms``: a string matching :data:`csim.quantities.JSON_PATTERN`).
     """
     out: dict[str, Any] = {}
     if spec.type in JSON_TYPES:
@@ -321,7 +349,11 @@ def field_json_schema(spec: Field) -> dict:
     if choices is not None:
         out["enum"] = list(choices)
     out.update(spec.json or {})
-    if spec.nullable:
+    if spec.type in ("number", "any") and convertible(spec.unit):  # or written with its unit: 10 ms
+        out = {"anyOf": [*(out["anyOf"] if list(out) == ["anyOf"] else [out]), JSON_QUANTITY]}
+    if spec.nullable and list(out) == ["anyOf"]:
+        out = {"anyOf": [*out["anyOf"], {"type": "null"}]}
+    elif spec.nullable:
         if "type" in out and "enum" not in out:
             out["type"] = [out["type"], "null"]
         else:

@@ -375,7 +375,8 @@ def test_each_problem_names_path_value_and_expectation(text, path, fragments):
 
 
 @pytest.mark.parametrize("name, value, bound", [("m1", -4, "> 0"), ("l1", 0, "> 0"), ("a2", -0.5, ">= 0"),
-                                                 ("J4", -1, ">= 0"), ("g", "9.81 m/s^2", "a number")])
+                                                 ("J4", -1, ">= 0"), ("g", "9.81 m/s", "not of an acceleration"),
+                                                 ("g", "9.81", "a number")])
 def test_bad_parameter_values(name, value, bound):
     with pytest.raises(CaseError) as excinfo:
         validate_case({"mechanism": {"name": "quick_return", "parameters": {name: value}}})

@@ -99,6 +99,9 @@ NONNEGATIVE = re.compile(r"^mechanism\.links\[\d+\]\.mass$")
 #: gains: a positive number, or a list of them, one per constraint
 GAINS = re.compile(r"^stabilization\.(d|w|Lambda|K|k)$")
 
+#: keys in s, which take a time written with its unit ("1e-3 s" is 0.001 s)
+TIMES = re.compile(r"^(simulation\.(t_end|step|max_step|first_step|min_step)|output\.dt)$")
+
 #: keys whose mapping takes names the case chooses (a new name is not an unknown key)
 FREE_NAMES = re.compile(r"^mechanism\.parameters$")
 
@@ -130,6 +133,8 @@ def must_reject(doc: dict, kind: str, path: tuple, value) -> bool:
     nonnegative = NONNEGATIVE.match(text) or text in nonnegative_names
     if (kind in ("negative", "zero") and positive) or (kind == "negative" and nonnegative):
         return True
+    if kind == "wrong type" and value == "1e-3 s" and TIMES.match(text):
+        return False  # a time written with its unit
     if kind == "wrong type" and GAINS.match(text) and value == [1, 2]:
         return False  # one gain per constraint (valid where there are two)
     return kind == "wrong type" and positive

@@ -16,6 +16,7 @@ from csim.linkage.json_schema import link_row
 from csim.linkage.tables import LINK_KEYS
 from csim.mechanisms import MECHANISMS
 from csim.physics.switching import SWITCHING_NAMES
+from csim.quantities import JSON_QUANTITY
 from csim.schema import REQUIRED, Field, Section, field_json_schema, field_paths, section_json_schema
 from csim.solver.formulations import FORMULATIONS
 from csim.solver.integrators import INTEGRATORS
@@ -150,8 +151,13 @@ def test_units_go_into_the_descriptions():
 
 
 def test_field_conversion_of_bounds_choices_and_null():
-    spec = Field("number", 1.0, "a gain", "1/s", gt=0.0, le=5.0, nullable=True)
+    spec = Field("number", 1.0, "a ratio", gt=0.0, le=5.0, nullable=True)
     assert field_json_schema(spec) == {"type": ["number", "null"], "exclusiveMinimum": 0.0, "maximum": 5.0,
+                                       "description": "a ratio", "default": 1.0}
+    # a key with a unit may also be written with one (10 Hz): a string of that pattern
+    spec = Field("number", 1.0, "a gain", "1/s", gt=0.0, le=5.0, nullable=True)
+    assert field_json_schema(spec) == {"anyOf": [{"type": "number", "exclusiveMinimum": 0.0, "maximum": 5.0},
+                                                 JSON_QUANTITY, {"type": "null"}],
                                        "description": "a gain [1/s]", "default": 1.0}
     choice = field_json_schema(Field("string", None, "pick", choices=("a", "b"), nullable=True))
     assert choice == {"anyOf": [{"type": "string", "enum": ["a", "b"]}, {"type": "null"}], "description": "pick",

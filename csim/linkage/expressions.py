@@ -2,7 +2,11 @@
 
 A number may be written as an expression of the ``parameters`` (``l1``, ``xB/2``,
 ``90*deg``, ``pi/2``), built from + - * / ^, parentheses and :data:`FUNCTIONS`. It must be
-finite and real at the parameter values (``acos(2)`` is not).
+finite and real at the parameter values (``acos(2)`` is not). Where the entry's unit is
+known (a joint frame's p, a link's mass, com and inertia, gravity, a force element's
+constants, a drive), a number may instead be written with a unit, ``50 mm``, ``30 deg``,
+``4.5 kN/m``, converted to it (:func:`quantity_text`); a unit inside an expression
+(``l1 + 5 mm``) is not read.
 
 Before sympy sees an expression, its size is bounded (:func:`bound_problem`): at most
 :data:`MAX_EXPRESSION_CHARS` characters, every constant part within the float range
@@ -22,6 +26,7 @@ from typing import Any
 import sympy as sp
 from sympy.parsing.sympy_parser import parse_expr
 
+from csim.quantities import convert, split
 from csim.schema import cut, describe, finite_number
 
 #: Functions and constants an expression may use besides the parameters.
@@ -154,7 +159,7 @@ def valid_name(name: Any) -> bool:
 
 
 def parse_expression(path: str, value: Any, symbols: dict[str, sp.Symbol], problems: list[str],
-                     values: dict[sp.Symbol, float] | None = None) -> sp.Expr | None:
+                     values: dict[sp.Symbol, float] | None = None, unit: str | None = None) -> sp.Expr | None:
     """A number, or an expression string in ``symbols``, as an exact sympy expression.
 
     Floats become rationals (0.1 -> 1/10), so that sums cancel exactly.
@@ -171,12 +176,16 @@ def parse_expression(path: str, value: Any, symbols: dict[str, sp.Symbol], probl
     values : dict Symbol -> float, optional
         The parameter values. When given, an expression of these symbols only must be
         finite and real at them (``acos(e)`` with e = 2 is rejected).
+    unit : str, optional
+        The entry's unit (``m``, ``rad``, ``kg m^2``): a number written with a unit
+        (``50 mm``, ``30 deg``; :func:`quantity_text`) is converted to it. Without it such
+        a value is refused, saying so.
 
     Returns
     -------
     sympy expression, or None when the value is not valid.
     """
-    expr = _parse(path, value, symbols, problems)
+    expr = _parse(path, value, symbols, problems, unit)
     if expr is None or values is None:
         return expr
     what = value_problem(expr, values)
@@ -213,7 +222,49 @@ def value_problem(expr: sp.Expr, values: dict[sp.Symbol, float]) -> str | None:
     return None
 
 
-def _parse(path: str, value: Any, symbols: dict[str, sp.Symbol], problems: list[str]) -> sp.Expr | None:
+def quantity_text(text: str, symbols: dict[str, sp.Symbol]) -> tuple[str, str] | None:
+    """(number, unit) of an entry written as a number with a unit (``50 mm``, ``0.5*m``,
+    ``30 deg``), or None for a number or an expression. Text that names a parameter (or
+    ``t``, a joint variable: any of ``symbols``) is an expression (``2*l1``, ``2 l1``), and
+    so is a number times one of :data:`FUNCTIONS` (``90*deg``, ``2*pi*t``: as always); a
+    number and a unit with a space between them (``90 deg``) or ``*`` (``0.5*m``) is a
+    quantity."""
+    parts = split(text)
+    if parts is None:
+        return None
+    number, unit, star = parts
+    names = _IDENT.findall(unit)
+    if any(name in symbols for name in names) or (star and any(name in FUNCTIONS for name in names)):
+        return None
+    return number, unit
+
+
+#: units written for degrees (converted to rad exactly: 90 deg is pi/2)
+_DEGREES = ("deg", "degree", "degrees", "°")
+
+
+def _quantity(path: str, value: str, number: str, unit_text: str, unit: str | None,
+              problems: list[str]) -> sp.Expr | None:
+    """A table entry written with a unit, converted to the entry's ``unit``, exactly for degrees
+    to rad."""
+    if unit is None:
+        problems.append(f"{path}: got {describe(value)}; a unit is not read in this entry; expected a number or an "
+                        f"expression of the parameters, in SI units (90*deg for an angle)")
+        return None
+    converted, problem = convert(value, unit)
+    if problem is not None:
+        problems.append(f"{path}: got {describe(value)}; {problem}")
+        return None
+    if not finite_number(converted):
+        problems.append(f"{path}: got {describe(value)} = {converted} {unit}; expected a finite number")
+        return None
+    if unit == "rad" and unit_text in _DEGREES:
+        return sp.Rational(repr(float(number))) * sp.pi / 180
+    return sp.Rational(repr(converted))
+
+
+def _parse(path: str, value: Any, symbols: dict[str, sp.Symbol], problems: list[str],
+           unit: str | None = None) -> sp.Expr | None:
     """:func:`parse_expression` without the check at the parameter values."""
     allowed = ", ".join(sorted(symbols)) or "none"
     if isinstance(value, bool) or not isinstance(value, (int, float, str)):
@@ -228,6 +279,9 @@ def _parse(path: str, value: Any, symbols: dict[str, sp.Symbol], problems: list[
     if isinstance(value, float):
         return sp.Rational(repr(value))
     text = value.strip()
+    quantity = quantity_text(text, symbols)
+    if quantity is not None:
+        return _quantity(path, value, *quantity, unit, problems)
     if "//" in text or "**" in text or re.search(r"\^[^()+\-*/]*\^", text):
         problems.append(f"{path}: got {describe(value)}; expected + - * / and single powers ^ (no //, ** or "
                         f"a^b^c)")
@@ -274,6 +328,6 @@ class Scope:
     symbols: dict[str, sp.Symbol]
     values: dict[sp.Symbol, float]
 
-    def parse(self, path: str, value: Any, problems: list[str]) -> sp.Expr | None:
-        """:func:`parse_expression` of a table entry, checked at the parameter values."""
-        return parse_expression(path, value, self.symbols, problems, self.values)
+    def parse(self, path: str, value: Any, problems: list[str], unit: str | None = None) -> sp.Expr | None:
+        """:func:`parse_expression` of a table entry in ``unit``, checked at the parameter values."""
+        return parse_expression(path, value, self.symbols, problems, self.values, unit)

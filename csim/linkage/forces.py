@@ -312,7 +312,7 @@ def point_of(geo: Geometry, path: str, raw: Any, problems: list[str]) -> tuple[s
     link = geo.tables.links[number]
     spot = raw[1]
     if isinstance(spot, list) and len(spot) == 3:
-        local = [geo.scope().parse(f"{path}[1][{a}]", v, problems) for a, v in enumerate(spot)]
+        local = [geo.scope().parse(f"{path}[1][{a}]", v, problems, "m") for a, v in enumerate(spot)]
         if any(x is None for x in local):
             return None
         r = (geo.frames.links[number] * sp.Matrix([*local, 1]))[:3, 0]
@@ -469,7 +469,7 @@ def number_of(geo: ElementGeometry, element: Element, key: str, unit: str, probl
     """A constant of an element: a number or an expression of the parameters, >= ``minimum``."""
     raw = element.row.get(key, default)
     path = element.key(key)
-    expr = geo.scope().parse(path, raw, problems)
+    expr = geo.scope().parse(path, raw, problems, unit)
     if expr is None or minimum is None:
         return expr
     value = evaluate(expr, geo.values)

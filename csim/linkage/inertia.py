@@ -62,17 +62,21 @@ def _format(moments: np.ndarray) -> str:
     return ", ".join(f"{m:.6g}" for m in moments)
 
 
+#: the unit of an inertia entry
+INERTIA_UNIT = "kg m^2"
+
+
 def _inertia(path: str, value: Any, scope: Scope, problems: list[str]) -> sp.Matrix | None:
     if value is None:
         return sp.zeros(3, 3)
     if not isinstance(value, list):
-        j = scope.parse(path, value, problems)
+        j = scope.parse(path, value, problems, INERTIA_UNIT)
         return None if j is None else j * sp.eye(3)
     if len(value) == 3 and all(not isinstance(v, list) for v in value):
-        diag = [scope.parse(f"{path}[{n}]", v, problems) for n, v in enumerate(value)]
+        diag = [scope.parse(f"{path}[{n}]", v, problems, INERTIA_UNIT) for n, v in enumerate(value)]
         return None if any(d is None for d in diag) else sp.diag(*diag)
     if len(value) == 3 and all(isinstance(row, list) and len(row) == 3 for row in value):
-        rows = [[scope.parse(f"{path}[{a}][{b}]", v, problems) for b, v in enumerate(row)]
+        rows = [[scope.parse(f"{path}[{a}][{b}]", v, problems, INERTIA_UNIT) for b, v in enumerate(row)]
                 for a, row in enumerate(value)]
         if any(e is None for row in rows for e in row):
             return None
@@ -129,13 +133,13 @@ def parse_mass_properties(path: str, row: dict, scope: Scope, problems: list[str
     -------
     MassProperties, or None when a problem was found.
     """
-    mass = scope.parse(f"{path}.mass", row.get("mass", 0), problems)
+    mass = scope.parse(f"{path}.mass", row.get("mass", 0), problems, "kg")
     com_raw = row.get("com", [0, 0, 0])
     com = None
     if not isinstance(com_raw, list) or len(com_raw) != 3:
         problems.append(f"{path}.com: got {describe(com_raw)}; expected [x, y, z] in the link frame [m]")
     else:
-        com = tuple(scope.parse(f"{path}.com[{a}]", v, problems) for a, v in enumerate(com_raw))
+        com = tuple(scope.parse(f"{path}.com[{a}]", v, problems, "m") for a, v in enumerate(com_raw))
     inertia = _inertia(f"{path}.inertia", row.get("inertia"), scope, problems)
     if mass is None or com is None or any(c is None for c in com) or inertia is None:
         return None

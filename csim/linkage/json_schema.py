@@ -9,8 +9,9 @@ from __future__ import annotations
 
 from csim.linkage.joints import JOINT_TYPES
 from csim.linkage.tables import LINK_KEYS
+from csim.quantities import JSON_QUANTITY
 
-#: a number, or an expression of the parameters (``l1/2``, ``90*deg``)
+#: a number, an expression of the parameters (``l1/2``, ``90*deg``) or a number with a unit (``50 mm``)
 EXPRESSION = {"type": ["number", "string"]}
 
 
@@ -69,7 +70,9 @@ def coupling_row() -> dict:
 def tables_json_schema() -> dict:
     """``properties`` of the ``mechanism`` section for the link-coupling keys."""
     return {
-        "parameters": {"additionalProperties": {"type": "number"}},
+        "parameters": {"additionalProperties": {"anyOf": [{"type": "number"}, JSON_QUANTITY],
+                                                "description": "a parameter: a number in SI units, or a number "
+                                                               "with a unit (50 mm), converted to SI base units"}},
         "links": {"items": link_row(), "minItems": 1},
         "couplings": {"items": coupling_row(), "minItems": 1},
         "gravity": {"items": EXPRESSION, "minItems": 3, "maxItems": 3},

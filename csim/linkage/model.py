@@ -43,7 +43,8 @@ from csim.linkage.topology import Topology, analyse, grubler_kutzbach
 from csim.linkage.transforms import simplify_entry
 from csim.model.definition import Drawing, MechanismDefinition, Observable, Parameter
 from csim.model.recursive import sparse_jacobian
-from csim.schema import describe
+from csim.quantities import convert, is_quantity
+from csim.schema import describe, finite_number
 
 T = sp.Symbol("t", real=True)
 
@@ -173,7 +174,7 @@ def _drive_expressions(tables, topology, per_coupling, problems) -> tuple[dict[s
         for var, value in zip(topology.variables_of(c), values):
             if value is None:
                 continue
-            expr = parse_expression(f"mechanism.drive.{c.name or c.number}", value, symbols, problems)
+            expr = parse_expression(f"mechanism.drive.{c.name or c.number}", value, symbols, problems, unit=var.unit)
             if expr is not None:
                 drive[var.name] = expr
                 source[var.name] = value.strip() if isinstance(value, str) else str(value)
@@ -296,7 +297,8 @@ def build_linkage(mechanism: dict, initial: dict | None = None, tol: float = 1e-
     equations = [e for c in topology.cut_joints for e in cut_joint_equations(c, frames)]
     names = [v.name for v in topology.variables]
     partial = mechanism.get("drive_mode") == "dynamic"  # driven dynamics may leave joints free
-    start, fixed = _start(tables, names, drive, drive_source, initial or {}, problems, partial)
+    units = {v.name: v.unit for v in topology.variables}
+    start, fixed = _start(tables, names, drive, drive_source, initial or {}, problems, partial, units)
     plane = plane_of_motion(tables, frames, topology.variables)
     problems += _inertia_problems(tables, plane)
     if problems:
@@ -320,11 +322,14 @@ def build_linkage(mechanism: dict, initial: dict | None = None, tol: float = 1e-
 
 
 def _start(tables: Tables, names: list[str], drive: dict[str, sp.Expr], drive_source: dict[str, str],
-           initial: dict, problems: list[str], partial: bool = False) -> tuple[dict[str, float], list[str]]:
+           initial: dict, problems: list[str], partial: bool = False,
+           units: dict[str, str] | None = None) -> tuple[dict[str, float], list[str]]:
     """Start values of the assembly (``initial.guess``, ``initial.q``, the drives at t = 0)
     and the variables it holds fixed: the drives, else ``initial.q``; with ``partial``
     (driven dynamics, which may drive fewer joints than degrees of freedom) the drives and
-    the free variables ``initial.q`` names."""
+    the free variables ``initial.q`` names. A value written with a unit (``30 deg``) is
+    converted to its variable's unit (``units``); one that cannot be is left to the case's
+    own check of ``initial``."""
     start: dict[str, float] = {}
     for source in ("guess", "q"):
         for key, value in (initial.get(source) or {}).items():
@@ -333,6 +338,10 @@ def _start(tables: Tables, names: list[str], drive: dict[str, sp.Expr], drive_so
                                 f"{', '.join(names)}")
             elif isinstance(value, (int, float)) and not isinstance(value, bool):
                 start[key] = float(value)
+            elif is_quantity(value) and units and key in units:
+                number, _ = convert(value, units[key])
+                if finite_number(number):
+                    start[key] = float(number)
     if not drive:
         return start, [k for k in (initial.get("q") or {}) if k in names]
     at_zero = {**tables.values, T: 0.0}

@@ -17,7 +17,9 @@ A mechanism is given under ``mechanism`` in a case file by
 
 Numbers may be written as expressions of the named ``parameters`` (``l1``, ``xB/2``,
 ``90*deg``, ``pi/2``; :mod:`csim.linkage.expressions`), finite and real at the parameter
-values. Every problem is reported at once, naming the table row
+values, or with a unit (``50 mm``, ``30 deg``), converted to the entry's (m, rad, kg, kg m^2,
+m/s^2). A parameter has no unit of its own: one written with a unit is converted to SI
+base units (``l1: 50 mm`` is 0.05). Every problem is reported at once, naming the table row
 (``mechanism.couplings[7] (coupling 8)``), the value found and what was expected; a row that
 is wrong is reported once, not again by every coupling that names its link.
 """
@@ -32,6 +34,7 @@ import sympy as sp
 from csim.linkage.expressions import RESERVED, Scope, valid_name
 from csim.linkage.inertia import parse_mass_properties
 from csim.linkage.joints import JOINT_TYPES
+from csim.quantities import SI_BASE, convert, is_quantity
 from csim.schema import describe, finite_number
 
 
@@ -183,12 +186,22 @@ def _parameters(given: Any, problems: list[str]) -> tuple[dict[str, float], dict
             problems.append(f"{path}: not a usable parameter name; expected a letter followed by letters, digits "
                             f"or _, other than {', '.join(sorted(RESERVED))} and Python keywords")
             continue
+        if is_quantity(value):  # no unit of its own: 50 mm is 0.05 (SI base units)
+            value, problem = convert(value, SI_BASE)
+            if problem is not None:
+                problems.append(f"{path}: got {describe(given[key])}; {problem}")
+                continue
         if not finite_number(value):
-            problems.append(f"{path}: got {describe(value)}; expected a finite number")
+            problems.append(f"{path}: got {describe(given[key])}; expected a finite number (SI units), or a number "
+                            f"with a unit (50 mm)")
             continue
         values[key] = float(value)
         symbols[key] = sp.Symbol(key, real=True)
     return values, symbols
+
+
+#: units of the entries of a joint frame's p = [x, y, z, phi, theta, psi]
+P_UNITS = ("m", "m", "m", "rad", "rad", "rad")
 
 
 def _p_vector(path: str, value: Any, scope: Scope, problems: list[str]) -> tuple | None:
@@ -198,7 +211,7 @@ def _p_vector(path: str, value: Any, scope: Scope, problems: list[str]) -> tuple
         problems.append(f"{path}: got {describe(value)}; expected 0 or a list [x, y, z] or "
                         f"[x, y, z, phi, theta, psi] (m, rad; z-x'-z'' Euler angles)")
         return None
-    entries = [scope.parse(f"{path}[{n}]", v, problems) for n, v in enumerate(value)]
+    entries = [scope.parse(f"{path}[{n}]", v, problems, P_UNITS[n]) for n, v in enumerate(value)]
     if any(e is None for e in entries):
         return None
     return tuple(entries) + (sp.Integer(0),) * (6 - len(entries))
@@ -587,7 +600,8 @@ def parse_tables(mechanism: dict, problems: list[str]) -> Tables | None:
             problems.append(f"mechanism.gravity: got {describe(gravity_raw)}; expected [gx, gy, gz] in the fixed "
                             f"frame [m/s^2], e.g. [0, -9.81, 0]")
         else:
-            gravity = tuple(scope.parse(f"mechanism.gravity[{a}]", v, problems) for a, v in enumerate(gravity_raw))
+            gravity = tuple(scope.parse(f"mechanism.gravity[{a}]", v, problems, "m/s^2")
+                            for a, v in enumerate(gravity_raw))
     drive = mechanism.get("drive") or {}
     if not isinstance(drive, dict):
         problems.append(f"mechanism.drive: got {describe(drive)}; expected a mapping joint: value or expression of t")

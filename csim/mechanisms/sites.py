@@ -100,7 +100,7 @@ class DeclaredGeometry(ElementGeometry):
             return None
         spot = raw[1]
         if isinstance(spot, list) and len(spot) == 3:
-            local = [self.scope().parse(f"{path}[1][{a}]", v, problems) for a, v in enumerate(spot)]
+            local = [self.scope().parse(f"{path}[1][{a}]", v, problems, "m") for a, v in enumerate(spot)]
             if any(x is None for x in local):
                 return None
             return _column(body.origin) + _rotation(body.angle) * sp.Matrix(local), body
