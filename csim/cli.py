@@ -568,7 +568,12 @@ def sweep(
 
         emit(sweep_report(result, out))
     if result.interrupted:
-        typer.echo(f"csim: sweep interrupted (Ctrl-C): {result.done} of {len(result.rows)} runs in {out}; "
+        stopped = sorted(result.stopped)
+        under_way = (f"{len(stopped)} stopped while running (run{'s' if len(stopped) > 1 else ''} "
+                     f"{', '.join(map(str, stopped[:20]))}{', ...' if len(stopped) > 20 else ''}: status pending, "
+                     f"reason interrupted), " if stopped else "")
+        typer.echo(f"csim: sweep interrupted (Ctrl-C): {result.done} of {len(result.rows)} runs finished in {out}; "
+                   f"{under_way}{len(result.rows) - result.done - len(stopped)} not started; "
                    f"add --resume to the same command to run the rest", err=True)
         raise typer.Exit(EXIT_INTERRUPTED)
     if result.lost:
