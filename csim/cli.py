@@ -847,7 +847,8 @@ def animate(
     speed: Annotated[float, typer.Option(
         "--speed", help="Simulated seconds per second of animation (1: real time; a long run is sped up "
                         "to stay within --max-frames).")] = 1.0,
-    max_frames: Annotated[int, typer.Option("--max-frames", help="At most this many frames.")] = 300,
+    max_frames: Annotated[int, typer.Option("--max-frames", help="At most this many frames (2 to 1,000; fewer "
+                                                                 "at a --dpi over 100).")] = 300,
     dpi: Annotated[float, typer.Option("--dpi", help="Resolution, in dots per inch; the figure is 6.4 in "
                                                      "wide.")] = 100.0,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing but errors.")] = False,
