@@ -568,7 +568,12 @@ def sweep(
 
         emit(sweep_report(result, out))
     if result.interrupted:
-        typer.echo(f"csim: sweep interrupted (Ctrl-C): {result.done} of {len(result.rows)} runs in {out}; "
+        stopped = sorted(result.stopped)
+        under_way = (f"{len(stopped)} stopped while running (run{'s' if len(stopped) > 1 else ''} "
+                     f"{', '.join(map(str, stopped[:20]))}{', ...' if len(stopped) > 20 else ''}: status pending, "
+                     f"reason interrupted), " if stopped else "")
+        typer.echo(f"csim: sweep interrupted (Ctrl-C): {result.done} of {len(result.rows)} runs finished in {out}; "
+                   f"{under_way}{len(result.rows) - result.done - len(stopped)} not started; "
                    f"add --resume to the same command to run the rest", err=True)
         raise typer.Exit(EXIT_INTERRUPTED)
     if result.lost:
@@ -842,7 +847,8 @@ def animate(
     speed: Annotated[float, typer.Option(
         "--speed", help="Simulated seconds per second of animation (1: real time; a long run is sped up "
                         "to stay within --max-frames).")] = 1.0,
-    max_frames: Annotated[int, typer.Option("--max-frames", help="At most this many frames.")] = 300,
+    max_frames: Annotated[int, typer.Option("--max-frames", help="At most this many frames (2 to 1,000; fewer "
+                                                                 "at a --dpi over 100).")] = 300,
     dpi: Annotated[float, typer.Option("--dpi", help="Resolution, in dots per inch; the figure is 6.4 in "
                                                      "wide.")] = 100.0,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing but errors.")] = False,

@@ -73,8 +73,9 @@ class InterruptFlag:
 #: the signal by which a parent asks a worker to end its run with the samples so far
 #: (:func:`ask_to_stop`; POSIX only)
 STOP_SIGNAL = getattr(signal, "SIGUSR1", None)
-#: whether this (worker) process is inside a run that :data:`STOP_SIGNAL` may end
-_IN_RUN = {"active": False}
+#: whether this (worker) process is inside a run that :data:`STOP_SIGNAL` may end, and
+#: whether the parent has sent it
+_IN_RUN = {"active": False, "stop": False}
 
 
 def worker_init() -> None:
@@ -88,9 +89,16 @@ def worker_init() -> None:
 
 def _stop_requested(signum, frame) -> None:
     """:data:`STOP_SIGNAL` in a worker: Ctrl-C for the run under way (a run stopped this way
-    comes back with its samples so far); between runs nothing (the parent ends the process)."""
+    comes back with its samples so far); between runs it is only recorded
+    (:func:`stop_requested`: a chunk of runs starts no further run)."""
+    _IN_RUN["stop"] = True
     if _IN_RUN["active"]:
         raise KeyboardInterrupt
+
+
+def stop_requested() -> bool:
+    """Whether the parent asked this worker process to stop (:func:`ask_to_stop`)."""
+    return _IN_RUN["stop"]
 
 
 @contextmanager
@@ -101,6 +109,25 @@ def stoppable_run():
         yield
     finally:
         _IN_RUN["active"] = False
+
+
+#: the longest the workers have, after Ctrl-C, to send back their runs' samples so far [s]
+#: (a run on the Python path evaluates its recorded quantities at every sample first)
+STOP_GRACE = 3.0
+
+
+def wait_for_stopped(futures, grace: float = STOP_GRACE) -> None:
+    """After :func:`ask_to_stop`: wait up to ``grace`` seconds for ``futures`` (the work the
+    workers had under way) to come back; a second Ctrl-C ends the wait.
+
+    Polled, not ``concurrent.futures.wait``: the executor cancels the work not started in
+    its own thread, after ``shutdown``, and a future cancelled there is never reported to
+    ``wait``, which would then always sit out the whole grace.
+    """
+    deadline = time.monotonic() + grace
+    with suppress(KeyboardInterrupt):
+        while time.monotonic() < deadline and not all(f.done() for f in futures):
+            time.sleep(0.02)
 
 
 def ask_to_stop(executor: cf.ProcessPoolExecutor) -> list:

@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 import h5py
+import numpy as np
 import pytest
 import yaml
 
@@ -179,6 +180,106 @@ def test_plot_of_a_crafted_result_file_does_not_hang(tmp_path):
     proc = csim("plot", out, "-o", tmp_path / "plots", "--only", "coordinates")
     assert proc.returncode == 0, proc.stderr
     assert (tmp_path / "plots" / "coordinates.png").is_file()
+
+
+@pytest.fixture(scope="module")
+def short_run(tmp_path_factory) -> Path:
+    """A pendulum result file of 0.5 s, 51 samples (its stored case replaced by the tests, on copies)."""
+    out = tmp_path_factory.mktemp("short") / "r.h5"
+    assert quick("run", PENDULUM, "-o", out, "-q", "--set", "simulation.t_end=0.5", *PYTHON).returncode == 0
+    return out
+
+
+def _crafted(short_run: Path, folder: Path, case: str) -> Path:
+    """A copy of ``short_run`` whose stored case is ``case``."""
+    out = folder / "crafted.h5"
+    out.write_bytes(short_run.read_bytes())
+    with h5py.File(out, "r+") as fh:
+        fh.attrs["case"] = case
+    return out
+
+
+def test_animate_of_a_crafted_result_file_does_not_hang(tmp_path, short_run):
+    """The stored case holds a tower of powers: refused by the expression checks, so the
+    file's own mechanism (the pendulum) is drawn with its defaults."""
+    tower = yaml.safe_dump({"mechanism": yaml.safe_load(FOURBAR.read_text())["mechanism"]})
+    out = _crafted(short_run, tmp_path, tower.replace("mass: m1", "mass: ((((9^99)^99)^99)^99)^99"))
+    proc = csim("animate", out, "-o", tmp_path / "a.gif", "--dpi", "30")
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "a.gif").is_file()
+
+
+@pytest.mark.parametrize("command", ["plot", "animate"])
+def test_a_stored_case_that_is_an_alias_bomb_is_measured_not_built(tmp_path, short_run, command):
+    out = _crafted(short_run, tmp_path, f"mechanism: {{name: pendulum}}\noutput: {{dt: {alias_bomb()}}}\n")
+    args = ["-o", tmp_path / "plots", "--only", "coordinates"] if command == "plot" else \
+        ["-o", tmp_path / "a.gif", "--dpi", "30"]
+    proc = csim(command, out, *args)
+    assert proc.returncode == 0, proc.stderr
+    assert "Traceback" not in proc.stderr
+
+
+def test_a_stored_case_too_large_to_rebuild_in_time_is_shown_from_its_samples(tmp_path, short_run, monkeypatch):
+    """A stored table of 99 links takes minutes to rebuild: after REBUILD_LIMIT_S (here 1 s)
+    plot draws the samples and says why the mechanism is left out; animate exits 2 saying so."""
+    import csim.plot.source as source
+
+    monkeypatch.setattr(source, "REBUILD_LIMIT_S", 1.0)
+    out = _crafted(short_run, tmp_path, _chain(99))
+    start = time.monotonic()
+    proc = quick("plot", out, "-o", tmp_path / "plots")
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "plots" / "coordinates.png").is_file()
+    assert "skipped mechanism: rebuilding the mechanism from the case stored in the file took over 1 s" \
+        in proc.stdout + proc.stderr
+    assert_clear(quick("animate", out, "-o", tmp_path / "a.gif"), str(out), "took over 1 s", "cannot draw it")
+    assert time.monotonic() - start < LIMIT_S  # two rebuilds of 1 s each, not minutes
+
+
+def test_runs_of_one_mechanism_in_a_file_share_one_rebuild(short_run):
+    from csim.io.hdf5 import read_result
+    from csim.plot.source import Rebuilds, run_data
+
+    rebuilds, result = Rebuilds(), read_result(short_run)
+    first, second = run_data(result, short_run, "", rebuilds), run_data(result, short_run, "", rebuilds)
+    assert len(rebuilds.done) == 1 and first.definition is second.definition is not None
+    assert second.method == first.method == "baumgarte"
+
+
+def test_a_result_file_whose_datasets_expand_beyond_it_is_refused(tmp_path, short_run):
+    """A few kilobytes that would read as 160 GB (an unallocated, compressed dataset)."""
+    out = _crafted(short_run, tmp_path, read_case(short_run))
+    with h5py.File(out, "r+") as fh:
+        del fh["qdd"]
+        fh.create_dataset("qdd", shape=(10**10, 2), dtype="f8", chunks=(10**6, 2), compression="gzip")
+    for command in ("plot", "animate"):
+        assert_clear(quick(command, out), str(out), "would hold 1.6e+11 bytes once read", "a crafted or damaged file")
+
+
+def read_case(path: Path) -> str:
+    with h5py.File(path, "r") as fh:
+        return fh.attrs["case"]
+
+
+@pytest.mark.parametrize("args, fragments", [
+    (["--max-frames", "1000000000"], ["--max-frames: got 1000000000", "from 2 to 1,000"]),
+    (["--dpi", "1200"], ["--max-frames / --dpi: 11 frames of 7680 x 9216 pixels", "expected at most 4.92e+08",
+                         "--max-frames 6 or fewer"]),
+    (["--speed", "inf"], ["--speed: got inf"]),
+])
+def test_animate_frames_are_bounded_naming_the_option(tmp_path, short_run, args, fragments):
+    proc = quick("animate", short_run, "-o", tmp_path / "a.gif", *args)
+    assert_clear(proc, *fragments)
+    assert not (tmp_path / "a.gif").exists()
+
+
+def test_animate_of_a_file_with_a_time_of_infinity_does_not_fail(tmp_path, short_run):
+    out = tmp_path / "inf.h5"
+    out.write_bytes(short_run.read_bytes())
+    with h5py.File(out, "r+") as fh:
+        fh["t"][-1] = np.inf
+    proc = quick("animate", out, "-o", tmp_path / "a.gif", "--dpi", "30")
+    assert proc.returncode == 0, proc.stderr
 
 
 # --------------------------------------------------------------------------- tracebacks and messages

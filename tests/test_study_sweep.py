@@ -339,3 +339,67 @@ def test_many_curves_are_a_colour_scale_with_a_colour_bar():
     assert all(ax.get_legend() is None for ax in panels) and not fig.legends
     assert panels[-1].get_xlabel() == "simulation.rtol [-]"
     assert all(ax.get_ylabel().endswith("[m]") or ax.get_ylabel().endswith("[-]") for ax in panels)
+
+
+def test_ctrl_c_inside_a_run_marks_that_run_interrupted_and_the_command_names_it(tmp_path, monkeypatch,
+                                                                                 python_sigint):
+    """Ctrl-C while the second run is under way: the first is kept, the second is pending with
+    the reason ``interrupted`` (named on stderr), the third pending; --resume runs both."""
+    import signal
+
+    import csim.pipeline as pipeline
+
+    real, calls = pipeline.run_case, []
+
+    def ctrl_c_in_the_second(case):
+        calls.append(1)
+        if len(calls) == 2:
+            signal.raise_signal(signal.SIGINT)  # what the terminal does on Ctrl-C
+        return real(case)
+
+    out = tmp_path / "i.h5"
+    args = ["sweep", str(CONFIGS / "pendulum.yaml"), "--set", "simulation.backend=python", "--set",
+            "simulation.t_end=0.2", "-v", "stabilization.w=5,10,20", "-j", "1", "-o", str(out)]
+    monkeypatch.setattr(pipeline, "run_case", ctrl_c_in_the_second)
+    res = CliRunner().invoke(app, args)
+    assert res.exit_code == 130, res.output
+    assert "1 of 3 runs finished" in res.stderr and "1 stopped while running (run 1: status pending, reason " \
+        "interrupted), 1 not started" in res.stderr, res.stderr
+    table = read_sweep(out)
+    assert table.status == ["success", PENDING, PENDING] and table.reason == ["", "interrupted", ""]
+    assert "stopped by Ctrl-C while it ran" in table.message[1] and not table.attrs["complete"]
+    monkeypatch.setattr(pipeline, "run_case", real)
+    res = CliRunner().invoke(app, [*args, "--resume"])
+    assert res.exit_code == 0, res.output
+    assert read_sweep(out).status == ["success"] * 3 and read_sweep(out).reason == [""] * 3
+
+
+def test_ctrl_c_of_worker_processes_keeps_the_runs_each_chunk_finished(tmp_path):
+    """Two workers: one runs a 30 s pendulum, the other two short runs, then a long one, then
+    another short one. Ctrl-C when the first chunk comes back: the other worker's chunk
+    returns its two finished runs and its long run stopped (not the fourth), within the grace."""
+    import time
+
+    from csim.case import load_case, read_case_file
+    from csim.pipeline import numeric_model
+
+    path = CONFIGS / "pendulum.yaml"
+    numeric_model(load_case(path))  # derived once here; the workers load it from the cache
+    work = execute.Work(data=read_case_file(path, ["simulation.backend=python"]), source=str(path),
+                        keys=("simulation.t_end",))
+    parts = [[(0, (30.0,))], [(1, (0.01,)), (2, (0.01,)), (3, (1000.0,)), (4, (0.01,))]]
+    delivered: dict[int, dict] = {}
+    stopped_at = []
+
+    def deliver(done):
+        delivered.update({i: row for i, row, _ in done})
+        if 0 in delivered and not stopped_at:
+            stopped_at.append(time.monotonic())
+            raise KeyboardInterrupt  # Ctrl-C in the parent, as the first chunk comes back
+
+    outcome = execute.run_local(work, parts, 2, deliver)
+    assert outcome.interrupted and time.monotonic() - stopped_at[0] < 30  # the 1000 s run did not go on
+    assert delivered[0]["status"] == delivered[1]["status"] == delivered[2]["status"] == "success"
+    assert delivered[3]["status"] == PENDING and delivered[3]["reason"] == execute.INTERRUPTED
+    assert "interrupted by the user after t = " in delivered[3]["message"]
+    assert 4 not in delivered

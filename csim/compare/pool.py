@@ -24,11 +24,13 @@ import numpy as np
 from csim.case import Case, validate_case
 from csim.compare.runs import INTERRUPTED, Run
 from csim.parallel import (
+    STOP_GRACE,
     InterruptFlag,
     ask_to_stop,
     process_pool,
     stop_processes,
     stoppable_run,
+    wait_for_stopped,
     worker_environment,
 )
 from csim.pipeline import numeric_model
@@ -147,17 +149,12 @@ def _collect(futures: dict[cf.Future, Run], progress: Progress | None) -> None:
             progress(run, done, total)
 
 
-#: the longest the workers have, after Ctrl-C, to send back their runs' samples so far [s]
-#: (a run on the Python path evaluates its recorded quantities at every sample first)
-STOP_GRACE = 3.0
-
-
 def _stop(executor: cf.ProcessPoolExecutor, futures: dict[cf.Future, Run]) -> None:
     """After Ctrl-C: ask the workers to end their runs, keep every result that comes back
     within :data:`STOP_GRACE` (the interrupted runs with their samples so far), end the
     workers, mark the rest interrupted."""
     processes = ask_to_stop(executor)
-    cf.wait([f for f, run in futures.items() if run.result is None and not f.done()], timeout=STOP_GRACE)
+    wait_for_stopped([f for f, run in futures.items() if run.result is None], STOP_GRACE)
     for future, run in futures.items():  # runs that finished, or stopped with their samples, keep them
         if run.result is None and future.done() and not future.cancelled() and future.exception() is None:
             run.set_result(*future.result())

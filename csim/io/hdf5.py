@@ -338,9 +338,41 @@ def _read_units(group: h5py.Group, o: int) -> dict[str, list[str]]:
     return out
 
 
+#: the most a run's datasets may hold beyond the file's own size [bytes]: csim writes them
+#: uncompressed, so its files hold every byte they read; a compressed copy (h5repack) may
+#: grow EXPANSION_LIMIT times, and a crafted file of a few kilobytes (an unallocated or
+#: compressed dataset of billions of values) is refused instead of exhausting memory
+EXPANSION_SLACK = 256 * 2**20
+EXPANSION_LIMIT = 100
+
+
+def check_expansion(group: h5py.Group) -> None:
+    """Raise :class:`ResultFileError` when the datasets under ``group`` would hold more than
+    :data:`EXPANSION_LIMIT` times the file's size plus :data:`EXPANSION_SLACK` once read
+    (shapes and types only: nothing is read)."""
+    sizes: list[int] = []
+
+    def visit(name, item) -> None:
+        if isinstance(item, h5py.Dataset):
+            sizes.append(int(item.size or 0) * max(int(item.dtype.itemsize), 1))
+    group.visititems(visit)
+    path = Path(group.file.filename)
+    try:
+        on_disk = path.stat().st_size
+    except OSError:
+        return
+    total, allowed = sum(sizes), EXPANSION_LIMIT * on_disk + EXPANSION_SLACK
+    if total > allowed:
+        raise ResultFileError(f"{path}: its datasets would hold {total:.3g} bytes once read, from a file of "
+                              f"{on_disk:,} bytes; expected at most {allowed:.3g} ({EXPANSION_LIMIT} times the "
+                              f"file's size plus {EXPANSION_SLACK // 2**20} MiB): a crafted or damaged file")
+
+
 def read_result_group(group: h5py.Group) -> Result:
-    """Read one run from an HDF5 group written by :func:`write_result_group`."""
+    """Read one run from an HDF5 group written by :func:`write_result_group` (refusing one
+    whose datasets would expand far beyond the file, :func:`check_expansion`)."""
     a = group.attrs
+    check_expansion(group)
     try:
         event_times, event_labels = _read_events(group)
         obs_names = [_text(x) for x in a["observable_names"]]

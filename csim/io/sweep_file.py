@@ -5,7 +5,8 @@ Layout::
     /values/KEY (n,)        each varied key's value in each run: numbers as float64, any
                             other value (a name, a list) as its JSON text
     /runs/status (n,)       success | failed | pending (not run yet: an interrupted sweep)
-    /runs/reason (n,)       why a run failed (csim.study.metrics.REASONS), "" otherwise
+    /runs/reason (n,)       why a run failed (csim.study.metrics.REASONS), "" otherwise;
+                            "interrupted" for a pending run that Ctrl-C stopped while it ran
     /runs/message (n,)
     /runs/COLUMN (n,)       each number of csim.study.metrics.COLUMNS, with its units
     /signals/I/NAME         run I's t, q, qd, phi, phi_dot, energy_error (``--keep`` only)
@@ -144,7 +145,8 @@ def write_sweep(path: str | Path, table: SweepTable, signals: dict[int, dict[str
 
 #: descriptions of a sweep's text columns
 RUN_TEXT = {"status": "success | failed | pending (not run yet: an interrupted sweep)",
-            "reason": "why a run failed (the failure kinds of a result file), empty for a success",
+            "reason": "why a run failed (the failure kinds of a result file), empty for a success; "
+                      "interrupted for a pending run that Ctrl-C stopped while it ran",
             "message": "the run's message"}
 
 

@@ -79,7 +79,7 @@ def _link_name(linkage: Linkage, n: int) -> str:
     return f"{n} ({link.name})" if link.name else str(n)
 
 
-def report(linkage: Linkage, links: list[int] | None = None, mode: str | None = "") -> dict:
+def report(linkage: Linkage, links: list[int] | None = None, mode: str | None = "", latex: bool = True) -> dict:
     """Everything the report shows, as plain data (strings for expressions).
 
     Parameters
@@ -89,6 +89,10 @@ def report(linkage: Linkage, links: list[int] | None = None, mode: str | None = 
         Links whose global transforms are listed (default: every moving link).
     mode : str or None, optional
         The drive mode (:func:`drive_mode`); "" (default): kinematic when there are drives.
+    latex : bool, optional
+        Also print every expression as LaTeX (the ``latex`` entries; "" without). The
+        plain text needs none, and printing a long chain's transforms as LaTeX takes more
+        than half of ``csim describe``'s time.
 
     Raises
     ------
@@ -111,7 +115,8 @@ def report(linkage: Linkage, links: list[int] | None = None, mode: str | None = 
                   "drive": linkage.drive_source.get(v.name) if v.name in linkage.drive else None}
                  for v in topo.variables]
     kept = red.kept
-    constraints = [{"expression": str(e.expression), "latex": sp.latex(e.expression), "joint": e.coupling.number,
+    tex = sp.latex if latex else (lambda expr: "")
+    constraints = [{"expression": str(e.expression), "latex": tex(e.expression), "joint": e.coupling.number,
                     "component": e.component, "reaction": e.reaction} for e in kept]
     removed = [{"expression": str(e.expression), "joint": e.coupling.number, "component": e.component,
                 "why": e.status} for e in red.equations if e.status != "kept"]
@@ -126,7 +131,7 @@ def report(linkage: Linkage, links: list[int] | None = None, mode: str | None = 
                     "reaction_unknowns": [e.reaction for e in eqs if e.status == "kept"]})
     transforms = {str(n): {"name": tables.links[n].name, "matrix": [[str(x) for x in row] for row in
                                                                     linkage.frames.links[n].tolist()],
-                           "latex": sp.latex(linkage.frames.links[n])} for n in chosen}
+                           "latex": tex(linkage.frames.links[n])} for n in chosen}
     return {
         "mechanism": tables.label,
         "links": len(tables.links),
@@ -146,26 +151,26 @@ def report(linkage: Linkage, links: list[int] | None = None, mode: str | None = 
         "notes": list(linkage.notes),
         "drive_mode": (("kinematic" if linkage.drive else None) if mode == "" else mode),
         "run": RUN_KINDS[("kinematic" if linkage.drive else None) if mode == "" else mode],
-        "forces": [_element(e) for e in linkage.forces.elements],
+        "forces": [_element(e, tex) for e in linkage.forces.elements],
     }
 
 
-def _load(load) -> dict:
+def _load(load, tex=sp.latex) -> dict:
     """A load of a force element: what it acts along, its law and switching, as strings."""
     window = [w if abs(w) != float("inf") else str(w) for w in load.window]
     return {"name": load.name, "unit": load.unit, "description": load.description,
             "coordinate": str(load.coordinate), "coordinate_unit": load.coordinate_unit,
-            "law": str(load.law if load.law is not None else 1), "latex": sp.latex(load.law if load.law is not None
-                                                                                   else sp.Integer(1)),
+            "law": str(load.law if load.law is not None else 1), "latex": tex(load.law if load.law is not None
+                                                                              else sp.Integer(1)),
             "direction": None if load.direction is None else [str(d) for d in load.direction],
             "window": window, "velocity": load.velocity}
 
 
-def _element(record) -> dict:
+def _element(record, tex=sp.latex) -> dict:
     """A force element as written and what csim derived from it."""
     return {"name": record.name, "type": record.kind, "row": record.row,
-            "potential": str(record.potential), "potential_latex": sp.latex(record.potential),
-            "loads": [_load(ld) for ld in record.loads]}
+            "potential": str(record.potential), "potential_latex": tex(record.potential),
+            "loads": [_load(ld, tex) for ld in record.loads]}
 
 
 def _text(data: dict, linkage: Linkage) -> str:
@@ -271,7 +276,7 @@ def describe_case(linkage: Linkage, latex: bool = False, as_json: bool = False, 
                   mode: str | None = "") -> str:
     """The report of a derived link-coupling model: text, LaTeX (``latex``) or JSON (``as_json``);
     ``mode`` as :func:`report`."""
-    data = report(linkage, links, mode)
+    data = report(linkage, links, mode, latex=latex or as_json)
     if as_json:
         return json.dumps(data, indent=2) + "\n"
     if latex:

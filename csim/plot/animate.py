@@ -25,6 +25,27 @@ from csim.plot.style import RC, SIZE, new_figure, title
 #: animation file suffixes
 ANIMATION_FORMATS = (".gif", ".mp4")
 
+#: the most frames ``--max-frames`` may ask for: 50 s of animation at 20 fps; about 40 s
+#: and 1 GB to write as a GIF at 100 dpi on a small machine
+MAX_FRAMES = 1000
+#: the most pixels of all frames together: MAX_FRAMES frames of the tallest figure (6.4 x
+#: 7.68 in) at 100 dpi. A GIF holds every frame in memory until it is written (about two
+#: bytes a pixel), so a higher ``--dpi`` allows fewer frames
+MAX_ANIMATION_PIXELS = MAX_FRAMES * 640 * 768
+
+
+def check_frames(fps: float, speed: float, max_frames: int) -> None:
+    """Raise :class:`PlotError` naming the option unless ``fps`` > 0, ``speed`` > 0 and
+    2 <= ``max_frames`` <= :data:`MAX_FRAMES`."""
+    if not 0 < fps < math.inf:
+        raise PlotError(f"--fps: got {fps:g}; expected a finite number of frames per second, fps > 0")
+    if not 0 < speed < math.inf:
+        raise PlotError(f"--speed: got {speed:g}; expected a finite number of simulated seconds per second, "
+                        f"speed > 0")
+    if not 2 <= max_frames <= MAX_FRAMES:
+        raise PlotError(f"--max-frames: got {max_frames}; expected a whole number from 2 to {MAX_FRAMES:,} (a "
+                        f"longer run is played faster to fit)")
+
 
 def ffmpeg_available() -> bool:
     """Whether matplotlib finds ffmpeg (needed for MP4)."""
@@ -53,7 +74,7 @@ def frame_times(t: np.ndarray, fps: float, speed: float, max_frames: int) -> tup
         The playback speed after the limits: raised when the output samples are coarser
         than the frame spacing, or when the frames would exceed ``max_frames``.
     """
-    if t.size < 2 or t[-1] <= t[0]:
+    if t.size < 2 or not t[-1] > t[0] or not math.isfinite(float(t[-1] - t[0])):
         return t[:1].copy(), speed
     duration = float(t[-1] - t[0])
     spacing = speed / fps
@@ -61,7 +82,7 @@ def frame_times(t: np.ndarray, fps: float, speed: float, max_frames: int) -> tup
     spacing = max(spacing, dt)
     if duration / spacing + 1 > max_frames:
         spacing = duration / (max_frames - 1)
-    n = int(math.floor(duration / spacing + 1e-9)) + 1
+    n = min(int(math.floor(duration / spacing + 1e-9)) + 1, max_frames)
     return t[0] + spacing * np.arange(n), spacing * fps
 
 
@@ -100,15 +121,14 @@ class MechanismAnimation:
 
     def __init__(self, run: RunData, fps: float = 20.0, speed: float = 1.0, max_frames: int = 300,
                  width: float = SIZE[0]):
-        if not (fps > 0 and speed > 0 and max_frames >= 2):
-            raise PlotError(f"animation: need fps > 0, speed > 0 and max_frames >= 2; got fps = {fps}, "
-                            f"speed = {speed}, max_frames = {max_frames}")
+        check_frames(fps, speed, max_frames)
         res = run.result
         if run.definition is None:
-            raise PlotError(f"{run.path}: mechanism {res.mechanism!r} is not known to this csim; cannot draw it")
+            why = run.unavailable or f"mechanism {res.mechanism!r} is not known to this csim"
+            raise PlotError(f"{run.path}: {why}; cannot draw it")
         self.run, self.fps = run, fps
         self.geometry = geometry(run.definition, run.parameters)
-        finite = np.flatnonzero(np.all(np.isfinite(res.q), axis=1))
+        finite = np.flatnonzero(np.all(np.isfinite(res.q), axis=1) & np.isfinite(res.t))
         if finite.size == 0:
             raise PlotError(f"{run.path}: the run has no finite sample to animate")
         times, self.speed = frame_times(res.t[finite], fps, speed, max_frames)
@@ -140,6 +160,18 @@ class MechanismAnimation:
 
     def __len__(self) -> int:
         return int(self.frames.size)
+
+    def check_size(self, dpi: float) -> None:
+        """Raise :class:`PlotError` when the frames at ``dpi`` exceed :data:`MAX_ANIMATION_PIXELS`."""
+        width, height = (round(x * dpi) for x in self.figure.get_size_inches())
+        total = len(self) * width * height
+        if total > MAX_ANIMATION_PIXELS:
+            fits = MAX_ANIMATION_PIXELS // max(width * height, 1)
+            advice = (f"--max-frames {fits} or fewer at this --dpi, or a lower --dpi" if fits >= 2 else
+                      "a lower --dpi")
+            raise PlotError(f"--max-frames / --dpi: {len(self)} frames of {width} x {height} pixels at --dpi {dpi:g} "
+                            f"make {total:.3g} pixels; expected at most {MAX_ANIMATION_PIXELS:.3g} (a GIF holds "
+                            f"every frame in memory); give {advice}")
 
     def update(self, frame: int) -> list:
         """Show frame ``frame``; returns the artists it changed."""
@@ -192,6 +224,7 @@ class MechanismAnimation:
             raise PlotError(f"--output {path}: unknown animation format {suffix or '(no suffix)'!r}; "
                             f"valid: {', '.join(ANIMATION_FORMATS)}")
         check_dpi(dpi)
+        self.check_size(dpi)
         if suffix == ".mp4" and not ffmpeg_available():
             raise PlotError(f"--output {path}: MP4 needs ffmpeg, which is not on the PATH; "
                             f"write a GIF instead (-o {path.with_suffix('.gif')})")
@@ -220,9 +253,16 @@ class MechanismAnimation:
         return path
 
     def _write_gif(self, path: str, dpi: float) -> None:
-        # an adaptive palette per frame: the links' colours stay exact
-        images = [Image.fromarray(rgb).convert("P", palette=Image.Palette.ADAPTIVE, colors=256)
-                  for rgb in self.frames_rgb(dpi)]
+        # the first frame's adaptive palette for every frame: it holds the links' colours
+        # exactly (each link is in every frame), and mapping a frame to a given palette takes
+        # a fifteenth of the time of making one for it
+        images: list[Image.Image] = []
+        for rgb in self.frames_rgb(dpi):
+            frame = Image.fromarray(rgb)
+            if not images:
+                images.append(frame.convert("P", palette=Image.Palette.ADAPTIVE, colors=256))
+            else:
+                images.append(frame.quantize(palette=images[0], dither=Image.Dither.NONE))
         images[0].save(path, format="GIF", save_all=True, append_images=images[1:],
                        duration=round(1000 / self.fps), loop=0, disposal=1)
 
@@ -257,6 +297,7 @@ def animate_file(path: str | Path, output: str | Path, group: str | None = None,
         raise PlotError(f"--output {output}: unknown animation format {output.suffix or '(no suffix)'!r}; "
                         f"valid: {', '.join(ANIMATION_FORMATS)}")
     check_dpi(dpi)
+    check_frames(fps, speed, max_frames)
     if file_kind(path) == COMPARISON and not group:
         from csim.io.hdf5 import read_comparison
 

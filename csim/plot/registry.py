@@ -77,7 +77,7 @@ def _no_drives(run: RunData) -> str | None:
 
 def _no_drawing(run: RunData) -> str | None:
     if run.definition is None:
-        return f"mechanism {run.result.mechanism!r} is not known to this csim"
+        return run.unavailable or f"mechanism {run.result.mechanism!r} is not known to this csim"
     if run.definition.drawing is None:
         return f"mechanism {run.result.mechanism!r} declares no drawing"
     return None

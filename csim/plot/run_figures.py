@@ -293,7 +293,8 @@ def snapshots_figure(run: RunData, n: int = 6, cycle: str = "", heading: str = "
     """
     res = run.result
     if run.definition is None:
-        raise PlotError(f"{run.path}: mechanism {res.mechanism!r} is not known to this csim; cannot draw it")
+        why = run.unavailable or f"mechanism {res.mechanism!r} is not known to this csim"
+        raise PlotError(f"{run.path}: {why}; cannot draw it")
     geom = geometry(run.definition, run.parameters)
     col = None
     if cycle:

@@ -4,16 +4,29 @@ A result file (``csim run``) holds one run; a comparison file (``csim compare``)
 per method plus a reference run. Each run stores its validated case as YAML, from which
 the mechanism definition (drawing, declared figures, units) and the parameter values are
 rebuilt here; no model code is generated.
+
+The stored case is read like a case file (its size, its YAML and its expressions bounded
+by :mod:`csim.case`), and the rebuild of its mechanism is bounded in time: a file gets
+:data:`REBUILD_LIMIT_S` seconds for all its runs together (runs of one mechanism share one
+rebuild). Past that, the runs are plotted from their samples without the mechanism (no
+drawing, no animation), and the figures left out say why: a file cannot hold ``csim plot``
+or ``csim animate`` longer, however it was made.
 """
 from __future__ import annotations
 
 import math
+import signal
+import threading
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import h5py
 import numpy as np
 import sympy as sp
+import yaml
 
 from csim.case import parse_yaml, validate_case
 from csim.errors import CsimError, ResultFileError
@@ -26,6 +39,57 @@ from csim.result import Result
 
 #: kinds of result file
 RUN, COMPARISON, SWEEP = "run", "comparison", "sweep"
+
+#: the longest the mechanisms of one file's stored cases may take to rebuild [s]: a shipped
+#: link-coupling case takes up to about 6 s (configs/iftomm/a02_n_four_bar_40.yaml), a
+#: crafted table of 99 links more than ten minutes
+REBUILD_LIMIT_S = 30.0
+
+
+class _Deadline(BaseException):
+    """The rebuild of a stored case ran out of time (a BaseException: no ``except Exception``
+    on the way takes it for the case's own error)."""
+
+
+@contextmanager
+def _deadline(seconds: float) -> Iterator[None]:
+    """Raise :class:`_Deadline` in the block after ``seconds`` (and every 0.5 s after that,
+    should one be swallowed); in the main thread with SIGALRM only (elsewhere: unbounded)."""
+    if seconds <= 0:
+        raise _Deadline
+    if not hasattr(signal, "setitimer") or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def expired(signum, frame):
+        raise _Deadline
+
+    previous = signal.signal(signal.SIGALRM, expired)
+    signal.setitimer(signal.ITIMER_REAL, seconds, 0.5)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+@dataclass
+class Rebuilds:
+    """The mechanisms rebuilt from one file's stored cases, and the time left for more.
+
+    Attributes
+    ----------
+    left : float
+        Seconds left for rebuilding (:data:`REBUILD_LIMIT_S` at first).
+    done : dict
+        YAML of a case's ``mechanism`` and ``initial`` sections -> (definition, parameters).
+    expired : str
+        Why no further case is rebuilt ("" while there is time).
+    """
+
+    left: float = field(default_factory=lambda: REBUILD_LIMIT_S)
+    done: dict = field(default_factory=dict)
+    expired: str = ""
 
 
 def file_kind(path: str | Path) -> str:
@@ -68,6 +132,8 @@ class RunData:
         Parameter values of the run (SI units).
     case : dict
         The run's case as stored in the file (empty when it cannot be read).
+    unavailable : str
+        Why ``definition`` is None although the file names a mechanism ("" otherwise).
     coordinate_units : list of str, length m
     constraint_units : list of str, length r
         Unit of each constraint function (``""`` for a dimensionless one).
@@ -79,6 +145,7 @@ class RunData:
     definition: MechanismDefinition | None = None
     parameters: dict[str, float] = field(default_factory=dict)
     case: dict = field(default_factory=dict)
+    unavailable: str = ""
     coordinate_units: list[str] = field(default_factory=list)
     constraint_units: list[str] = field(default_factory=list)
 
@@ -166,39 +233,78 @@ def constraint_units(definition: MechanismDefinition, parameters: dict[str, floa
     return units
 
 
-def _definition(result: Result) -> tuple[MechanismDefinition | None, dict[str, float], dict]:
-    """The run's mechanism and parameters, from the case stored in the file."""
+def _rebuild(case: dict, rebuilds: Rebuilds) -> tuple[MechanismDefinition, dict[str, float], dict]:
+    """Validate a stored case and build its symbolic definition, within the time left.
+
+    Raises
+    ------
+    CsimError
+        The case is not valid for this csim.
+    _Deadline
+        The time of ``rebuilds`` ran out.
+    """
+    try:
+        key = yaml.safe_dump([case.get("mechanism"), case.get("initial")], sort_keys=True)
+    except yaml.YAMLError:
+        key = None
+    if key is not None and key in rebuilds.done:  # another run of the same mechanism
+        definition, parameters = rebuilds.done[key]
+        return definition, parameters, case
+    start = time.monotonic()
+    try:
+        with _deadline(rebuilds.left):
+            validated = validate_case(case, source="case stored in the result file")
+            # figures evaluate the drawing and the constraints: the symbolic definition
+            definition = full_definition(validated.mechanism)
+    finally:
+        rebuilds.left -= time.monotonic() - start
+    if key is not None:
+        rebuilds.done[key] = (definition, validated.parameters)
+    return definition, validated.parameters, validated.data
+
+
+def _definition(result: Result, rebuilds: Rebuilds) -> tuple[MechanismDefinition | None, dict[str, float], dict,
+                                                             str]:
+    """The run's mechanism and parameters, from the case stored in the file, and why there
+    is no mechanism when the time for rebuilding ran out."""
     case: dict = {}
     try:
         data = parse_yaml(result.case_yaml, "case") if result.case_yaml else None
         case = data if isinstance(data, dict) else {}
     except CsimError:
         case = {}
+    if rebuilds.expired:
+        return None, {}, case, rebuilds.expired
     try:  # a registered mechanism, or a link-coupling description (rebuilt from its tables)
-        validated = validate_case(case, source="case stored in the result file")
-        # figures evaluate the drawing and the constraints: the symbolic definition
-        return full_definition(validated.mechanism), validated.parameters, validated.data
+        return (*_rebuild(case, rebuilds), "")
+    except _Deadline:
+        rebuilds.expired = (f"rebuilding the mechanism from the case stored in the file took over "
+                            f"{REBUILD_LIMIT_S:g} s, the limit of csim plot and csim animate (a link-coupling "
+                            f"table too large, or a crafted file)")
+        return None, {}, case, rebuilds.expired
     except CsimError:  # a case from another csim version: the mechanism's defaults
         if result.mechanism not in MECHANISMS:
-            return None, {}, case
+            return None, {}, case, ""
         definition = get_mechanism(result.mechanism)
         given = (case.get("mechanism") or {}).get("parameters") or {}
         params = {p.name: float(given.get(p.name, p.default)) if isinstance(given.get(p.name, p.default),
                                                                            (int, float)) else p.default
                   for p in definition.parameters}
-        return definition, params, case
+        return definition, params, case, ""
 
 
-def run_data(result: Result, path: str | Path, group: str = "") -> RunData:
-    """Wrap a run read from ``path`` (group ``group`` of a comparison file)."""
+def run_data(result: Result, path: str | Path, group: str = "", rebuilds: Rebuilds | None = None) -> RunData:
+    """Wrap a run read from ``path`` (group ``group`` of a comparison file); ``rebuilds``:
+    the rebuilds of the file's other runs and the time left (a new :class:`Rebuilds`)."""
     path = Path(path)
-    definition, parameters, case = _definition(result)
+    definition, parameters, case, unavailable = _definition(result, rebuilds or Rebuilds())
     m, r = result.q.shape[1], result.phi.shape[1]
     c_units = [""] * r
     if definition is not None and len(definition.constraints) == r:
         c_units = constraint_units(definition, parameters)
     return RunData(result=result, path=path, group=group, definition=definition, parameters=parameters, case=case,
-                   coordinate_units=_coordinate_units(path, group, m, definition), constraint_units=c_units)
+                   unavailable=unavailable, coordinate_units=_coordinate_units(path, group, m, definition),
+                   constraint_units=c_units)
 
 
 def load_run(path: str | Path, group: str | None = None) -> RunData:
@@ -262,8 +368,9 @@ def load_comparison(path: str | Path) -> ComparisonData:
         Missing or unreadable file, or not a comparison file.
     """
     cmp = read_comparison(path)
-    runs = {m: run_data(read_result(cmp.path, group=m), cmp.path, m) for m in cmp.methods}
+    rebuilds = Rebuilds()  # one time limit for the file's runs; one rebuild per mechanism
+    runs = {m: run_data(read_result(cmp.path, group=m), cmp.path, m, rebuilds) for m in cmp.methods}
     reference = None
     if cmp.has_reference:
-        reference = run_data(read_result(cmp.path, group="reference"), cmp.path, "reference")
+        reference = run_data(read_result(cmp.path, group="reference"), cmp.path, "reference", rebuilds)
     return ComparisonData(file=cmp, runs=runs, reference=reference)

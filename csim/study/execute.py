@@ -10,6 +10,11 @@ integration and its post-processing, not a process start or a model derivation.
 Every executor calls ``deliver(done)`` with the finished runs of each chunk, as they
 finish, and returns an :class:`Outcome`: whether Ctrl-C stopped it, and whether runs were
 lost with a worker that died (the runs not delivered stay pending).
+
+Ctrl-C stops the runs under way: on a worker they end with :data:`csim.parallel.STOP_SIGNAL`,
+and each chunk comes back with the runs it finished and, for the run it had under way, a
+row of status ``pending`` and reason :data:`INTERRUPTED` (:func:`interrupted_row`): the
+sweep file says which runs were stopped, and ``--resume`` runs them again.
 """
 from __future__ import annotations
 
@@ -25,8 +30,18 @@ import numpy as np
 
 from csim.case import apply_overrides, validate_case
 from csim.errors import CaseError, CsimError
-from csim.parallel import InterruptFlag, process_pool, stop_processes, worker_environment
-from csim.study.metrics import failed_row, run_row
+from csim.io.sweep_file import PENDING
+from csim.parallel import (
+    InterruptFlag,
+    ask_to_stop,
+    process_pool,
+    stop_processes,
+    stop_requested,
+    stoppable_run,
+    wait_for_stopped,
+    worker_environment,
+)
+from csim.study.metrics import empty_row, failed_row, run_row
 from csim.study.plan import override
 
 #: (run index, row, signals or None)
@@ -34,6 +49,21 @@ Done = tuple[int, dict, dict | None]
 
 #: the signals ``--keep`` records of each run: Result attribute -> dataset name
 SIGNALS = ("t", "q", "qd", "phi", "phi_dot", "energy_error")
+
+#: the reason of a run that Ctrl-C stopped while it ran (its status stays ``pending``)
+INTERRUPTED = "interrupted"
+
+
+def interrupted_row(message: str = "") -> dict:
+    """The row of a run that Ctrl-C stopped while it ran: pending (``--resume`` runs it
+    again), with the reason :data:`INTERRUPTED` and how far it got."""
+    text = "stopped by Ctrl-C while it ran" + (f" ({message})" if message else "") + "; --resume runs it again"
+    return empty_row(PENDING, INTERRUPTED, text)
+
+
+def is_interrupted(row: dict) -> bool:
+    """Whether ``row`` is an :func:`interrupted_row` (a run stopped, not finished)."""
+    return row["status"] == PENDING
 
 
 @dataclass(frozen=True)
@@ -48,11 +78,17 @@ class Work:
 
 
 def run_chunk(work: Work, chunk: Sequence[tuple[int, tuple]]) -> list[Done]:
-    """Run ``chunk`` ((index, values) pairs) in this process; an exception fails its run, not the chunk."""
+    """Run ``chunk`` ((index, values) pairs) in this process; an exception fails its run, not the chunk.
+
+    Ctrl-C (in a worker, the parent's :data:`csim.parallel.STOP_SIGNAL`) ends the chunk: it
+    returns the runs finished so far and an :func:`interrupted_row` for the run under way.
+    """
     from csim.pipeline import run_case
 
     out = []
     for i, values in chunk:
+        if stop_requested():  # the parent asked to stop between two runs: start no other
+            break
         try:
             data = apply_overrides(copy.deepcopy(work.data), [override(k, v) for k, v in zip(work.keys, values)])
             case = validate_case(data, source=f"{work.source} (sweep run {i})")
@@ -60,10 +96,17 @@ def run_chunk(work: Work, chunk: Sequence[tuple[int, tuple]]) -> list[Done]:
             out.append((i, failed_row("case: " + "; ".join(exc.problems), "invalid"), None))
             continue
         try:
-            result = run_case(case)
+            with stoppable_run():  # in a worker, the parent's Ctrl-C ends the run
+                result = run_case(case)
+        except KeyboardInterrupt:
+            out.append((i, interrupted_row(), None))
+            break
         except Exception as exc:  # a bug or an unexpected numerical error: a failed row, not a crash
             out.append((i, failed_row(f"{type(exc).__name__}: {exc}", "other"), None))
             continue
+        if result.failure == INTERRUPTED:  # the integration turned Ctrl-C into a failed run
+            out.append((i, interrupted_row(result.message), None))
+            break
         signals = {name: np.asarray(getattr(result, name)) for name in SIGNALS} if work.keep else None
         out.append((i, run_row(result, work.reference), signals))
     return out
@@ -92,11 +135,11 @@ def run_serial(work: Work, todo: list[tuple[int, tuple]], deliver: Callable[[lis
         for run in todo:
             try:
                 done = run_chunk(work, [run])
-            except KeyboardInterrupt:
+            except KeyboardInterrupt:  # between runs, or before its integration started
                 return Outcome(interrupted=True)
-            if flag.set:  # the driver turned Ctrl-C into a failed run: that run did not finish
+            deliver(done)  # a run that Ctrl-C stopped comes back as an interrupted row
+            if flag.set or any(is_interrupted(row) for _, row, _ in done):
                 return Outcome(interrupted=True)
-            deliver(done)
     return Outcome()
 
 
@@ -116,10 +159,13 @@ def run_local(work: Work, parts: list, jobs: int, deliver: Callable[[list[Done]]
             deliver(done)
             lost = lost or why
     except KeyboardInterrupt:
-        stop_processes(executor)
-        for future in pending:  # chunks that finished before Ctrl-C
+        # the chunks under way end their runs and come back with the runs they finished
+        processes = ask_to_stop(executor)
+        wait_for_stopped(pending)
+        for future in pending:
             if future.done() and not future.cancelled() and future.exception() is None:
                 deliver(future.result())
+        stop_processes(executor, processes)
         return Outcome(interrupted=True, lost=lost)
     finally:
         executor.shutdown(wait=True, cancel_futures=True)

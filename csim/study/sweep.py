@@ -46,6 +46,9 @@ class Sweep:
         The reference run's samples, with ``reference_overrides``.
     interrupted : bool
         Ctrl-C stopped the sweep before every run finished.
+    stopped : dict of int -> dict
+        The runs Ctrl-C stopped while they ran: index -> their row (status pending, reason
+        ``interrupted``; still pending in ``rows``).
     lost : str
         Why runs came back from no worker (a worker process died; they stay pending).
     """
@@ -56,6 +59,7 @@ class Sweep:
     reference_overrides: list[str] = field(default_factory=list)
     interrupted: bool = False
     lost: str = ""
+    stopped: dict[int, dict] = field(default_factory=dict)
     new_signals: dict[int, dict] = field(default_factory=dict)
     _units: tuple[list[str], list[str]] | None = field(default=None, repr=False)
     out: Path | None = None
@@ -71,17 +75,21 @@ class Sweep:
         return self.done == len(self.rows)
 
     def counts(self) -> dict[str, int]:
-        """Runs by outcome: ``success``, each failure reason, ``pending``."""
+        """Runs by outcome: ``success``, each failure reason, ``pending`` (not started), and
+        ``interrupted (pending)`` (stopped by Ctrl-C while they ran)."""
         out: dict[str, int] = {}
-        for row in self.rows:
-            label = PENDING if row is None else (row["status"] if row["status"] == "success" else row["reason"])
+        for i, row in enumerate(self.rows):
+            if row is None:
+                label = f"{execute.INTERRUPTED} ({PENDING})" if i in self.stopped else PENDING
+            else:
+                label = row["status"] if row["status"] == "success" else row["reason"]
             out[label] = out.get(label, 0) + 1
         return out
 
     def table(self) -> SweepTable:
         """The sweep as stored (pending runs: status "pending", NaN numbers)."""
         plan = self.plan
-        rows = [r if r is not None else empty_row(PENDING) for r in self.rows]
+        rows = [r if r is not None else self.stopped.get(i) or empty_row(PENDING) for i, r in enumerate(self.rows)]
         columns = {c.name: np.array([r[c.name] for r in rows], dtype=c.dtype) for c in COLUMNS}
         variations = [dict(key=v.key, text=v.text, kind=v.kind, bounds=v.bounds) for v in plan.variations]
         attrs = dict(case=plan.case.to_yaml(), variations=variations, sampling=plan.sampling,
@@ -220,7 +228,11 @@ def _run(sweep: Sweep, out, jobs, client, keep: bool, progress, checkpoint: floa
     def deliver(done: list) -> None:
         nonlocal last
         for i, row, signals in done:
+            if execute.is_interrupted(row):  # stopped by Ctrl-C: pending, and marked so
+                sweep.stopped[i] = row
+                continue
             sweep.rows[i] = row
+            sweep.stopped.pop(i, None)
             if signals is not None:
                 sweep.new_signals[i] = signals
         if progress is not None:
