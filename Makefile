@@ -18,11 +18,11 @@ install: $(STAMP)  ## create .venv, install csim with its test dependencies, com
 run: $(STAMP)  ## run the default case
 	$(BIN)/csim run configs/quick_return.yaml -o results/quick_return.h5
 
-test: $(STAMP)  ## the default test suite (slow tests excluded)
-	$(BIN)/python -m pytest
+test: $(STAMP)  ## the default test suite (slow tests excluded), one worker per core
+	$(BIN)/python -m pytest -n auto
 
 test-all: $(STAMP)  ## every test, the slow ones included
-	$(BIN)/python -m pytest -m ""
+	$(BIN)/python -m pytest -n auto -m ""
 
 batch: $(STAMP)  ## the accuracy claims and the IFToMM benchmark problems, run and checked (configs/batch/); JUnit reports in results/
 	$(BIN)/csim batch configs/batch/accuracy.yaml --junit results/batch_junit.xml
