@@ -618,7 +618,18 @@ def _drive_start(out: dict, linkage: Linkage, problems: list[str]) -> None:
             continue
         driven = {k: v for k, v in given.items() if str(k) in linkage.drive} if isinstance(given, dict) else given
         if partial and isinstance(given, dict) and (not driven or _same_values(driven, at_start[key])):
-            ini[key] = {**at_start[key], **{k: v for k, v in given.items() if str(k) not in linkage.drive}}
+            free = {k: v for k, v in given.items() if str(k) not in linkage.drive}
+            needed = linkage.dof - len(linkage.drive)
+            if key == "q" and len(free) != needed:  # counted here, not with the drives the user did not write
+                others = [n for n in linkage.variable_names if n not in linkage.drive]
+                named = ", ".join(map(str, free)) or "none"
+                problems.append(f"initial.q: got {len(free)} free joint variable(s) ({named}); "
+                                f"expected exactly {needed} of the joint variables not driven ({', '.join(others)}), "
+                                f"or initial.q left out (the assembled values); the drives set "
+                                f"{', '.join(linkage.drive)}")
+                ini[key] = None
+                continue
+            ini[key] = {**at_start[key], **free}
         elif partial:
             problems.append(f"initial.{key}: got {describe(given)} with mechanism.drive; the drives set "
                             f"{', '.join(linkage.drive)}; expected initial.{key} for the free joint variables only")

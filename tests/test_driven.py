@@ -284,6 +284,8 @@ def test_each_method_gives_the_same_half_driven_motion(half_driven):
     ({"mechanism": {"drive_mode": "kinematic"}}, "expected exactly 2 driven joint variable(s) (under-driven"),
     ({"initial": {"q": {"q_A": 0.3, "q_D": 4.0}}}, "initial.q: got"),
     ({"initial": {"q": {"q_D": 4.0, "q_C": -1.2}}}, "initial.q: 2 coordinates besides 1 drive for 2 degrees"),
+    ({"initial": {"q": {}}}, "initial.q: got 0 free joint variable(s) (none); expected exactly 1 of the joint "
+                             "variables not driven (q_B, q_C, q_D)"),
 ])
 def test_half_driven_input_errors_name_the_key(changes, expected):
     data = _five_bar()
