@@ -158,6 +158,15 @@ def test_a_table_over_the_link_limit_is_refused_at_once(tmp_path):
     assert_clear(csim("run", case, "-o", tmp_path / "o.h5"), "mechanism.links: got 102 rows; expected at most 100")
 
 
+def test_a_chain_longer_than_the_chain_limit_is_refused_before_it_is_derived(tmp_path):
+    """99 links pass the table limit, but a chain that long would take over ten minutes of
+    symbolic work: refused at once, naming the chain."""
+    case = tmp_path / "chain.yaml"
+    case.write_text(_chain(99))
+    assert_clear(csim("run", case, "-o", tmp_path / "o.h5"),
+                 "mechanism.links: a chain of 99 moving links from the ground", "expected at most 40")
+
+
 def test_describe_of_a_30_link_chain_ends_within_the_bound_with_progress(tmp_path):
     """The issue's 10 s, plus the process start (describe derives no dynamics model)."""
     case = tmp_path / "chain.yaml"
