@@ -74,6 +74,11 @@ def convertible(unit: str | None) -> bool:
     return unit is not None and unit not in NO_UNIT and "unit of Phi" not in unit
 
 
+#: (unit written, key's unit) -> factor, converted without pint
+_FAST = {**{(name, "rad"): math.pi / 180 for name in ("deg", "degree", "degrees", "°")},
+         **{(name, name): 1.0 for name in ("rad", "m", "s", "kg", "N", "N m", "m/s", "rad/s")}}
+
+
 @functools.cache
 def registry():
     """pint's unit registry (imported on first use: only a value with a unit needs it)."""
@@ -108,6 +113,9 @@ def convert(value: str, unit: str | None) -> tuple[float | None, str | None]:
     if "unit of Phi" in unit:
         return None, (f"this key is in {unit}, which depends on the mechanism's constraints (m or 1), so csim does "
                       f"not convert it; expected a plain number, without a unit")
+    fast = _FAST.get((unit_text, "rad" if unit == SI_BASE else unit))
+    if fast is not None:  # an angle in degrees, a value in the key's own unit: no pint (1 s to load)
+        return float(number_text) * fast, None
     if _BAD_POWER.search(unit_text):
         return None, (f"the unit {unit_text!r} has a power that is not a small integer; expected powers such as m^2 "
                       f"or s^-1")

@@ -37,6 +37,7 @@ from csim.linkage.forces import Contribution, Geometry, build_forces
 from csim.linkage.frames import Frames, build_frames
 from csim.linkage.inertia import check_inertia
 from csim.linkage.joints import JOINT_TYPES
+from csim.linkage.lambdacache import cache_enabled, linkage_key
 from csim.linkage.recursive import recursive_terms
 from csim.linkage.tables import Coupling, Tables, parse_tables
 from csim.linkage.topology import Topology, analyse, grubler_kutzbach
@@ -70,6 +71,8 @@ class Linkage:
     definition : MechanismDefinition
     forces : Contribution
         What ``mechanism.forces`` adds: potential [J], loads and observables.
+    cache_key : str
+        Files the numeric functions derived from the linkage after a run (the reactions).
     """
 
     tables: Tables
@@ -85,6 +88,8 @@ class Linkage:
     notes: list[str] = field(default_factory=list)
     drive_source: dict[str, str] = field(default_factory=dict)
     forces: Contribution = field(default_factory=Contribution)
+    #: :func:`csim.linkage.lambdacache.linkage_key` of the mechanism ("": its functions are not cached)
+    cache_key: str = ""
 
     @property
     def variable_names(self) -> list[str]:
@@ -314,7 +319,8 @@ def build_linkage(mechanism: dict, initial: dict | None = None, tol: float = 1e-
     linkage = Linkage(tables=tables, topology=topology, frames=frames, reduction=reduction, planar=planar,
                       grubler=grubler_kutzbach(tables, planar), dof=dof, drive=drive,
                       start=dict(zip(names, reduction.q_start.tolist())), notes=list(reduction.notes),
-                      drive_source=drive_source, forces=forces)
+                      drive_source=drive_source, forces=forces,
+                      cache_key=linkage_key(mechanism) if cache_enabled() else "")
     if drive and _drive_count(drive, dof, partial):
         raise CaseError(_drive_count(drive, dof, partial))
     if definition:

@@ -37,6 +37,7 @@ from csim.linkage.constraints import KEPT, ZERO
 from csim.linkage.forces import Geometry, JointCoordinate, build_forces
 from csim.linkage.frames import Frames
 from csim.linkage.joints import JOINT_TYPES, CutGeometry
+from csim.linkage.lambdacache import cached_lambdify
 from csim.linkage.tables import Coupling
 from csim.result import JointReaction
 
@@ -102,10 +103,13 @@ def _frame_functions(linkage, definition):
     cached = getattr(linkage, "_reaction_frames", None)
     if cached is not None:
         return cached
-    q_syms, p_syms = list(definition.coordinates), list(definition.parameter_symbols)
     cuts = linkage.topology.cut_joints
-    mats = [m for c in cuts for m in (linkage.frames.joint_frame(c.i, c.k), linkage.frames.joint_frame(c.j, c.m))]
-    f = sp.lambdify([q_syms, p_syms], mats, "numpy", cse=True)
+
+    def make():
+        return ([list(definition.coordinates), list(definition.parameter_symbols)],
+                [m for c in cuts for m in (linkage.frames.joint_frame(c.i, c.k), linkage.frames.joint_frame(c.j, c.m))])
+
+    f = cached_lambdify(linkage.cache_key, "cut_frames", make)
 
     def frames(q, par):
         values = f(list(q), list(par))
@@ -196,22 +200,26 @@ def _kinematics(linkage, definition):
         return cached
     from csim.linkage.model import link_angular_velocities
 
-    q, qd = list(definition.coordinates), list(definition.velocities)
-    qdd = [sp.Symbol(f"{s}_ddot", real=True) for s in q]
-    omega = link_angular_velocities(linkage.topology, linkage.frames)
     links = [n for n, link in sorted(linkage.tables.links.items()) if n != 0 and link.has_mass]
-    rows = []
-    for n in links:
-        T = linkage.frames.links[n]
-        r_c = (T * sp.Matrix([*linkage.tables.links[n].com, 1]))[:3, 0]
-        v_c = r_c.jacobian(q) * sp.Matrix(qd)
-        a_c = v_c.jacobian(qd) * sp.Matrix(qdd) + v_c.jacobian(q) * sp.Matrix(qd)
-        w = omega[n]
-        alpha = w.jacobian(qd) * sp.Matrix(qdd) + w.jacobian(q) * sp.Matrix(qd)
-        link = linkage.tables.links[n]
-        rows += [sp.Matrix([link.mass]), sp.Matrix(link.inertia), r_c, a_c, T[:3, :3], w, alpha]
-    rows.append(sp.Matrix(linkage.tables.gravity))
-    f = sp.lambdify([q, qd, qdd, list(definition.parameter_symbols)], rows, "numpy", cse=True)
+
+    def make():
+        q, qd = list(definition.coordinates), list(definition.velocities)
+        qdd = [sp.Symbol(f"{s}_ddot", real=True) for s in q]
+        omega = link_angular_velocities(linkage.topology, linkage.frames)
+        rows = []
+        for n in links:
+            T = linkage.frames.links[n]
+            r_c = (T * sp.Matrix([*linkage.tables.links[n].com, 1]))[:3, 0]
+            v_c = r_c.jacobian(q) * sp.Matrix(qd)
+            a_c = v_c.jacobian(qd) * sp.Matrix(qdd) + v_c.jacobian(q) * sp.Matrix(qd)
+            w = omega[n]
+            alpha = w.jacobian(qd) * sp.Matrix(qdd) + w.jacobian(q) * sp.Matrix(qd)
+            link = linkage.tables.links[n]
+            rows += [sp.Matrix([link.mass]), sp.Matrix(link.inertia), r_c, a_c, T[:3, :3], w, alpha]
+        rows.append(sp.Matrix(linkage.tables.gravity))
+        return [q, qd, qdd, list(definition.parameter_symbols)], rows
+
+    f = cached_lambdify(linkage.cache_key, "kinematics", make)
     shapes = [(), (3, 3), (3,), (3,), (3, 3), (3,), (3,)]
 
     def kinematics(qv, qdv, qddv, par):
@@ -318,31 +326,36 @@ def _element_terms(linkage, definition, raw_forces, coupling, below: set[int]):
     driven = [name for name in linkage.drive if name in own]
     if not raw_forces and not driven:
         return None
-    geo = ReleasedGeometry.released_at(linkage, coupling, below)
-    problems: list[str] = []
-    part = build_forces(raw_forces, geo, problems)  # checked once already, by the model's build
-    if problems or len(part.loads) != len(definition.loads):
-        raise RuntimeError(f"the force elements rebuilt for the reaction of {coupling.label} differ from the "
-                           f"model's: {'; '.join(problems) or 'another number of loads'}")
-    at_zero = {e: 0 for e in (*EPS, *EPS_DOT)}
-    m = len(definition.coordinates)
+    n_loads = len(definition.loads)
 
-    def eps_rows(expr_or_direction) -> list:
-        direction = (geo.gradient(expr_or_direction) if not isinstance(expr_or_direction, list)
-                     else expr_or_direction)
-        return [sp.sympify(d).xreplace(at_zero) for d in direction[m:]]
+    def make():  # the symbolic work (cached: csim.linkage.lambdacache)
+        geo = ReleasedGeometry.released_at(linkage, coupling, below)
+        problems: list[str] = []
+        part = build_forces(raw_forces, geo, problems)  # checked once already, by the model's build
+        if problems or len(part.loads) != n_loads:
+            raise RuntimeError(f"the force elements rebuilt for the reaction of {coupling.label} differ from the "
+                               f"model's: {'; '.join(problems) or 'another number of loads'}")
+        at_zero = {e: 0 for e in (*EPS, *EPS_DOT)}
+        m = len(definition.coordinates)
 
-    dV = [sp.diff(part.potential, e).xreplace(at_zero) for e in EPS]
-    B = [eps_rows(ld.direction if ld.direction is not None else ld.coordinate) for ld in part.loads]
-    D = [eps_rows(geo.joint("drive", name, problems).value) for name in driven]
-    f = sp.lambdify([list(definition.coordinates), list(definition.velocities), list(definition.parameter_symbols)],
-                    [sp.Matrix(dV), sp.Matrix(6, len(B), lambda i, k: B[k][i]),
-                     sp.Matrix(6, len(D), lambda i, k: D[k][i])], "numpy", cse=True)
+        def eps_rows(expr_or_direction) -> list:
+            direction = (geo.gradient(expr_or_direction) if not isinstance(expr_or_direction, list)
+                         else expr_or_direction)
+            return [sp.sympify(d).xreplace(at_zero) for d in direction[m:]]
+
+        dV = [sp.diff(part.potential, e).xreplace(at_zero) for e in EPS]
+        B = [eps_rows(ld.direction if ld.direction is not None else ld.coordinate) for ld in part.loads]
+        D = [eps_rows(geo.joint("drive", name, problems).value) for name in driven]
+        return ([list(definition.coordinates), list(definition.velocities), list(definition.parameter_symbols)],
+                [sp.Matrix(dV), sp.Matrix(6, len(B), lambda i, k: B[k][i]),
+                 sp.Matrix(6, len(D), lambda i, k: D[k][i])])
+
+    f = cached_lambdify(linkage.cache_key, f"elements_{coupling.number}", make)
     columns = [list(linkage.drive).index(name) for name in driven]
 
     def terms(q, qd, par):
         dv, b, d = (np.asarray(x, dtype=float) for x in f(list(q), list(qd), list(par)))
-        return dv.ravel(), b.reshape(6, len(B)), d.reshape(6, len(D)), columns
+        return dv.ravel(), b.reshape(6, n_loads), d.reshape(6, len(driven)), columns
 
     return terms
 
@@ -350,8 +363,12 @@ def _element_terms(linkage, definition, raw_forces, coupling, below: set[int]):
 def _tree_frames(linkage, definition):
     """(q, par) -> {coupling number: T_jm (4, 4), T_ik (4, 4)} of every tree joint."""
     tree = linkage.topology.tree_joints
-    mats = [m for c in tree for m in (linkage.frames.joint_frame(c.j, c.m), linkage.frames.joint_frame(c.i, c.k))]
-    f = sp.lambdify([list(definition.coordinates), list(definition.parameter_symbols)], mats, "numpy", cse=True)
+
+    def make():
+        return ([list(definition.coordinates), list(definition.parameter_symbols)],
+                [m for c in tree for m in (linkage.frames.joint_frame(c.j, c.m), linkage.frames.joint_frame(c.i, c.k))])
+
+    f = cached_lambdify(linkage.cache_key, "tree_frames", make)
 
     def frames(q, par):
         values = f(list(q), list(par))
