@@ -135,6 +135,8 @@ class ConstrainedSystem:
 
     def mode_at(self, y: np.ndarray) -> np.ndarray:
         """The load-law conditions (n_switches,) bool that hold at state y."""
+        if self.loads.n_switches == 0:  # no law switches: nothing to evaluate (once per right-hand side)
+            return np.zeros(0, dtype=bool)
         return self.loads.mode(self.switching(y))
 
     def switching(self, y: np.ndarray) -> np.ndarray:
