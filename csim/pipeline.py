@@ -211,8 +211,10 @@ def record_integrity(case: Case, system: ConstrainedSystem, result: Result) -> N
     if result.failure == "drift" and result.phi.shape[1] and np.isfinite(result.phi[:n]).any():
         labels = watch.labels if result.phi.shape[1] == len(watch.labels) else [watch.labels[i] for i in watch.kept]
         worst = np.nanmax(np.abs(result.phi[:n]), axis=0)
-        if len(labels) == worst.size:  # name the equation that came apart
-            j = int(np.nanargmax(worst))
+        j = int(np.nanargmax(worst)) if worst.size else 0
+        # name the equation that came apart, where the samples show it drifting (a step that
+        # failed the check may lie past the last sample, whose residuals are then round-off)
+        if len(labels) == worst.size and worst[j] >= 0.1 * case.simulation.max_phi:
             result.message += f"; the largest residual is {labels[j]}'s ({worst[j]:.3g})"
 
 

@@ -178,3 +178,17 @@ def test_the_default_run_is_unchanged_by_chatter_detection(backend, reference):
     assert res.ok and res.backend == backend
     np.testing.assert_allclose(res.event_times, reference["events"], atol=1e-6)
     assert res.nfev == 10_864
+
+
+def test_a_drift_failure_past_the_last_sample_names_no_equation_the_samples_do_not_show():
+    """RK4 with a 1 s step fails the max_phi check at the end of its first step, past every
+    sample: the message gives the failing |Phi| and does not name an equation whose
+    recorded residual is round-off (it used to say 'the largest residual is Phi_1's (2.2e-16)')."""
+    from conftest import CONFIGS
+
+    from csim.case import load_case
+    from csim.pipeline import run_case
+
+    result = run_case(load_case(CONFIGS / "quick_return.yaml", ["simulation.integrator=RK4", "simulation.step=1"]))
+    assert result.status == "failed" and result.failure == "drift", result.message
+    assert "exceeds simulation.max_phi" in result.message and "largest residual" not in result.message
