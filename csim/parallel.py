@@ -103,9 +103,13 @@ def stop_requested() -> bool:
 
 @contextmanager
 def stoppable_run():
-    """The block is a run that :data:`STOP_SIGNAL` (the parent's Ctrl-C) may end."""
+    """The block is a run that :data:`STOP_SIGNAL` (the parent's Ctrl-C) may end; one asked
+    to stop already (the signal came between the caller's check and here, while the run
+    was being prepared) ends at once."""
     _IN_RUN["active"] = True
     try:
+        if _IN_RUN["stop"]:
+            raise KeyboardInterrupt
         yield
     finally:
         _IN_RUN["active"] = False

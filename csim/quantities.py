@@ -7,8 +7,9 @@ link-coupling table entry. A plain number is taken in the key's unit, as always;
 imported only when a value carries a unit, so the plain path costs nothing.
 
 - ``deg`` converts to rad, ``ms`` to s, ``mm`` to m, ``rpm`` to rad/s. pint counts an
-  angle as dimensionless: ``30 deg`` is accepted by a dimensionless key (as 0.5236), and
-  ``Hz`` is 1/s, which as rad/s is 1 rad/s, not a turn per second (write ``rpm`` or ``rev/s``).
+  angle as dimensionless: ``30 deg`` is accepted by a dimensionless key (as 0.5236); on a
+  key in rad or rad/s, a frequency (``Hz``: 1 rad/s to pint, not a turn per second) and a
+  percentage are refused (write ``rpm`` or ``rad/s``).
 - A key without a unit (``""`` or ``"-"``: counts, ratios such as ``rtol``) refuses a unit;
   so does a key in the unit of the constraints (``unit of Phi``), which depends on the
   mechanism.
@@ -42,6 +43,8 @@ _NUMBER_END = r"(?![eE][-+]?[0-9])"
 QUANTITY = re.compile(rf"^\s*({_NUMBER}){_NUMBER_END}\s*(\*?)\s*({_UNIT_START}[{_UNIT_CHARS}]*?)\s*$")
 #: a power in a unit: ^ or ** and an integer of at most two digits (m^2, s^-1, m**(-2))
 _BAD_POWER = re.compile(r"(?:\^|\*\*)(?!\s*\(?\s*[-+]?[0-9]{1,2}\s*\)?(?![0-9.]))")
+#: a power of a power (s^9^9^9: pint reads it right to left, 9**(9**9), and does not return)
+_POWER_TOWER = re.compile(r"(?:\^|\*\*)\s*\(?\s*[-+]?[0-9]+\s*\)?\s*(?:\^|\*\*)")
 
 #: JSON Schema (ECMA-262 regex) of a value with a unit, for editors: a number, then a unit
 JSON_PATTERN = rf"^\s*{_NUMBER}{_NUMBER_END}\s*\*?\s*(?:1\s*/\s*)?[A-Za-z_%°µμΩ][{_UNIT_CHARS}]*$"
@@ -116,6 +119,8 @@ def convert(value: str, unit: str | None) -> tuple[float | None, str | None]:
     fast = _FAST.get((unit_text, "rad" if unit == SI_BASE else unit))
     if fast is not None:  # an angle in degrees, a value in the key's own unit: no pint (1 s to load)
         return float(number_text) * fast, None
+    if _POWER_TOWER.search(unit_text):
+        return None, f"the unit {unit_text!r} raises a power to a power; expected powers such as m^2 or s^-1"
     if _BAD_POWER.search(unit_text):
         return None, (f"the unit {unit_text!r} has a power that is not a small integer; expected powers such as m^2 "
                       f"or s^-1")
@@ -138,12 +143,23 @@ def convert(value: str, unit: str | None) -> tuple[float | None, str | None]:
         return None, (f"{unit_text!r} is not a unit pint reads ({type(exc).__name__}); expected a number"
                       f"{_in(unit)}{_example(ureg, unit)}")
     quantity = ureg.Quantity(float(number_text), given)
+    # pint counts an angle as dimensionless: 1 Hz would read as 1 rad/s (not a turn per second)
+    # and 50 % as 0.5 rad; on an angle's key such units are refused
+    if unit != SI_BASE and "rad" in unit:
+        if "%" in unit_text or "percent" in unit_text:
+            return None, f"{unit_text!r} is a fraction, not an angle; expected a number{_in(unit)}, or deg or rad"
+        if given.dimensionality == ureg.parse_units("Hz").dimensionality and "rad" not in str(given) \
+                and "rpm" not in unit_text and "deg" not in unit_text:
+            return None, (f"{unit_text!r} is a frequency, which csim does not take as an angular velocity (1 Hz "
+                          f"would read as 1 rad/s, not 2 pi rad/s); expected a number{_in(unit)}, or rpm or rad/s")
     try:
         if unit == SI_BASE:
             return _clean(quantity.to_base_units().magnitude), None
         target = ureg.parse_units(unit)
         return _clean(quantity.to(target).magnitude), None
     except pint.DimensionalityError:
+        if unit == SI_BASE:
+            return None, f"{unit_text!r} has no value in SI base units; expected a number{_in(unit)}"
         return None, (f"{unit_text!r} is the unit of {_dimension(given.dimensionality)}, not of "
                       f"{DIMENSIONS.get(str(target.dimensionality), str(target.dimensionality))}; expected a number"
                       f"{_in(unit)}{_example(ureg, unit)}")

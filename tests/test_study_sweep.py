@@ -403,3 +403,16 @@ def test_ctrl_c_of_worker_processes_keeps_the_runs_each_chunk_finished(tmp_path)
     assert delivered[3]["status"] == PENDING and delivered[3]["reason"] == execute.INTERRUPTED
     assert "interrupted by the user after t = " in delivered[3]["message"]
     assert 4 not in delivered
+
+
+def test_a_run_asked_to_stop_before_it_begins_ends_at_once(monkeypatch):
+    """The stop signal may come while a worker validates its next case, after it checked for
+    one: the run then ends on entry instead of running to its end (whose chunk the parent
+    would terminate after the grace, losing the runs it had finished)."""
+    from csim import parallel
+
+    monkeypatch.setitem(parallel._IN_RUN, "stop", True)
+    ran = []
+    with pytest.raises(KeyboardInterrupt), parallel.stoppable_run():
+        ran.append(1)
+    assert not ran and parallel._IN_RUN["active"] is False

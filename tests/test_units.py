@@ -328,3 +328,23 @@ def test_set_takes_a_value_with_a_unit():
     case = load_case(CONFIGS / "quick_return.yaml", ["initial.q.q1=172 deg", "simulation.t_end=250 ms"])
     assert case.data["initial"]["q"]["q1"] == pytest.approx(math.radians(172), rel=1e-14)
     assert case.data["simulation"]["t_end"] == 0.25
+
+
+@pytest.mark.parametrize("value, unit, expected", [
+    ("1 s^9^9^9", "s", "raises a power to a power"),  # pint would compute 9**(9**9) and not return
+    ("1 m^99^99", "SI base units", "raises a power to a power"),
+    ("1 Hz", "rad/s", "is a frequency"),  # 1 rad/s to pint, not 2 pi rad/s
+    ("50 %", "rad", "is a fraction, not an angle"),
+])
+def test_units_that_would_hang_or_mislead_are_refused(value, unit, expected):
+    from csim.quantities import convert
+
+    number, problem = convert(value, unit)
+    assert number is None and expected in problem
+
+
+def test_angular_velocities_in_rpm_and_degrees_per_second_convert():
+    from csim.quantities import convert
+
+    assert convert("60 rpm", "rad/s")[0] == pytest.approx(2 * math.pi)
+    assert convert("180 deg/s", "rad/s")[0] == pytest.approx(math.pi)

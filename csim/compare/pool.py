@@ -29,6 +29,7 @@ from csim.parallel import (
     ask_to_stop,
     process_pool,
     stop_processes,
+    stop_requested,
     stoppable_run,
     wait_for_stopped,
     worker_environment,
@@ -89,6 +90,10 @@ def _execute(case_data: dict, source: str, repeat: int = 1) -> tuple[Result | No
         result = results[-1]
         result.wall_time = float(np.median([r.wall_time for r in results]))
         return result, ""
+    except KeyboardInterrupt:
+        if stop_requested():  # a worker asked to stop before its run began: it ran nothing
+            return None, INTERRUPTED
+        raise  # Ctrl-C in this process (jobs 1): the caller stops every run
     except Exception as exc:  # a bug or an unexpected numerical error: a failed row, not a crash
         return None, f"{type(exc).__name__}: {exc}"
 

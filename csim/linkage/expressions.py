@@ -223,18 +223,17 @@ def value_problem(expr: sp.Expr, values: dict[sp.Symbol, float]) -> str | None:
 
 
 def quantity_text(text: str, symbols: dict[str, sp.Symbol]) -> tuple[str, str] | None:
-    """(number, unit) of an entry written as a number with a unit (``50 mm``, ``0.5*m``,
-    ``30 deg``), or None for a number or an expression. Text that names a parameter (or
-    ``t``, a joint variable: any of ``symbols``) is an expression (``2*l1``, ``2 l1``), and
-    so is a number times one of :data:`FUNCTIONS` (``90*deg``, ``2*pi*t``: as always); a
-    number and a unit with a space between them (``90 deg``) or ``*`` (``0.5*m``) is a
-    quantity."""
+    """(number, unit) of an entry written as a number with a unit and a space between them
+    (``50 mm``, ``30 deg``), or None for a number or an expression. Text that names a
+    parameter (or ``t``, a joint variable: any of ``symbols``) is an expression (``2*l1``,
+    ``2 l1``); so is a number times a name (``90*deg``, ``2*pi*t``, and ``0.5*g`` with no
+    parameter ``g``, which is reported as an unknown name rather than read as grams)."""
     parts = split(text)
     if parts is None:
         return None
     number, unit, star = parts
     names = _IDENT.findall(unit)
-    if any(name in symbols for name in names) or (star and any(name in FUNCTIONS for name in names)):
+    if star or any(name in symbols for name in names):
         return None
     return number, unit
 

@@ -224,7 +224,8 @@ class MechanismAnimation:
             raise PlotError(f"--output {path}: unknown animation format {suffix or '(no suffix)'!r}; "
                             f"valid: {', '.join(ANIMATION_FORMATS)}")
         check_dpi(dpi)
-        self.check_size(dpi)
+        if suffix == ".gif":  # a GIF holds every frame in memory; ffmpeg takes an MP4's one at a time
+            self.check_size(dpi)
         if suffix == ".mp4" and not ffmpeg_available():
             raise PlotError(f"--output {path}: MP4 needs ffmpeg, which is not on the PATH; "
                             f"write a GIF instead (-o {path.with_suffix('.gif')})")
