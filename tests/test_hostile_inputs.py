@@ -266,6 +266,23 @@ def test_a_result_file_whose_datasets_expand_beyond_it_is_refused(tmp_path, shor
         assert_clear(quick(command, out), str(out), "would hold 1.6e+11 bytes once read", "a crafted or damaged file")
 
 
+def test_the_expansion_check_follows_soft_links_and_refuses_external_ones(tmp_path):
+    """A run group whose dataset is a soft link to a huge one outside it (h5py's visititems
+    does not follow soft links), and one that links into another file."""
+    from csim.io.hdf5 import ResultFileError, check_expansion
+
+    path = tmp_path / "links.h5"
+    with h5py.File(path, "w") as fh:
+        fh.create_dataset("big", shape=(10**10, 2), dtype="f8", chunks=(10**6, 2), compression="gzip")
+        fh.create_group("run")["qdd"] = h5py.SoftLink("/big")
+        fh.create_group("other")["q"] = h5py.ExternalLink("elsewhere.h5", "/q")
+    with h5py.File(path, "r") as fh:
+        with pytest.raises(ResultFileError, match="would hold 1.6e.11 bytes"):
+            check_expansion(fh["run"])
+        with pytest.raises(ResultFileError, match="links to another file"):
+            check_expansion(fh["other"])
+
+
 def read_case(path: Path) -> str:
     with h5py.File(path, "r") as fh:
         return fh.attrs["case"]
@@ -525,3 +542,21 @@ def test_kill_9_of_a_sweep_leaves_no_process_behind(tmp_path):
     finally:
         if sweep.poll() is None:
             sweep.kill()
+
+
+def test_the_rebuild_deadline_gives_back_a_callers_own_timer():
+    import signal
+
+    from csim.plot.source import _deadline
+
+    fired = []
+    previous = signal.signal(signal.SIGALRM, lambda *_: fired.append(1))
+    try:
+        signal.setitimer(signal.ITIMER_REAL, 100.0)
+        with _deadline(5.0):
+            pass
+        left = signal.getitimer(signal.ITIMER_REAL)[0]
+        assert 90.0 < left <= 100.0 and not fired
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)

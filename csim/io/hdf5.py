@@ -351,12 +351,23 @@ def check_expansion(group: h5py.Group) -> None:
     :data:`EXPANSION_LIMIT` times the file's size plus :data:`EXPANSION_SLACK` once read
     (shapes and types only: nothing is read)."""
     sizes: list[int] = []
-
-    def visit(name, item) -> None:
-        if isinstance(item, h5py.Dataset):
-            sizes.append(int(item.size or 0) * max(int(item.dtype.itemsize), 1))
-    group.visititems(visit)
     path = Path(group.file.filename)
+
+    def walk(g: h5py.Group, depth: int) -> None:  # soft links followed (visititems skips them)
+        for key in g:
+            link = g.get(key, getlink=True)
+            if isinstance(link, h5py.ExternalLink):
+                raise ResultFileError(f"{path}: {g.name}/{key} links to another file; expected the datasets csim "
+                                      f"writes, in this file: a crafted or damaged file")
+            item = g.get(key)
+            if isinstance(item, h5py.Dataset):
+                sizes.append(int(item.size or 0) * max(int(item.dtype.itemsize), 1))
+            elif isinstance(item, h5py.Group):
+                if depth >= 16 or len(sizes) > 100_000:  # csim's runs are a few groups deep: a link cycle
+                    raise ResultFileError(f"{path}: {item.name} is nested too deep (or its links loop); expected "
+                                          f"the groups csim writes: a crafted or damaged file")
+                walk(item, depth + 1)
+    walk(group, 0)
     try:
         on_disk = path.stat().st_size
     except OSError:

@@ -65,12 +65,16 @@ def _deadline(seconds: float) -> Iterator[None]:
         raise _Deadline
 
     previous = signal.signal(signal.SIGALRM, expired)
-    signal.setitimer(signal.ITIMER_REAL, seconds, 0.5)
+    outer = signal.setitimer(signal.ITIMER_REAL, seconds, 0.5)  # a caller's own timer, restored after
+    start = time.monotonic()
     try:
         yield
     finally:
+        signal.signal(signal.SIGALRM, signal.SIG_IGN)  # no _Deadline from here on
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, previous)
+        if outer[0] > 0:  # what was left of it, less the time spent here (at least a moment)
+            signal.setitimer(signal.ITIMER_REAL, max(outer[0] - (time.monotonic() - start), 1e-3), outer[1])
 
 
 @dataclass
