@@ -631,8 +631,10 @@ def _drive_start(out: dict, linkage: Linkage, problems: list[str]) -> None:
                 continue
             ini[key] = {**at_start[key], **free}
         elif partial:
+            values = ", ".join(f"{name} = {value:.10g}" for name, value in at_start[key].items())
             problems.append(f"initial.{key}: got {describe(given)} with mechanism.drive; the drives set "
-                            f"{', '.join(linkage.drive)}; expected initial.{key} for the free joint variables only")
+                            f"{values} at t = 0; expected initial.{key} for the free joint variables only (a "
+                            f"driven one only with its drive's value)")
         elif not _same_values(given, at_start[key]):
             # the drive's own values at t = 0 are what a validated (stored) case holds: they may stay
             problems.append(f"initial.{key}: got {describe(given)} with mechanism.drive; the driving joint "
