@@ -56,3 +56,21 @@ def test_adaptive_integrators_meet_their_tolerance(name):
 def test_unknown_integrator_lists_valid_names():
     with pytest.raises(KeyError, match="valid names: RK45, DOP853"):
         make_integrator("Euler", harmonic, 0.0, np.zeros(2), 1.0, rtol=1e-6, atol=1e-6)
+
+
+def test_difference_jacobians_stay_finite_for_a_variable_nothing_uses():
+    """scipy's num_jac multiplies the step of a column with no effect by 10 at every call,
+    without bound (a driven shaft angle reached inf and stopped Radau); csim's caps it."""
+
+    from csim.solver.dae import JAC_MAX_FACTOR
+    from csim.solver.integrators import DifferenceJacobian
+
+    def fun(t, y):  # y[1] enters nothing
+        return np.array([-y[0], 0.0])
+
+    jac = DifferenceJacobian(fun, 1e-8)
+    y = np.array([1.0, 62.8])
+    for _ in range(400):
+        J = jac(0.0, y)
+    assert np.all(np.isfinite(J)) and np.max(jac.factor) <= JAC_MAX_FACTOR
+    assert J[0, 0] == pytest.approx(-1.0, rel=1e-6) and J[0, 1] == 0.0
