@@ -134,6 +134,17 @@ def wait_for_stopped(futures, grace: float = STOP_GRACE) -> None:
             time.sleep(0.02)
 
 
+def stop_workers(executor: cf.ProcessPoolExecutor, futures) -> list:
+    """After Ctrl-C: ask the workers to end their runs (:func:`ask_to_stop`), wait the grace
+    for ``futures`` (:func:`wait_for_stopped`), then end the workers (:func:`stop_processes`).
+    Returns the futures among ``futures`` that came back with a result within the grace."""
+    processes = ask_to_stop(executor)
+    wait_for_stopped(futures)
+    back = [f for f in futures if f.done() and not f.cancelled() and f.exception() is None]
+    stop_processes(executor, processes)
+    return back
+
+
 def ask_to_stop(executor: cf.ProcessPoolExecutor) -> list:
     """After Ctrl-C: cancel the runs not started, and ask the workers to end theirs with the
     samples so far (:data:`STOP_SIGNAL`). Returns the worker processes, for

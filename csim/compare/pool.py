@@ -24,14 +24,11 @@ import numpy as np
 from csim.case import Case, validate_case
 from csim.compare.runs import INTERRUPTED, Run
 from csim.parallel import (
-    STOP_GRACE,
     InterruptFlag,
-    ask_to_stop,
     process_pool,
-    stop_processes,
     stop_requested,
+    stop_workers,
     stoppable_run,
-    wait_for_stopped,
     worker_environment,
 )
 from csim.pipeline import numeric_model
@@ -156,14 +153,11 @@ def _collect(futures: dict[cf.Future, Run], progress: Progress | None) -> None:
 
 def _stop(executor: cf.ProcessPoolExecutor, futures: dict[cf.Future, Run]) -> None:
     """After Ctrl-C: ask the workers to end their runs, keep every result that comes back
-    within :data:`STOP_GRACE` (the interrupted runs with their samples so far), end the
+    within :data:`csim.parallel.STOP_GRACE` (the interrupted runs with their samples so far), end the
     workers, mark the rest interrupted."""
-    processes = ask_to_stop(executor)
-    wait_for_stopped([f for f, run in futures.items() if run.result is None], STOP_GRACE)
-    for future, run in futures.items():  # runs that finished, or stopped with their samples, keep them
-        if run.result is None and future.done() and not future.cancelled() and future.exception() is None:
-            run.set_result(*future.result())
-    stop_processes(executor, processes)
+    # runs that finished, or stopped with their samples, keep them
+    for future in stop_workers(executor, [f for f, run in futures.items() if run.result is None]):
+        futures[future].set_result(*future.result())
     for run in futures.values():  # not started, or not back within the grace
         if run.result is None:
             run.set_result(None, INTERRUPTED)

@@ -33,12 +33,10 @@ from csim.errors import CaseError, CsimError
 from csim.io.sweep_file import PENDING
 from csim.parallel import (
     InterruptFlag,
-    ask_to_stop,
     process_pool,
-    stop_processes,
     stop_requested,
+    stop_workers,
     stoppable_run,
-    wait_for_stopped,
     worker_environment,
 )
 from csim.study.metrics import empty_row, failed_row, run_row
@@ -160,12 +158,8 @@ def run_local(work: Work, parts: list, jobs: int, deliver: Callable[[list[Done]]
             lost = lost or why
     except KeyboardInterrupt:
         # the chunks under way end their runs and come back with the runs they finished
-        processes = ask_to_stop(executor)
-        wait_for_stopped(pending)
-        for future in pending:
-            if future.done() and not future.cancelled() and future.exception() is None:
-                deliver(future.result())
-        stop_processes(executor, processes)
+        for future in stop_workers(executor, list(pending)):
+            deliver(future.result())
         return Outcome(interrupted=True, lost=lost)
     finally:
         executor.shutdown(wait=True, cancel_futures=True)
