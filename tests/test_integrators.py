@@ -61,8 +61,7 @@ def test_unknown_integrator_lists_valid_names():
 def test_difference_jacobians_stay_finite_for_a_variable_nothing_uses():
     """scipy's num_jac multiplies the step of a column with no effect by 10 at every call,
     without bound (a driven shaft angle reached inf and stopped Radau); csim's caps it."""
-    from csim.solver.dae import JAC_MAX_FACTOR
-    from csim.solver.integrators import DifferenceJacobian
+    from csim.solver.dae import JAC_MAX_FACTOR, DifferenceJacobian
 
     def fun(t, y):  # y[1] enters nothing
         return np.array([-y[0], 0.0])

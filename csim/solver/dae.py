@@ -112,6 +112,37 @@ ROUNDOFF_FACTOR = 100
 NOISE_FACTOR = 8
 
 
+class DifferenceJacobian:
+    """dF/dy by forward differences (scipy's ``num_jac``), its step factors capped.
+
+    scipy multiplies the difference step of a variable that F does not depend on by 10 at
+    every Jacobian, without bound: over a long run the step of such a variable (a work
+    state, a governor's shaft angle under a drive) reaches infinity, the trial state is not
+    finite, and the integration stops ("array must not contain infs or NaNs"). The factor
+    is capped at :data:`JAC_MAX_FACTOR`. Serves :class:`RadauDAE` and, through
+    :func:`csim.solver.integrators.make_integrator`, scipy's Radau and BDF.
+
+    Parameters
+    ----------
+    fun : callable (t, y) -> (n,)
+        The right-hand side.
+    threshold : float or ndarray (n,)
+        The smallest |y_j| the difference step scales with (scipy uses atol).
+    columns : callable (t, Y (n, c)) -> (n, c), optional
+        F at each column of Y (default: ``fun`` column by column).
+    """
+
+    def __init__(self, fun, threshold, columns=None):
+        self.fun, self.threshold, self.factor = fun, threshold, None
+        self.columns = columns or (lambda t, Y: np.column_stack([fun(t, Y[:, j]) for j in range(Y.shape[1])]))
+
+    def __call__(self, t: float, y: np.ndarray, f: np.ndarray | None = None) -> np.ndarray:
+        """dF/dy (n, n) at (t, y); ``f`` = F(t, y) where the caller has it."""
+        J, factor = num_jac(self.columns, t, y, self.fun(t, y) if f is None else f, self.threshold, self.factor)
+        self.factor = np.minimum(factor, JAC_MAX_FACTOR)
+        return J
+
+
 def _rms(x: np.ndarray) -> np.float64:
     """Root-mean-square norm (scipy's ``norm``); a numpy float, so that 0 ** -0.25 is inf."""
     return np.linalg.norm(x) / x.size**0.5 if x.size else np.float64(0.0)
@@ -322,7 +353,7 @@ class RadauDAE(OdeSolver):
         self.error_norm_old = None
         # Newton tolerance on the scaled increment (scipy's choice)
         self.newton_tol = max(10 * EPS / rtol, min(0.03, rtol**0.5))
-        self.jac_factor = None
+        self._differences = DifferenceJacobian(self.fun, self._jac_threshold, columns=self._fun_columns)
         self._user_jac = jac
         self.J = self.jac(self.t, self.y, self.f)
         self.current_jac = True
@@ -343,13 +374,17 @@ class RadauDAE(OdeSolver):
                                  f"but actually has {J.shape}.")
             return J
 
-        def fun_columns(t_, Y):  # F at the columns of Y, each counted as one evaluation
-            self.nfev += Y.shape[1]
-            return self.fun_vectorized(t_, Y)
+        return self._differences(t, y, f)
 
-        J, factor = num_jac(fun_columns, t, y, f, self._jac_threshold, self.jac_factor)
-        self.jac_factor = np.minimum(factor, JAC_MAX_FACTOR)
-        return J
+    def _fun_columns(self, t, Y):
+        """F at the columns of Y, each counted as one evaluation."""
+        self.nfev += Y.shape[1]
+        return self.fun_vectorized(t, Y)
+
+    @property
+    def jac_factor(self):
+        """The difference steps' factors of the last Jacobian (None before the first)."""
+        return self._differences.factor
 
     def _lu(self, A):
         """LU factors of A, or None where A is singular or not finite."""

@@ -92,6 +92,8 @@ def make_integrator(name, fun, t0, y0, t_bound, *, rtol, atol, step=None, max_st
 
             return RadauDAE(fun, t0, y0, t_bound, **dae, **options)
         if info.implicit:  # Radau, BDF: forward differences whose steps stay finite
+            from csim.solver.dae import DifferenceJacobian
+
             options["jac"] = DifferenceJacobian(fun, atol)
         return info.cls(fun, t0, y0, t_bound, **options)
     if dae is not None:
@@ -100,35 +102,3 @@ def make_integrator(name, fun, t0, y0, t_bound, *, rtol, atol, step=None, max_st
         return info.cls(fun, t0, y0, t_bound, step=step, system=system, mode=mode)
     return info.cls(fun, t0, y0, t_bound, step=step)
 
-
-class DifferenceJacobian:
-    """dF/dy by forward differences (scipy's ``num_jac``), for scipy's Radau and BDF.
-
-    scipy's own differences multiply the step of a variable that F does not depend on by 10
-    at every Jacobian, without bound: over a long run the step of such a variable (a
-    governor's shaft angle under a drive, a work state) reaches infinity, the trial state is
-    not finite, and the integration stops with "array must not contain infs or NaNs". Here
-    the factor is capped (:data:`csim.solver.dae.JAC_MAX_FACTOR`, as the DAE solver does).
-
-    Parameters
-    ----------
-    fun : callable (t, y) -> (n,)
-        The right-hand side (each call counted by the caller's wrapper).
-    threshold : float or ndarray (n,)
-        The smallest |y_j| the difference step scales with (scipy uses atol).
-    """
-
-    def __init__(self, fun, threshold):
-        self.fun, self.threshold, self.factor = fun, threshold, None
-
-    def __call__(self, t: float, y: np.ndarray) -> np.ndarray:
-        from scipy.integrate._ivp.common import num_jac
-
-        from csim.solver.dae import JAC_MAX_FACTOR
-
-        def columns(t_, Y):  # F at each column of Y
-            return np.column_stack([self.fun(t_, Y[:, j]) for j in range(Y.shape[1])])
-
-        J, factor = num_jac(columns, t, y, self.fun(t, y), self.threshold, self.factor)
-        self.factor = np.minimum(factor, JAC_MAX_FACTOR)
-        return J
