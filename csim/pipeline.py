@@ -62,7 +62,8 @@ def build_system(case: Case) -> ConstrainedSystem:
 
         return DrivenSystem(model, model.parameter_vector(case.parameters), case.load_set(),
                             make_formulation(form.method, **settings), stabilizer,
-                            case.linkage.driven_indices, case.linkage.drive_function(case.parameters))
+                            case.linkage.driven_indices, case.linkage.drive_function(case.parameters),
+                            case.linkage.drive_expressions(case.parameters, case.mechanism.parameter_names))
     system = stabilizer.system_class()(
         model=model,
         par=model.parameter_vector(case.parameters),

@@ -168,7 +168,7 @@ def test_chatter_fails_fast_and_alike_on_both_backends(overrides):
 @pytest.mark.parametrize("override, key", [
     ("formulation.method=elimination", "formulation.method 'elimination'"),
     ("stabilization.method=ggl", "stabilization.method 'ggl'"),
-    ("simulation.integrator=Radau", "simulation.integrator 'Radau'"),
+    ("simulation.integrator=BDF", "simulation.integrator 'BDF'"),
 ])
 def test_unsupported_combinations_are_rejected(override, key):
     with pytest.raises(CaseError) as info:

@@ -9,7 +9,8 @@ elimination (each sin and cos of the coordinates is computed once):
 
 ``terms``
     M (m, m), C qd (m,), h (m,), Phi (r,), Phi_q (r, m), gamma (r,), s (k,), B (m, k),
-    S = ds/dq^T (m, k), the load laws f(q, qd, t) (k,); t is the time [s]
+    S = ds/dq^T (m, k), the load laws f(q, qd, t) (k,), Phi_t (r,) (zero but for the rows
+    of drives, :func:`csim.model.derive.with_drive_rows`); t is the time [s]
 ``phi_``, ``jac``, ``mass``
     the pieces the projection and the divergence checks need on their own
 ``loads_``
@@ -34,11 +35,11 @@ from csim.fast.layout import MODEL_FUNCTIONS, model_offsets
 
 #: the terms the right-hand side needs, in their order in the workspace w
 TERMS = ("mass", "velocity_terms", "gravity", "phi", "phi_q", "gamma", "load_coordinates", "load_matrix",
-         "load_jacobian", "load_law")
+         "load_jacobian", "load_law", "phi_t")
 #: DerivedModel attribute -> name of its offset in w (csim.fast.layout.MODEL_TERMS)
 OFFSETS = {"mass": "W_M", "velocity_terms": "W_CQD", "gravity": "W_H", "phi": "W_PHI", "phi_q": "W_J",
            "gamma": "W_GAM", "load_coordinates": "W_S", "load_matrix": "W_B", "load_jacobian": "W_SQ",
-           "load_law": "W_L"}
+           "load_law": "W_L", "phi_t": "W_PT"}
 
 #: function name -> the DerivedModel attributes it writes into w
 FUNCTIONS = {
@@ -72,7 +73,7 @@ class Plan:
 def dims(derived) -> tuple[int, int, int, int]:
     """(m, r, k, o): coordinates, constraints, loads, observables."""
     d = derived.definition
-    return len(d.coordinates), len(d.constraints), len(d.loads), len(d.observables)
+    return len(d.coordinates), derived.phi.shape[0], len(d.loads), len(d.observables)
 
 
 def _plan(name, outputs, sources, intermediates=()) -> Plan:
@@ -104,7 +105,7 @@ def plans(derived) -> list[Plan]:
         targets = []
         for attr in attrs:
             base = offsets[OFFSETS[attr]]
-            targets += [(base + i, e) for i, e in enumerate(getattr(derived, attr))]  # row-major
+            targets += [(base + i, e) for i, e in enumerate(_term(derived, attr))]  # row-major
         out[fname] = _plan(fname, targets, sources, derived.intermediates)
     for fname, attr in SCALARS.items():
         out[fname] = _plan(fname, [(0, getattr(derived, attr))], sources, derived.intermediates)
@@ -112,6 +113,12 @@ def plans(derived) -> list[Plan]:
     rates = list(derived.observable_jacobian * sp.Matrix(d.velocities)) if obs else []
     out["observe"] = _plan("observe", list(enumerate(obs + rates)), sources, derived.intermediates)
     return [out[name] for name in MODEL_FUNCTIONS]
+
+
+def _term(derived, attr: str):
+    """A term of ``derived`` (Phi_t: zeros where no row depends on time)."""
+    value = getattr(derived, attr)
+    return sp.zeros(derived.phi.shape[0], 1) if value is None else value
 
 
 class _Printer(PythonCodePrinter):

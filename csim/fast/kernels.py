@@ -1,4 +1,4 @@
-"""Compiled kernels: the step loops of DOP853 and RK4 with event location, over the shared core.
+"""Compiled kernels: the step loops of DOP853, RK4 and Radau with event location, over the shared core.
 
 One module for every mechanism, compiled once per installation: :mod:`csim.fast.module`
 loads it (through a copy named by the hash of everything it depends on, so that numba's
@@ -16,12 +16,13 @@ the load laws, the projection, the step checks, the minimal-coordinate method's 
 the assembly branch and its partition (:mod:`csim.physics.branch`) and the status codes are
 the functions of :mod:`csim.physics` and of the method files (:mod:`csim.solver.methods`),
 the same ones the Python driver calls. What is here is what must be compiled: the step
-loops, the ports of scipy's ``DOP853`` (step-size control, error estimate, dense output)
-and ``brentq``, the cubic Hermite dense output of :class:`csim.solver.rk4.RK4`, and the
-glue: the model evaluated into the workspace, the core's model handle (the tuple
-``(par, pi, w, ym)``, for which the functions of :mod:`csim.physics.model` are overloaded
-here), and the partitioned system's state y = [u, ud, W] turned into the full state where
-the loop needs it (:func:`full_state`).
+loops, the ports of scipy's ``DOP853`` (step-size control, error estimate, dense output),
+``Radau`` (with the difference Jacobian of ``num_jac``, capped as
+:class:`csim.solver.dae.DifferenceJacobian` caps it) and ``brentq``, the cubic Hermite
+dense output of :class:`csim.solver.rk4.RK4`, and the glue: the model evaluated into the
+workspace, the core's model handle (the tuple ``(par, pi, w, ym)``, for which the functions
+of :mod:`csim.physics.model` are overloaded here), and the partitioned system's state
+y = [u, ud, W] turned into the full state where the loop needs it (:func:`full_state`).
 
 The problem is passed as three flat arrays, ``par`` (the parameters), ``pf`` and ``pi``
 (:func:`csim.fast.runner.pack_problem`), because numba counts a reference to every array
@@ -55,6 +56,7 @@ from csim.fast.layout import (
     F_POTENTIAL,
     F_TERMS,
     PARTITIONED,
+    PI_DRV,
     PI_FN,
     PI_FPAR,
     PI_GAINS,
@@ -63,6 +65,7 @@ from csim.fast.layout import (
     PI_IPAR,
     PI_MK,
     PI_NC,
+    PI_ND,
     PI_NFPAR,
     PI_NGAINS,
     PI_NIPAR,
@@ -90,6 +93,7 @@ from csim.fast.layout import (
     W_PART,
     W_PD,
     W_PHI,
+    W_PT,
     W_S,
     W_S2,
     W_SD,
@@ -105,11 +109,30 @@ from csim.physics import branch
 from csim.physics.events import check_chatter
 from csim.physics.jit import NJIT_OPTIONS, activate
 from csim.physics.kkt import constraint_rates, generalized_forces, kkt_solve
+from csim.physics.linalg import lu_factor, lu_solve
 from csim.physics.loads import load_rates, load_values, mode_of, switching_functions
 from csim.physics.model import model_gamma, model_jacobian, model_mass, model_phi
 from csim.physics.partition import C_PENDING, D_HEAD, partition_sizes, partition_state
 from csim.physics.projection import max_abs
 from csim.physics.projection import project as project_state
+from csim.physics.radau import (
+    JAC_MAX_FACTOR,
+    MU_COMPLEX,
+    MU_REAL,
+    NEWTON_MAXITER,
+    NUM_JAC_DIFF_BIG,
+    NUM_JAC_DIFF_REJECT,
+    NUM_JAC_DIFF_SMALL,
+    NUM_JAC_FACTOR_DECREASE,
+    NUM_JAC_FACTOR_INCREASE,
+    NUM_JAC_MIN_FACTOR,
+)
+from csim.physics.radau import TI as _RADAU_TI
+from csim.physics.radau import TI_COMPLEX as _RADAU_TI_COMPLEX
+from csim.physics.radau import C as _RADAU_C
+from csim.physics.radau import E as _RADAU_E
+from csim.physics.radau import P as _RADAU_P
+from csim.physics.radau import T as _RADAU_T
 from csim.physics.status import (
     INTERRUPTED,
     MAX_EVENTS,
@@ -180,14 +203,28 @@ SAFETY = 0.9
 MIN_FACTOR = 0.2
 MAX_FACTOR = 10.0
 
-# integrators, and the dense output of an empty step
+# Radau IIA coefficients, scipy's (csim.physics.radau)
+RAD_C = np.ascontiguousarray(_RADAU_C)
+RAD_E = np.ascontiguousarray(_RADAU_E)
+RAD_T = np.ascontiguousarray(_RADAU_T)
+RAD_TI = np.ascontiguousarray(_RADAU_TI)
+RAD_TI_COMPLEX = np.ascontiguousarray(_RADAU_TI_COMPLEX)
+RAD_P = np.ascontiguousarray(_RADAU_P)
+
+# integrators (csim.fast.runner.INTEGRATOR_CODES), and the dense output of an empty step
 DOP853 = 0
 RK4 = 1
 CONSTANT = 2
+RADAU = 3
 
-# scalars of the loop, in one float array ts_ and one int array cs_
-T, T_OLD, H_ABS, HSTEP, T_STOP, SEG_START = range(6)
-NFEV, NSTEPS, N_REC, I_OUT, N_EV, SEG_STEPS = range(6)
+# scalars of the loop, in one float array ts_ and one int array cs_ (R_*: Radau's)
+T, T_OLD, H_ABS, HSTEP, T_STOP, SEG_START, R_H_OLD, R_ERR_OLD, R_NEWTON_TOL, R_SOL_T, R_SOL_H = range(11)
+NFEV, NSTEPS, N_REC, I_OUT, N_EV, SEG_STEPS, NJEV, NLU, R_LU_OK, R_SOL, R_CURRENT_JAC = range(11)
+# Radau's rows of RM (3 rows: the three stages): Newton's start Z0, the stage increments Z,
+# W = T^-1 Z, its Newton increment dW, the stage derivatives F; the error scale, the error,
+# E^T Z / h, a trial state, two difference columns, the difference step factors
+R_Z0, R_Z, R_W, R_DW, R_F = 0, 3, 6, 9, 12
+R_SCALE, R_ERR, R_ZE, R_YT, R_FC, R_FC2, R_FACTOR, R_ROWS = range(15, 23)
 
 
 @hot
@@ -257,6 +294,12 @@ def terms(t, y, par, pi, w):
 @hot
 def phi_(y, par, pi, w):
     _call_model(pi[PI_FN + F_PHI], 0.0, y, par, w)
+
+
+@hot
+def phi_at(t, y, par, pi, w):
+    """Phi at time t (drive rows depend on it)."""
+    _call_model(pi[PI_FN + F_PHI], t, y, par, w)
 
 
 @hot
@@ -506,6 +549,8 @@ def _rhs_sized(t, y, mode, located, par, pf, pi, w, piv, f, nq, nc):
     generalized_forces(B, u, w[pi[W_CQD]:pi[W_CQD] + nq], w[pi[W_H]:pi[W_H] + nq], p, nq, nl)
     phi_dot = w[pi[W_PD]:pi[W_PD] + nc]
     constraint_rates(J, qd, phi_dot, nc, nq)
+    for i in range(nc):  # d/dt Phi = Phi_q qd + Phi_t (Phi_t: drive rows only)
+        phi_dot[i] += w[pi[W_PT] + i]
     gstar = w[pi[W_GS]:pi[W_GS] + nc]
     gains = pf[pi[PI_GAINS]:pi[PI_GAINS] + pi[PI_NGAINS]]
     fpar = pf[pi[PI_FPAR]:pi[PI_FPAR] + pi[PI_NFPAR]]
@@ -523,6 +568,9 @@ def _rhs_sized(t, y, mode, located, par, pf, pi, w, piv, f, nq, nc):
         f[nq + i] = x[i]
     for kk in range(nl):  # dW/dt = u * (B^T qd), the power of each load
         f[2 * nq + kk] = u[kk] * sdot[kk]
+    nd = pi[PI_ND]
+    for kk in range(nd):  # dW_d/dt = tau qd_j, tau = -lambda_d: the power of each drive (csim.solver.driven)
+        f[2 * nq + nl + kk] = -x[nq + nc - nd + kk] * qd[pi[pi[PI_DRV] + kk]]
     return OK
 
 
@@ -601,13 +649,17 @@ def _project_failed(code, max_phi, t, info):
 # ---------------------------------------------------------------------------------------
 @hot
 def dense_eval(kind, tau, t_old, h, y_old, F, out):
-    """The last step's interpolant at tau into out (kind: DOP853, RK4 (Hermite), CONSTANT)."""
+    """The last step's interpolant at tau into out (kind: DOP853, RK4 (Hermite), RADAU, CONSTANT)."""
     n = y_old.size
     if kind == CONSTANT:
         for i in range(n):
             out[i] = y_old[i]
         return
     x = (tau - t_old) / h
+    if kind == RADAU:  # scipy's RadauDenseOutput: y_old + Q (x, x^2, x^3), Q^T in F[:3]
+        for i in range(n):
+            out[i] = F[0, i] * x + F[1, i] * (x * x) + F[2, i] * (x * x * x) + y_old[i]
+        return
     if kind == DOP853:
         # scipy's Dop853DenseOutput: nested products with x and 1 - x over F reversed
         for i in range(n):
@@ -713,8 +765,9 @@ def _rms(x, scale):
 
 @hot
 def _initial_step(t, y, f, t_end, rtol, tolv, max_step, first_step, par, pf, pi, rmode, locate, w, piv, ytmp, f1, scl,
-                  cs, info):
-    """DOP853's first step: given, or scipy's select_initial_step (one evaluation). Returns (status, h)."""
+                  cs, info, order):
+    """The first step of DOP853 (error estimator ``order`` 7) or Radau (3): given, or scipy's
+    select_initial_step (one evaluation). Returns (status, h)."""
     n = y.size
     interval = abs(t_end - t)
     if first_step == first_step:  # given (NaN: automatic)
@@ -742,7 +795,7 @@ def _initial_step(t, y, f, t_end, rtol, tolv, max_step, first_step, par, pf, pi,
     if d1 <= 1e-15 and d2 <= 1e-15:
         h1 = max(1e-6, h0 * 1e-3)
     else:
-        h1 = (0.01 / max(d1, d2)) ** (1 / 8)
+        h1 = (0.01 / max(d1, d2)) ** (1 / (order + 1))
     return OK, min(100 * h0, h1, interval, max_step)
 
 
@@ -870,6 +923,317 @@ def _rk4_step(ts_, t_end, fixed_h, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmo
     return OK, t_new, True
 
 
+# ---------------------------------------------------------------------------------------
+# Radau IIA of order 5: scipy's Radau (step, Newton iteration, error estimate, step-size
+# control, dense output) with csim's capped forward-difference Jacobian
+# (csim.solver.dae.DifferenceJacobian: scipy's num_jac)
+# ---------------------------------------------------------------------------------------
+@hot
+def _radau_rms(M, row0, rows, scale):
+    """scipy's norm(M[row0:row0 + rows] / scale): the root mean square over all rows x n entries."""
+    n = scale.size
+    s = 0.0
+    for a in range(rows):
+        for i in range(n):
+            v = M[row0 + a, i] / scale[i]
+            s += v * v
+    return math.sqrt(s / (rows * n))
+
+
+@hot
+def _radau_column_diff(f, fc):
+    """(index, |fc - f| there, max(|f|, |fc|) there) of the largest |fc - f| (num_jac's max_ind, max_diff, scale)."""
+    best, at = -1.0, 0
+    for i in range(f.size):
+        v = abs(fc[i] - f[i])
+        if v > best:
+            best, at = v, i
+    return at, best, max(abs(f[at]), abs(fc[at]))
+
+
+@hot
+def _radau_jacobian(t, y, f, tolv, RJ, RM, par, pf, pi, rmode, locate, w, piv, cs, info):
+    """J = df/dy (RJ, n * n row-major) by scipy's num_jac, column by column, its step factors
+    (RM[R_FACTOR]) capped at JAC_MAX_FACTOR as csim.solver.dae.DifferenceJacobian does. Returns the status.
+
+    Each column's step h_j = (y_j + factor_j y_scale_j) - y_j, y_scale_j = sign(f_j) max(atol_j, |y_j|);
+    where the largest difference is below EPS^0.875 of the values, a ten times larger step is
+    tried and kept if its difference is relatively larger; then the factor grows (x10) where
+    the difference is below EPS^0.75 of the values and shrinks (x0.1) where above EPS^0.25.
+    A non-finite column is kept as it is (the Newton iteration then fails and the step shrinks).
+    """
+    n = y.size
+    cs[NJEV] += 1
+    factor, yt, fc, fc2 = RM[R_FACTOR], RM[R_YT], RM[R_FC], RM[R_FC2]
+    for i in range(n):
+        yt[i] = y[i]
+    for j in range(n):
+        y_scale = (1.0 if f[j] >= 0 else -1.0) * max(tolv[j], abs(y[j]))
+        hj = (y[j] + factor[j] * y_scale) - y[j]
+        while hj == 0:
+            factor[j] *= NUM_JAC_FACTOR_INCREASE
+            hj = (y[j] + factor[j] * y_scale) - y[j]
+        yt[j] = y[j] + hj
+        cs[NFEV] += 1
+        status = feval(t, yt, rmode, locate, par, pf, pi, w, piv, fc, info)
+        if status != OK and status != NONFINITE_RHS:
+            return status
+        _, max_diff, scale = _radau_column_diff(f, fc)
+        if max_diff < NUM_JAC_DIFF_REJECT * scale:
+            new_factor = NUM_JAC_FACTOR_INCREASE * factor[j]
+            h_new = (y[j] + new_factor * y_scale) - y[j]
+            yt[j] = y[j] + h_new
+            cs[NFEV] += 1
+            status = feval(t, yt, rmode, locate, par, pf, pi, w, piv, fc2, info)
+            if status != OK and status != NONFINITE_RHS:
+                return status
+            _, max_diff_new, scale_new = _radau_column_diff(f, fc2)
+            if max_diff * scale_new < max_diff_new * scale:
+                factor[j], hj, max_diff, scale = new_factor, h_new, max_diff_new, scale_new
+                for i in range(n):
+                    fc[i] = fc2[i]
+        yt[j] = y[j]
+        for i in range(n):
+            RJ[i * n + j] = (fc[i] - f[i]) / hj
+        if max_diff < NUM_JAC_DIFF_SMALL * scale:
+            factor[j] *= NUM_JAC_FACTOR_INCREASE
+        elif max_diff > NUM_JAC_DIFF_BIG * scale:
+            factor[j] *= NUM_JAC_FACTOR_DECREASE
+        factor[j] = min(max(factor[j], NUM_JAC_MIN_FACTOR), JAC_MAX_FACTOR)
+    return OK
+
+
+@hot
+def _radau_lu(h, RJ, RLR, RLC, rpiv, n, cs):
+    """LU factors of MU_REAL / h I - J (RLR) and MU_COMPLEX / h I - J (RLC); False if one is singular."""
+    mr = MU_REAL / h
+    mc = MU_COMPLEX / h
+    for i in range(n):
+        for j in range(n):
+            RLR[i * n + j] = -RJ[i * n + j]
+            RLC[i * n + j] = -RJ[i * n + j]
+        RLR[i * n + i] += mr
+        RLC[i * n + i] += mc
+    cs[NLU] += 2
+    ok_real = lu_factor(RLR, n, rpiv[:n])
+    return ok_real and lu_factor(RLC, n, rpiv[n:])
+
+
+@hot
+def _radau_newton(t, y, h, scale, tol, RM, RLR, RLC, rpiv, rcv, par, pf, pi, rmode, locate, w, piv, cs, info):
+    """scipy's solve_collocation_system: the stage increments Z (RM[R_Z:R_Z + 3]) by the simplified
+    Newton iteration from Z0 (RM[R_Z0:]), in the variables W = T^-1 Z, where the iteration matrix
+    splits into one real and one complex system. Returns (status, converged, iterations, rate)."""
+    n = y.size
+    mr = MU_REAL / h
+    mc = MU_COMPLEX / h
+    yt, F = RM[R_YT], RM[R_F:R_F + 3]
+    for i in range(n):  # W = TI Z0, Z = Z0
+        for a in range(3):
+            acc = 0.0
+            for b in range(3):
+                acc += RAD_TI[a, b] * RM[R_Z0 + b, i]
+            RM[R_W + a, i] = acc
+            RM[R_Z + a, i] = RM[R_Z0 + a, i]
+    dw_norm_old, rate, converged, k = -1.0, np.nan, False, 0
+    while k < NEWTON_MAXITER:
+        finite = True
+        for s in range(3):
+            for i in range(n):
+                yt[i] = y[i] + RM[R_Z + s, i]
+            cs[NFEV] += 1
+            status = feval(t + h * RAD_C[s], yt, rmode, locate, par, pf, pi, w, piv, F[s], info)
+            if status == NONFINITE_RHS:
+                finite = False
+            elif status != OK:
+                return status, False, k + 1, rate
+        if not finite:
+            break
+        # f_real = F^T TI_REAL - MU_REAL / h W_0; f_complex = F^T TI_COMPLEX - MU_COMPLEX / h (W_1 + i W_2)
+        for i in range(n):
+            fr = 0.0
+            fcx = 0j
+            for s in range(3):
+                fr += F[s, i] * RAD_TI[0, s]
+                fcx += F[s, i] * RAD_TI_COMPLEX[s]
+            RM[R_DW, i] = fr - mr * RM[R_W, i]
+            rcv[i] = fcx - mc * (RM[R_W + 1, i] + 1j * RM[R_W + 2, i])
+        lu_solve(RLR, n, rpiv[:n], RM[R_DW])
+        lu_solve(RLC, n, rpiv[n:], rcv)
+        for i in range(n):
+            RM[R_DW + 1, i] = rcv[i].real
+            RM[R_DW + 2, i] = rcv[i].imag
+        dw_norm = _radau_rms(RM, R_DW, 3, scale)
+        if dw_norm_old >= 0:
+            rate = dw_norm / dw_norm_old
+            if rate >= 1 or rate ** (NEWTON_MAXITER - k) / (1 - rate) * dw_norm > tol:
+                break
+        for i in range(n):  # W += dW; Z = T W
+            for a in range(3):
+                RM[R_W + a, i] += RM[R_DW + a, i]
+            for a in range(3):
+                acc = 0.0
+                for b in range(3):
+                    acc += RAD_T[a, b] * RM[R_W + b, i]
+                RM[R_Z + a, i] = acc
+        if dw_norm == 0 or (dw_norm_old >= 0 and rate / (1 - rate) * dw_norm < tol):
+            converged = True
+            break
+        dw_norm_old = dw_norm
+        k += 1
+    return OK, converged, min(k + 1, NEWTON_MAXITER), rate
+
+
+@hot
+def _radau_predict(h_abs, h_abs_old, error_norm, error_norm_old):
+    """scipy's predict_factor (the predictive Gustafsson controller); NaN stands for None."""
+    if error_norm == 0:
+        return np.inf
+    multiplier = 1.0
+    if error_norm_old == error_norm_old and h_abs_old == h_abs_old:
+        multiplier = h_abs / h_abs_old * (error_norm_old / error_norm) ** 0.25
+    return min(1.0, multiplier) * error_norm ** -0.25
+
+
+@hot
+def _radau_start(ts_, y, f, tolv, rtol, RM, RJ, par, pf, pi, rmode, locate, w, piv, cs, info):
+    """A new Radau integrator at (t, y): scipy's __init__ after the first step size (the Jacobian
+    from a fresh difference factor, no LU, no dense output to start Newton from). Returns the status."""
+    ts_[R_H_OLD] = np.nan
+    ts_[R_ERR_OLD] = np.nan
+    ts_[R_NEWTON_TOL] = max(10 * EPS / rtol, min(0.03, rtol ** 0.5))
+    cs[R_LU_OK] = 0
+    cs[R_SOL] = 0
+    cs[R_CURRENT_JAC] = 1
+    for i in range(y.size):
+        RM[R_FACTOR, i] = EPS ** 0.5
+    return _radau_jacobian(ts_[T], y, f, tolv, RJ, RM, par, pf, pi, rmode, locate, w, piv, cs, info)
+
+
+@hot
+def _radau_step(ts_, t_end, rtol, tolv, max_step, y, f, F, y_old, y_new, f_new, RM, RJ, RLR, RLC, rpiv, rcv, par, pf,
+                pi, rmode, locate, w, piv, cs, info):
+    """One accepted Radau step from ts_[T] (scipy's Radau._step_impl). Returns (status, t_new, step_ok).
+
+    The Newton iteration starts from the last step's dense output, extrapolated (its data: Q in
+    F[:3], y_old, ts_[R_SOL_T], ts_[R_SOL_H]); the accepted step's Q = Z^T P goes to F[:3].
+    """
+    n = y.size
+    t = ts_[T]
+    min_step = 10 * spacing(t)
+    if ts_[H_ABS] > max_step:
+        h_abs, h_abs_old, err_old = max_step, np.nan, np.nan
+    elif ts_[H_ABS] < min_step:
+        h_abs, h_abs_old, err_old = min_step, np.nan, np.nan
+    else:
+        h_abs, h_abs_old, err_old = ts_[H_ABS], ts_[R_H_OLD], ts_[R_ERR_OLD]
+    scale, err, ze = RM[R_SCALE], RM[R_ERR], RM[R_ZE]
+    rejected = False
+    converged = False
+    n_iter, rate, err_norm, safety, t_new = 0, np.nan, 0.0, 0.0, t
+    while True:
+        if h_abs < min_step:
+            return OK, t, False
+        t_new = t + h_abs
+        if t_new - t_end > 0:
+            t_new = t_end
+        h = t_new - t
+        h_abs = abs(h)
+        for a in range(3):  # Z0: the last dense output at t + c h, less y (zero at a start)
+            if cs[R_SOL] == 1:
+                x = (t + h * RAD_C[a] - ts_[R_SOL_T]) / ts_[R_SOL_H]
+                for i in range(n):
+                    RM[R_Z0 + a, i] = F[0, i] * x + F[1, i] * (x * x) + F[2, i] * (x * x * x) + y_old[i] - y[i]
+            else:
+                for i in range(n):
+                    RM[R_Z0 + a, i] = 0.0
+        for i in range(n):
+            scale[i] = tolv[i] + abs(y[i]) * rtol
+        converged = False
+        while not converged:
+            lu_ok = True
+            if cs[R_LU_OK] == 0:
+                lu_ok = _radau_lu(h, RJ, RLR, RLC, rpiv, n, cs)
+                cs[R_LU_OK] = 1 if lu_ok else 0
+            if lu_ok:
+                status, converged, n_iter, rate = _radau_newton(t, y, h, scale, ts_[R_NEWTON_TOL], RM, RLR, RLC, rpiv,
+                                                                rcv, par, pf, pi, rmode, locate, w, piv, cs, info)
+                if status != OK:
+                    return status, t, True
+            if not converged:
+                if cs[R_CURRENT_JAC] == 1:
+                    break
+                status = _radau_jacobian(t, y, f, tolv, RJ, RM, par, pf, pi, rmode, locate, w, piv, cs, info)
+                if status != OK:
+                    return status, t, True
+                cs[R_CURRENT_JAC] = 1
+                cs[R_LU_OK] = 0
+        if not converged:
+            h_abs *= 0.5
+            cs[R_LU_OK] = 0
+            continue
+        # y_new = y + Z_3; the error estimate (E^T Z / h + f) solved with the real factor
+        for i in range(n):
+            y_new[i] = y[i] + RM[R_Z + 2, i]
+            acc = 0.0
+            for a in range(3):
+                acc += RM[R_Z + a, i] * RAD_E[a]
+            ze[i] = acc / h
+            err[i] = f[i] + ze[i]
+            scale[i] = tolv[i] + max(abs(y[i]), abs(y_new[i])) * rtol
+        lu_solve(RLR, n, rpiv[:n], err)
+        err_norm = _radau_rms(RM, R_ERR, 1, scale)
+        safety = 0.9 * (2 * NEWTON_MAXITER + 1) / (2 * NEWTON_MAXITER + n_iter)
+        if rejected and err_norm > 1:  # once more, from f at y + error
+            for i in range(n):
+                RM[R_YT, i] = y[i] + err[i]
+            cs[NFEV] += 1
+            status = feval(t, RM[R_YT], rmode, locate, par, pf, pi, w, piv, err, info)
+            if status != OK and status != NONFINITE_RHS:
+                return status, t, True
+            for i in range(n):
+                err[i] += ze[i]
+            lu_solve(RLR, n, rpiv[:n], err)
+            err_norm = _radau_rms(RM, R_ERR, 1, scale)
+        if err_norm > 1:
+            h_abs *= max(MIN_FACTOR, safety * _radau_predict(h_abs, h_abs_old, err_norm, err_old))
+            cs[R_LU_OK] = 0
+            rejected = True
+        else:
+            break
+    recompute_jac = n_iter > 2 and rate > 1e-3
+    factor = min(MAX_FACTOR, safety * _radau_predict(h_abs, h_abs_old, err_norm, err_old))
+    if not recompute_jac and factor < 1.2:
+        factor = 1.0
+    else:
+        cs[R_LU_OK] = 0
+    cs[NFEV] += 1
+    status = feval(t_new, y_new, rmode, locate, par, pf, pi, w, piv, f_new, info)
+    if status != OK and status != NONFINITE_RHS:
+        return status, t, True
+    if recompute_jac:
+        status = _radau_jacobian(t_new, y_new, f_new, tolv, RJ, RM, par, pf, pi, rmode, locate, w, piv, cs, info)
+        if status != OK:
+            return status, t, True
+        cs[R_CURRENT_JAC] = 1
+    else:
+        cs[R_CURRENT_JAC] = 0
+    ts_[R_H_OLD] = ts_[H_ABS]
+    ts_[R_ERR_OLD] = err_norm
+    ts_[H_ABS] = h_abs * factor
+    ts_[HSTEP] = h
+    for i in range(n):  # the dense output y_old + Q (x, x^2, x^3), x = (t - t_old) / h, Q = Z^T P
+        for p in range(3):
+            acc = 0.0
+            for a in range(3):
+                acc += RM[R_Z + a, i] * RAD_P[a, p]
+            F[p, i] = acc
+    ts_[R_SOL_T] = t
+    ts_[R_SOL_H] = h
+    cs[R_SOL] = 1
+    return OK, t_new, True
+
+
 @hot
 def _dop_dense(t_old, h, y_old, y, f, mode, locate, par, pf, pi, w, piv, K, F, ytmp, info):
     """scipy's DOP853._dense_output_impl: three extra stages, then the interpolant F (7, n)."""
@@ -956,7 +1320,7 @@ def _find_event(ts_, n_interior, dense_kind, y_old, y, f_new, mode, mode_b, rmod
     """
     t_old, t = ts_[T_OLD], ts_[T]
     h = t - t_old
-    FF = F if dense_kind == DOP853 else Fh
+    FF = Fh if dense_kind == RK4 else F
     for rep in range(n_interior + 1):
         b = t if rep == n_interior else t_old + (t - t_old) * (rep + 1) / (n_interior + 1)
         if b == t:
@@ -997,7 +1361,7 @@ def _sample(ts_, t_out, dense_kind, y_old, y, f_new, mode, rmode, locate, projec
             yp, dense, tr, ys, modes, cs, info):
     """Record the output times in (t_old, t_stop] from the step's dense output (projected, for projection)."""
     t_old, t, t_stop = ts_[T_OLD], ts_[T], ts_[T_STOP]
-    FF = F if dense_kind == DOP853 else Fh
+    FF = Fh if dense_kind == RK4 else F
     while cs[I_OUT] < t_out.size and t_out[cs[I_OUT]] <= t_stop:
         t_i = t_out[cs[I_OUT]]
         if t_i == t and t_stop == t:
@@ -1033,7 +1397,7 @@ def _event_state(ts_, dense_kind, y_old, y, F, Fh, projects, par, pf, pi, w, piv
     """y = the state at the event ts_[T_STOP] (projected, for projection); t = t_stop. Returns the status."""
     t_old, t, t_stop = ts_[T_OLD], ts_[T], ts_[T_STOP]
     if t_stop < t:
-        dense_eval(dense_kind, t_stop, t_old, t - t_old, y_old, F if dense_kind == DOP853 else Fh, ytmp)
+        dense_eval(dense_kind, t_stop, t_old, t - t_old, y_old, Fh if dense_kind == RK4 else F, ytmp)
     else:
         for i in range(y.size):
             ytmp[i] = y[i]
@@ -1078,14 +1442,14 @@ def _record_event(t, mode, roots, has_root, ev_t, ev_sw, n_ev):
 # the integration loop (csim.solver.simulate.integrate)
 # ---------------------------------------------------------------------------------------
 @hot
-def _max_phi(y, par, pf, pi, w, piv):
-    """(code, max |Phi|) at the integrated state y (NaN where y is not finite: the step check says so)."""
+def _max_phi(t, y, par, pf, pi, w, piv):
+    """(code, max |Phi|) at time t and the integrated state y (NaN where y is not finite: the step check says so)."""
     if not all_finite(y):
         return OK, np.nan
     code, yv = full_state(y, par, pf, pi, w, piv)
     if code != OK:
         return code, np.nan
-    phi_(yv, par, pi, w)
+    phi_at(t, yv, par, pi, w)
     return OK, max_abs(w[pi[W_PHI]:pi[W_PHI] + pi[PI_NC]])
 
 
@@ -1128,15 +1492,16 @@ def _start(y0, y, yp, mode, projects, par, pf, pi, w, piv, tr, ys, modes, info):
 
 @hot
 def _start_segment(method, ts_, y, f, t_end, rtol, atol, max_step, first_step, tolv, par, pf, pi, rmode, locate, w, piv,
-                   ytmp, f1, scl, cs, info):
-    """Start the integrator at (t, y): tolerances, f(t, y), and DOP853's first step. Returns the status."""
+                   ytmp, f1, scl, RM, RJ, cs, info):
+    """Start the integrator at (t, y): tolerances, f(t, y), the first step of DOP853 and Radau, and
+    Radau's Jacobian. Returns the status."""
     n = y.size
     status, yv = full_state(y, par, pf, pi, w, piv)
     if status != OK:
         return status
     scale_w = max(1.0, abs(kinetic(yv, par, pi, w)))  # the work states are in J: atol scaled to the energy
     for i in range(n):
-        tolv[i] = atol * scale_w if i >= n - pi[PI_NL] else atol
+        tolv[i] = atol * scale_w if i >= n - pi[PI_NL] - pi[PI_ND] else atol
     cs[NFEV] += 1
     status = feval(ts_[T], y, rmode, locate, par, pf, pi, w, piv, f,
                    info)
@@ -1145,20 +1510,22 @@ def _start_segment(method, ts_, y, f, t_end, rtol, atol, max_step, first_step, t
     ts_[H_ABS] = 0.0
     ts_[SEG_START] = ts_[T]
     cs[SEG_STEPS] = 0
-    if method == DOP853:
+    if method in (DOP853, RADAU):
         status, h = _initial_step(ts_[T], y, f, t_end, rtol, tolv, max_step, first_step, par, pf, pi, rmode, locate, w,
-                                  piv, ytmp, f1, scl, cs, info)
+                                  piv, ytmp, f1, scl, cs, info, 7 if method == DOP853 else 3)
         ts_[H_ABS] = h
+    if status == OK and method == RADAU:
+        status = _radau_start(ts_, y, f, tolv, rtol, RM, RJ, par, pf, pi, rmode, locate, w, piv, cs, info)
     return status
 
 
 @hot
-def _take_step(method, ts_, t_end, rtol, tolv, fixed_h, max_step, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmode,
-               locate, w, piv, cs, info):
+def _take_step(method, ts_, t_end, rtol, tolv, fixed_h, max_step, y, f, K, F, y_old, ytmp, y_new, f_new, RM, RJ, RLR,
+               RLC, rpiv, rcv, par, pf, pi, rmode, locate, w, piv, cs, info):
     """One step of the integrator from (t, y), or scipy's empty step at t_end.
 
     Returns (status, t_new, step_ok, dense kind); step_ok is False where no step can be
-    taken (DOP853's step below the spacing of t, RK4's below the resolution of t).
+    taken (DOP853's or Radau's step below the spacing of t, RK4's below the resolution of t).
     """
     if ts_[T] == t_end:  # scipy: an empty step to t_bound
         for i in range(y.size):
@@ -1170,6 +1537,9 @@ def _take_step(method, ts_, t_end, rtol, tolv, fixed_h, max_step, y, f, K, ytmp,
         status, t_new, ok = _dop853_step(ts_, t_end, rtol, tolv, max_step, y, f, K, ytmp, y_new, f_new, par, pf, pi,
                                          rmode, locate, w, piv, cs,
                                          info)
+    elif method == RADAU:
+        status, t_new, ok = _radau_step(ts_, t_end, rtol, tolv, max_step, y, f, F, y_old, y_new, f_new, RM, RJ, RLR,
+                                        RLC, rpiv, rcv, par, pf, pi, rmode, locate, w, piv, cs, info)
     else:
         status, t_new, ok = _rk4_step(ts_, t_end, fixed_h, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmode, locate, w,
                                       piv, cs, info)
@@ -1207,7 +1577,7 @@ def _accept_step(ts_, t_new, dense_kind, y, y_old, y_new, f, f_new, Fh, dense, t
         y_old[i] = y[i]
         y[i] = y_new[i]
     ts_[T] = t_new
-    status, max_phi_now = _max_phi(y, par, pf, pi, w, piv)
+    status, max_phi_now = _max_phi(t_new, y, par, pf, pi, w, piv)
     if status != OK:
         return status
     status = check_step(y, max_phi_now, ts_[HSTEP], t_new, t_end, adaptive, max_phi, min_step, info)
@@ -1268,7 +1638,7 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset, control):
     with the caller, which runs this without the GIL in a thread: every POLL_STEPS steps the
     time reached goes to control[1], and a nonzero control[0] (Ctrl-C) ends the run with
     status INTERRUPTED and the samples so far. Returns (n_rec, ts, ys, modes, n_ev, ev_t,
-    ev_switched, nfev, nsteps, status, info (2,)).
+    ev_switched, nfev, nsteps, status, info (2,), njev, nlu).
     """
     locate, n_interior, max_events, max_steps, n_chatter = iset[0] != 0, iset[1], iset[2], iset[3], iset[4]
     t_end, rtol, atol, fixed_h, max_step, first_step, max_phi, min_step = fset[0], fset[1], fset[2], fset[3], \
@@ -1279,16 +1649,19 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset, control):
     if pi[PI_SYS] == PARTITIONED and not WITH_PARTITION:
         raise ValueError("the partitioned system needs the kernels built with WITH_PARTITION")
     n_free = pi[PI_NQ] - pi[PI_NC] if partitioned else pi[PI_NQ]  # the integrated state: 2 n_free + k
-    n, n_sw = 2 * n_free + pi[PI_NL], pi[PI_NSW]
+    n, n_sw = 2 * n_free + pi[PI_NL] + pi[PI_ND], pi[PI_NSW]
     w = np.zeros(pi[W_END])
     # the KKT solve's pivots, then the partition's integers
     piv = np.zeros(pi[PI_NQ] + pi[PI_NC] + partition_sizes(pi[PI_NQ], pi[PI_NC], pi[PI_NL])[1], np.int64)
     tr, ys, modes = np.empty(t_out.size), np.empty((t_out.size, y0.size)), np.zeros((t_out.size, n_sw), np.bool_)
     ev_t, ev_sw = np.empty(16), np.zeros((16, n_sw), np.bool_)
-    info, ts_, cs = np.zeros(2 + D_HEAD + 2 * n_free), np.zeros(6), np.zeros(6, np.int64)
+    info, ts_, cs = np.zeros(2 + D_HEAD + 2 * n_free), np.zeros(11), np.zeros(11, np.int64)
     y, ytmp, yp, f, f_new, y_new, y_old, ya = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), \
         np.empty(n), np.empty(n), np.empty(n)
     K, F, Fh = np.empty((DOP_NX, n)), np.empty((DOP_POWER, n)), np.empty((4, n))
+    nr = n if method == RADAU else 0  # Radau's rows, Jacobian, LU factors (real and complex) and their pivots
+    RM, RJ, RLR, RLC = np.zeros((R_ROWS, nr)), np.zeros(nr * nr), np.zeros(nr * nr), np.zeros(nr * nr, np.complex128)
+    rpiv, rcv = np.zeros(2 * nr, np.int64), np.zeros(nr, np.complex128)
     tolv, scl = np.empty(n), np.empty(n)
     mode, mode_b = np.zeros(n_sw, np.bool_), np.zeros(n_sw, np.bool_)
     rmode = mode if locate else np.zeros(n_sw, np.bool_)  # the right-hand side's mode, or a scratch it overwrites
@@ -1302,8 +1675,7 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset, control):
         restarted = False
         t_a = _accept(ts_, y, ya)
         status = _start_segment(method, ts_, y, f, t_end, rtol, atol, max_step, first_step, tolv, par, pf, pi, rmode,
-                                locate, w, piv, ytmp, f_new, scl, cs,
-                                info)
+                                locate, w, piv, ytmp, f_new, scl, RM, RJ, cs, info)
         while status == OK:
             if cs[NSTEPS] % POLL_STEPS == 0:  # every sample up to ts_[T] is recorded here
                 control[1] = ts_[T]
@@ -1312,8 +1684,9 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset, control):
                     info[0] = ts_[T]
                     break
             ts_[T_OLD] = ts_[T]
-            status, t_new, ok, dense_kind = _take_step(method, ts_, t_end, rtol, tolv, fixed_h, max_step, y, f, K,
-                                                       ytmp, y_new, f_new, par, pf, pi, rmode, locate, w, piv, cs, info)
+            status, t_new, ok, dense_kind = _take_step(method, ts_, t_end, rtol, tolv, fixed_h, max_step, y, f, K, F,
+                                                       y_old, ytmp, y_new, f_new, RM, RJ, RLR, RLC, rpiv, rcv, par, pf,
+                                                       pi, rmode, locate, w, piv, cs, info)
             if status != OK:
                 break
             cs[NSTEPS] += 1
@@ -1322,11 +1695,11 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset, control):
                 info[0] = t_new if ok else ts_[T]
                 break
             if not ok:
-                status = STEP_TOO_SMALL if method == DOP853 else RK4_RESOLUTION
+                status = RK4_RESOLUTION if method == RK4 else STEP_TOO_SMALL
                 info[0] = ts_[T]
                 break
             status = _accept_step(ts_, t_new, dense_kind, y, y_old, y_new, f, f_new, Fh, dense, t_end,
-                                  method == DOP853, max_phi, min_step, par, pf, pi, w, piv, info)
+                                  method != RK4, max_phi, min_step, par, pf, pi, w, piv, info)
             if status != OK:
                 break
             event = False
@@ -1369,7 +1742,7 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset, control):
             break
     if WITH_PARTITION and partitioned and status != OK:
         _failure_details(pi, w, piv, info)
-    return cs[N_REC], tr, ys, modes, cs[N_EV], ev_t, ev_sw, cs[NFEV], cs[NSTEPS], status, info
+    return cs[N_REC], tr, ys, modes, cs[N_EV], ev_t, ev_sw, cs[NFEV], cs[NSTEPS], status, info, cs[NJEV], cs[NLU]
 
 
 # ---------------------------------------------------------------------------------------

@@ -36,7 +36,7 @@ def c_symbol(name: str) -> str:
     return f"csim_{name.rstrip('_')}"
 
 #: the model terms in the workspace, in their order there (csim.fast.codegen.TERMS) -> their pi index name
-MODEL_TERMS = ("W_M", "W_CQD", "W_H", "W_PHI", "W_J", "W_GAM", "W_S", "W_B", "W_SQ", "W_L")
+MODEL_TERMS = ("W_M", "W_CQD", "W_H", "W_PHI", "W_J", "W_GAM", "W_S", "W_B", "W_SQ", "W_L", "W_PT")
 #: the kernels' scratch after the model terms: name -> size from (m, r, k, n_sw)
 SCRATCH = (
     ("W_A", lambda m, r, k, n: (m + r) ** 2),  # KKT matrix
@@ -70,12 +70,15 @@ PI_GAMMA_FN = 12
 #: what is integrated: CONSTRAINED ([q, qd, W]) or PARTITIONED ([u, ud, W], csim.physics.branch)
 PI_SYS = 13
 CONSTRAINED, PARTITIONED = 0, 1
+#: drives (csim.solver.driven): how many of the constraint rows, the last ones, are drives
+#: q_j = f_j(t), and where in pi their coordinates j are (each drive's work is a state after the loads')
+PI_ND, PI_DRV = 14, 15
 #: the addresses of the model functions (MODEL_FUNCTIONS)
-PI_FN = 14
+PI_FN = 16
 #: the workspace offsets (MODEL_TERMS, then SCRATCH)
 PI_W = PI_FN + len(MODEL_FUNCTIONS)
 _W_NAMES = MODEL_TERMS + tuple(name for name, _ in SCRATCH)
-(W_M, W_CQD, W_H, W_PHI, W_J, W_GAM, W_S, W_B, W_SQ, W_L, W_A, W_X, W_P, W_U, W_SD, W_PD, W_GS, W_WINV, W_M2,
+(W_M, W_CQD, W_H, W_PHI, W_J, W_GAM, W_S, W_B, W_SQ, W_L, W_PT, W_A, W_X, W_P, W_U, W_SD, W_PD, W_GS, W_WINV, W_M2,
  W_WJT, W_S2, W_Z, W_DQ, W_COL, W_E, W_G, W_YM, W_PART, W_END) = range(PI_W, PI_W + len(_W_NAMES))
 #: the header's length; then sw_load (n_sw), sw_kind (n_sw), ipar (I)
 PI_HEAD = PI_W + len(_W_NAMES)
@@ -94,7 +97,7 @@ def int_workspace(m: int, r: int, k: int) -> int:
 
 def model_offsets(m: int, r: int, k: int) -> tuple[dict[str, int], int]:
     """The offsets of the model terms in w (the generated functions write there), and their end."""
-    sizes = dict(W_M=m * m, W_CQD=m, W_H=m, W_PHI=r, W_J=r * m, W_GAM=r, W_S=k, W_B=m * k, W_SQ=m * k, W_L=k)
+    sizes = dict(W_M=m * m, W_CQD=m, W_H=m, W_PHI=r, W_J=r * m, W_GAM=r, W_S=k, W_B=m * k, W_SQ=m * k, W_L=k, W_PT=r)
     offsets, at = {}, 0
     for name in MODEL_TERMS:
         offsets[name] = at

@@ -52,7 +52,7 @@ from csim.model.definition import MechanismDefinition
 from csim.solver.methods import STABILIZERS
 
 #: bump when the generated files change shape
-FAST_VERSION = "3"
+FAST_VERSION = "4"
 
 HERE = Path(__file__).parent
 KERNELS = HERE / "kernels.py"
@@ -232,11 +232,24 @@ class CompiledModel:
     reason: str = ""
 
 
-def model_key(definition: MechanismDefinition) -> str:
-    """Hash of everything a mechanism's model functions depend on."""
+def model_key(definition: MechanismDefinition, drives: Drives | None = None) -> str:
+    """Hash of everything a mechanism's model functions depend on (with ``drives``: its drive rows too)."""
     model_dir = HERE.parent / "model"  # read, not imported: importing derive imports sympy
     sources = [HERE / "codegen.py", HERE / "ccodegen.py", HERE / "layout.py", model_dir / "derive.py"]
-    return _hash([FAST_VERSION, definition_key(definition), *(p.read_text() for p in sources)])
+    extra = [] if drives is None else [repr(drives)]
+    return _hash([FAST_VERSION, definition_key(definition), *(p.read_text() for p in sources), *extra])
+
+
+@dataclass(frozen=True)
+class Drives:
+    """Drives q_j = f_j(t) as constraint rows of the compiled model (:func:`csim.model.derive.with_drive_rows`).
+
+    ``driven`` are the coordinates' indices (d,), ``expressions`` each f_j as sympy's ``srepr``
+    of an expression of ``t`` and the mechanism's parameters (hashable, and exact in the key).
+    """
+
+    driven: tuple[int, ...]
+    expressions: tuple[str, ...]
 
 
 def model_backend() -> str:
@@ -253,19 +266,24 @@ def c_compiler() -> str | None:
 
 
 class _Derived:
-    """The derivation of a definition, made on first use only (sympy: seconds)."""
+    """The derivation of a definition (with its drive rows), made on first use only (sympy: seconds)."""
 
-    def __init__(self, definition):
-        self.definition, self._derived = definition, None
+    def __init__(self, definition, drives: Drives | None = None):
+        self.definition, self.drives, self._derived = definition, drives, None
 
     def get(self):
         if self._derived is None:
-            from csim.model.derive import derive
+            from csim.model.derive import derive, with_drive_rows
             from csim.progress import status
 
             with status(f"generating the model functions of {self.definition.name!r} (sympy; first run of this "
                         f"mechanism)"):
                 self._derived = derive(self.definition)
+                if self.drives is not None:
+                    import sympy as sp
+
+                    self._derived = with_drive_rows(self._derived, list(self.drives.driven),
+                                                    [sp.sympify(e) for e in self.drives.expressions])
         return self._derived
 
 
@@ -317,16 +335,17 @@ def _load_numba(definition, key: str, derived: _Derived, reason: str) -> Compile
                          reason)
 
 
-def load_model(definition: MechanismDefinition) -> CompiledModel:
-    """The model functions of ``definition`` (generated and built on the first call for this key)."""
-    known = _BY_DEFINITION.get(id(definition))
+def load_model(definition: MechanismDefinition, drives: Drives | None = None) -> CompiledModel:
+    """The model functions of ``definition``, with the rows of ``drives`` if given (generated and
+    built on the first call for this key)."""
+    known = _BY_DEFINITION.get(id(definition)) if drives is None else None
     if known is not None and known[0] is definition:
         return known[1]
-    key = model_key(definition)
+    key = model_key(definition, drives)
     backend = model_backend()
     memo = f"{key}:{backend}"
     if memo not in _MODELS:
-        derived = _Derived(definition)
+        derived = _Derived(definition, drives)
         reason = "CSIM_MODEL_BACKEND=numba"
         model = None
         if backend != "numba":
@@ -337,7 +356,8 @@ def load_model(definition: MechanismDefinition) -> CompiledModel:
                     raise
                 reason = f"{type(exc).__name__}: {exc}"
         _MODELS[memo] = model or _load_numba(definition, key, derived, reason)
-    _BY_DEFINITION[id(definition)] = (definition, _MODELS[memo])
+    if drives is None:
+        _BY_DEFINITION[id(definition)] = (definition, _MODELS[memo])
     return _MODELS[memo]
 
 

@@ -15,43 +15,58 @@ from contextlib import contextmanager, suppress
 import numpy as np
 
 from csim.fast.layout import CONSTRAINED, PARTITIONED, PI_HEAD, workspace
-from csim.fast.module import kernels_compiled, load_kernels, load_model, method_dispatch
+from csim.fast.module import Drives, kernels_compiled, load_kernels, load_model, method_dispatch
 from csim.physics.events import chattering_switches
 from csim.physics.status import OK, code_kind, failure_message
+from csim.solver.driven import DrivenSystem
 from csim.solver.partitioned import PartitionedSystem
 from csim.solver.settings import IntegrationSettings, Trajectory, output_times
 from csim.solver.system import ConstrainedSystem
 
-INTEGRATOR_CODES = {"DOP853": 0, "RK4": 1}
+INTEGRATOR_CODES = {"DOP853": 0, "RK4": 1, "Radau": 3}
 
 
 def pack_problem(system: ConstrainedSystem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(par, pf, pi)``: the problem as the flat arrays of :mod:`csim.fast.kernels`.
 
     pf = [magnitudes (k), sw_value (n_sw), fpar (F), gains (G * r)];
-    pi = [mk, n_sw, at(ipar), I, at(fpar), F, at(gains), G * r, m, r, k, o, gamma* address, system kind,
-    model function addresses, workspace offsets, sw_load (n_sw), sw_kind (n_sw), ipar (I)] (:mod:`csim.fast.layout`),
-    where mk is the method's dispatch code and ``at(x)`` where x starts in pi or pf. The load
-    laws are :class:`csim.loads.LoadSet`'s packing, the method's settings
-    :meth:`csim.solver.methods.base.Method.pack`'s. Builds the model functions on the first
-    call for a mechanism (:func:`csim.fast.module.load_model`).
+    pi = [mk, n_sw, at(ipar), I, at(fpar), F, at(gains), G * r, m, r, k, o, gamma* address, system kind, d,
+    at(driven), model function addresses, workspace offsets, sw_load (n_sw), sw_kind (n_sw), ipar (I), driven (d)]
+    (:mod:`csim.fast.layout`), where mk is the method's dispatch code and ``at(x)`` where x
+    starts in pi or pf. The load laws are :class:`csim.loads.LoadSet`'s packing, the method's
+    settings :meth:`csim.solver.methods.base.Method.pack`'s. A driven system's (:class:`DrivenSystem`)
+    model has its d drives as its last constraint rows (r counts them), and its state the
+    drives' work after the loads'. Builds the model functions on the first call for a
+    mechanism (:func:`csim.fast.module.load_model`).
     """
     loads, method = system.loads, system.stabilizer
-    model = load_model(system.model.definition)
+    drives = _drives(system)
+    d = 0 if drives is None else len(drives.driven)
+    model = load_model(system.model.definition, drives)
     m, r, k, o = model.dims
-    if (m, r, k) != (system.m, system.r, loads.magnitudes.size):
+    if (m, r, k) != (system.m, system.r + d, loads.magnitudes.size):
         raise RuntimeError(f"the compiled model of {model.name!r} has sizes {(m, r, k)}, the system "
-                           f"{(system.m, system.r, loads.magnitudes.size)}")
-    gains, fpar, ipar = method.pack(system.r)
+                           f"{(system.m, system.r + d, loads.magnitudes.size)}")
+    gains, fpar, ipar = method.pack(system.r + d)  # the drive rows are stabilized too
     n_sw = loads.n_switches
     at_ipar, at_fpar = PI_HEAD + 2 * n_sw, k + n_sw
     code, gamma_fn = method_dispatch(method)
     kind = PARTITIONED if isinstance(system, PartitionedSystem) else CONSTRAINED
+    driven = np.zeros(0, np.int64) if drives is None else np.array(drives.driven, np.int64)
     header = [code, n_sw, at_ipar, ipar.size, at_fpar, fpar.size, at_fpar + fpar.size, gains.size, m, r, k, o,
-              gamma_fn, kind, *model.addresses, *workspace(m, r, k, n_sw)]
+              gamma_fn, kind, d, at_ipar + ipar.size, *model.addresses, *workspace(m, r, k, n_sw)]
     pf = np.concatenate((loads.magnitudes, loads.sw_value, fpar, gains)).astype(float)
-    pi = np.concatenate((header, loads.sw_load, loads.sw_kind, ipar)).astype(np.int64)
+    pi = np.concatenate((header, loads.sw_load, loads.sw_kind, ipar, driven)).astype(np.int64)
     return np.ascontiguousarray(system.par, dtype=float), pf, pi
+
+
+def _drives(system: ConstrainedSystem) -> Drives | None:
+    """The drive rows of a driven system (:class:`csim.solver.driven.DrivenSystem`), else None."""
+    if not isinstance(system, DrivenSystem):
+        return None
+    if system.expressions is None:
+        raise RuntimeError("a driven system needs its drives' expressions to run compiled")
+    return Drives(tuple(int(j) for j in system.driven), tuple(system.expressions))
 
 
 def _arguments(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSettings, max_steps: int) -> tuple:
@@ -113,7 +128,7 @@ def integrate_compiled(system: ConstrainedSystem, y0: np.ndarray, settings: Inte
     """
     args = _arguments(system, y0, settings, settings.max_steps)
     mod = _kernels_for(system)
-    n_rec, ts, ys, modes, n_ev, ev_t, ev_sw, nfev, nsteps, code, info = _run_kernel(mod, args, progress)
+    n_rec, ts, ys, modes, n_ev, ev_t, ev_sw, nfev, nsteps, code, info, njev, nlu = _run_kernel(mod, args, progress)
     labels = system.loads.switch_labels
     status, message, failure = "success", f"reached t_end = {settings.t_end:g} s", ""
     if code != OK:
@@ -123,7 +138,8 @@ def integrate_compiled(system: ConstrainedSystem, y0: np.ndarray, settings: Inte
                                   detail=info[2:], coordinates=system.model.definition.coordinate_names)
     return Trajectory(
         t=ts[:n_rec].copy(), y=ys[:n_rec].copy(), mode=modes[:n_rec].copy(),
-        status=status, message=message, failure=failure, nfev=int(nfev), njev=0, nlu=0, nsteps=int(nsteps),
+        status=status, message=message, failure=failure, nfev=int(nfev), njev=int(njev), nlu=int(nlu),
+        nsteps=int(nsteps),
         event_times=ev_t[:n_ev].tolist(), event_labels=_event_labels(ev_sw[:n_ev], labels),
     )
 
@@ -226,6 +242,7 @@ def evaluate_compiled(system: ConstrainedSystem, t: np.ndarray, y: np.ndarray,
         ok, x, phi, phi_dot, u, Q, energy, obs = mod.evaluate_samples(
             np.ascontiguousarray(t, dtype=float), np.ascontiguousarray(y, dtype=float),
             np.ascontiguousarray(mode, dtype=np.bool_), par, pf, pi)
-    m, o = system.m, obs.shape[1] // 2
-    return dict(ok=ok, qdd=x[:, :m], lam=x[:, m:], phi=phi, phi_dot=phi_dot, loads=u, generalized_forces=Q,
+    m, r, o = system.m, system.r, obs.shape[1] // 2  # (a driven system's drive rows follow its r rows)
+    return dict(ok=ok, qdd=x[:, :m], lam=x[:, m:m + r], phi=phi[:, :r], phi_dot=phi_dot[:, :r], loads=u,
+                generalized_forces=Q,
                 kinetic=energy[:, 0], potential=energy[:, 1], observables=obs[:, :o], observable_rates=obs[:, o:])

@@ -13,8 +13,9 @@
     the reference Python path (:func:`csim.solver.simulate.integrate`), for debugging.
 
 Supported: ``formulation.method: kkt``; every ``stabilization.method`` whose class says
-``compiled = True`` (:mod:`csim.solver.methods`); ``simulation.integrator`` DOP853 or RK4;
-events on or off.
+``compiled = True`` (:mod:`csim.solver.methods`); ``simulation.integrator`` DOP853, RK4 or Radau
+(scipy's Radau step for step, :mod:`csim.fast.kernels`); events on or off; drives
+(``mechanism.drive_mode: dynamic``) with every such method but ``projection``.
 """
 from __future__ import annotations
 
@@ -26,7 +27,7 @@ BACKENDS = ("auto", "python", "compiled")
 
 #: what the compiled backend implements
 FORMULATIONS = ("kkt",)
-INTEGRATORS = ("DOP853", "RK4")
+INTEGRATORS = ("DOP853", "RK4", "Radau")
 
 
 def compiled_stabilizers() -> list[str]:
@@ -53,13 +54,13 @@ def unsupported(case) -> list[str]:
         reasons.append(f"stabilization.method {method!r} on an overconstrained linkage: its independent constraint "
                        f"equations are chosen again as it moves, on the Python path (csim.solver.redundant); the "
                        f"compiled backend runs such a mechanism with 'minimal'")
-    if case.driven:
-        reasons.append("mechanism.drive_mode 'dynamic': the drives are constraints that depend on time, which the "
-                       "compiled kernels do not evaluate (csim.solver.driven runs on the Python path)")
+    if case.driven and method == "projection":
+        reasons.append("stabilization.method 'projection' with mechanism.drive_mode 'dynamic': the projection onto "
+                       "the drives at each step's time runs on the Python path (csim.solver.driven)")
     integrator = case.simulation.integrator
     if integrator not in INTEGRATORS:
         reasons.append(f"simulation.integrator {integrator!r}: the compiled backend implements "
-                       f"{' and '.join(INTEGRATORS)} (scipy's {integrator} runs on the Python path)")
+                       f"{', '.join(INTEGRATORS)} (scipy's {integrator} runs on the Python path)")
     return reasons
 
 

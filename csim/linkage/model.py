@@ -122,6 +122,13 @@ class Linkage:
 
         return drive
 
+    def drive_expressions(self, parameters: dict[str, float], keep: list[str]) -> list[str]:
+        """Each drive f_j(t) as sympy's ``srepr``, for the compiled model's drive rows
+        (:class:`csim.fast.module.Drives`): in the time symbol ``t`` and the parameters named in
+        ``keep`` (the model's, read from its parameter vector), any other parameter's value put in."""
+        subs = {self.tables.symbols[k]: v for k, v in parameters.items() if k in self.tables.symbols and k not in keep}
+        return [sp.srepr(sp.sympify(e).subs(subs)) for e in self.drive.values()]
+
 
 def _resolve_drive(tables: Tables, problems: list[str]) -> tuple[dict[int, list], dict]:
     """Drive keys naming a coupling (number or name) -> {coupling number: values per joint

@@ -60,6 +60,8 @@ class DerivedModel:
     #: above may use (a mechanism built link by link, :mod:`csim.model.recursive`); the code
     #: generators emit the ones a function needs before its body
     intermediates: list = field(default_factory=list)
+    #: dPhi/dt (r, 1) of rows that depend on time explicitly (drives, :func:`with_drive_rows`); None: none do
+    phi_t: sp.Matrix | None = None
 
 
 #: expressions with more operations than this are left as they are: trigsimp's cost grows
@@ -207,3 +209,43 @@ def _loads(definition: MechanismDefinition, q: sp.Matrix) -> tuple[sp.Matrix, sp
     # f: u_k = magnitude * active * f_k(q, qd, t)
     f = sp.Matrix([sp.Integer(1) if load.law is None else sp.sympify(load.law) for load in loads])
     return s, S, B, f
+
+
+def with_drive_rows(derived: DerivedModel, driven: list[int], drives: list[sp.Expr]) -> DerivedModel:
+    """``derived`` with each drive q_j = f_j(t) appended as a rheonomic constraint row.
+
+    The row Phi_d = q_j - f_j(t) has Phi_d,q = e_j^T, Phi_d,t = -f_j'(t) and, from
+    gamma = -(Phi_q qd)_q qd - 2 Phi_qt qd - Phi_tt, gamma_d = f_j''(t): the rows
+    :class:`csim.solver.driven.DrivenSystem` stacks numerically on the Python path, here for the
+    compiled kernels (whose model functions take t). The mechanism's own rows do not depend on t.
+
+    Parameters
+    ----------
+    derived : DerivedModel
+        The mechanism's derivation (r rows).
+    driven : list of int
+        The driven coordinates' indices (d,).
+    drives : list of sympy expressions
+        f_j of the time symbol ``t`` and the mechanism's parameters (d,).
+
+    Returns
+    -------
+    DerivedModel
+        With r + d rows in ``phi``, ``phi_q``, ``gamma`` and ``phi_t``.
+    """
+    import dataclasses
+
+    t = sp.Symbol("t", real=True)
+    q = list(derived.definition.coordinates)
+    r, m = derived.phi.shape[0], len(q)
+    rows = sp.zeros(len(driven), m)
+    for i, j in enumerate(driven):
+        rows[i, j] = 1
+    f = [sp.sympify(e).subs({s: t for s in sp.sympify(e).free_symbols if s.name == "t"}) for e in drives]
+    return dataclasses.replace(
+        derived,
+        phi=sp.Matrix(list(derived.phi) + [q[j] - fj for j, fj in zip(driven, f)]),
+        phi_q=derived.phi_q.col_join(rows) if r else rows,
+        gamma=sp.Matrix(list(derived.gamma) + [sp.diff(fj, t, 2) for fj in f]),
+        phi_t=sp.Matrix([0] * r + [-sp.diff(fj, t) for fj in f]),
+    )

@@ -51,6 +51,8 @@ from scipy.integrate._ivp.common import num_jac
 from scipy.linalg import LinAlgWarning, lu_factor, lu_solve
 from scipy.sparse import issparse
 
+from csim.physics.radau import JAC_MAX_FACTOR
+
 EPS = np.finfo(float).eps
 
 # --- Radau IIA, 3 stages (copied from scipy/integrate/_ivp/radau.py) ----------------------
@@ -101,9 +103,6 @@ JAC_ALGEBRAIC_THRESHOLD = 1e-3
 # sqrt(eps max(1e-5, |y_j|)), independently of atol; the same floor here makes the step at
 # least sqrt(eps) 1e-5 = 1.5e-13.
 JAC_DIFFERENTIAL_THRESHOLD = 1e-5
-# num_jac multiplies the difference step of a variable that F does not depend on (a work
-# state) by 10 at every Jacobian; it is capped here so that it stays finite over long runs.
-JAC_MAX_FACTOR = 1e-1
 # Absolute residual an algebraic row can be driven to in floating point: this many eps
 # times the size of its terms, |J_alg| |y| (used where that is above `algebraic_tol`).
 ROUNDOFF_FACTOR = 100

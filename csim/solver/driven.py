@@ -35,7 +35,9 @@ is one drive per degree of freedom (J square), else to the nearest solution in t
 projection's metric (``projection_metric``: the mass matrix, or the identity). Not offered
 (:func:`driven_problems`, exit 2): ``ggl``, ``minimal`` and ``augmented_lagrangian`` (they
 integrate a system of their own), the elimination, per-constraint gain lists (the drive
-rows need gains too), the compiled kernels.
+rows need gains too). The compiled kernels run the same rows, built symbolically into the
+mechanism's model (:func:`csim.model.derive.with_drive_rows`), for every method above but
+``projection`` (:func:`csim.fast.support.unsupported`).
 """
 from __future__ import annotations
 
@@ -89,12 +91,17 @@ class DrivenSystem(ConstrainedSystem):
         Indices of the driven coordinates (d,).
     drive : callable t -> (f, f', f'')
         The prescribed values, each (d,) [rad or m, per s, per s^2].
+    expressions : list of str, optional
+        Each f_j as sympy's ``srepr`` of an expression of ``t`` and the model's parameters:
+        what the compiled kernels build the drive rows from (:func:`csim.model.derive.with_drive_rows`).
     """
 
-    def __init__(self, model, par, loads, formulation, stabilizer, driven, drive: Callable):
+    def __init__(self, model, par, loads, formulation, stabilizer, driven, drive: Callable,
+                 expressions: list[str] | None = None):
         super().__init__(model, par, loads, formulation, stabilizer)
         self.driven = np.asarray(driven, dtype=int)
         self.drive = drive
+        self.expressions = expressions
         self.d = self.driven.size
         self._rows = np.eye(self.m)[self.driven]  # Phi_d,q (d, m)
 

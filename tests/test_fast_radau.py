@@ -1,0 +1,159 @@
+"""The compiled Radau IIA (csim.fast.kernels) against scipy's Radau on the Python path, and the
+compiled drive rows (csim.model.derive.with_drive_rows) against csim.solver.driven.
+
+The compiled Radau is a port of scipy's: the same steps, Jacobians and LU factorizations on
+the same problem, where the two differ only by round-off (its LU is csim's loop, scipy's is
+LAPACK's). Its accuracy is checked against references that do not come from csim: the
+quick-return mechanism's tight reference, and the flyball governor's rotating-frame
+equations (tests/iftomm_reference.py).
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import CONFIGS, qr_case
+
+from csim.case import load_case
+from csim.pipeline import build_system, initial_state, run_case
+from csim.solver.simulate import integrate
+
+pytest.importorskip("numba")
+
+sys.path.insert(0, str(Path(__file__).parent))
+from iftomm_reference import a05_motion
+
+A05 = CONFIGS / "iftomm" / "a05_flyball_governor.yaml"
+
+
+def test_the_coefficients_are_scipys():
+    from scipy.integrate._ivp import common, radau
+
+    from csim.physics import radau as ours
+
+    for name in ("C", "E", "T", "TI", "TI_COMPLEX", "P"):
+        assert np.array_equal(getattr(ours, name), getattr(radau, name)), name
+    for name in ("MU_REAL", "MU_COMPLEX", "NEWTON_MAXITER"):
+        assert getattr(ours, name) == getattr(radau, name), name
+    for name in ("NUM_JAC_DIFF_REJECT", "NUM_JAC_DIFF_SMALL", "NUM_JAC_DIFF_BIG", "NUM_JAC_MIN_FACTOR",
+                 "NUM_JAC_FACTOR_INCREASE", "NUM_JAC_FACTOR_DECREASE"):
+        assert getattr(ours, name) == getattr(common, name), name
+
+
+def test_compiled_radau_takes_scipys_steps_with_events():
+    """The quick-return mechanism with its cutting-force switches: the same steps, Jacobians, LU
+    factorizations and events as scipy's Radau, the states equal to well within the tolerance."""
+    case = qr_case("simulation.integrator=Radau", "simulation.rtol=1e-7", "simulation.atol=1e-7",
+                   "simulation.t_end=2")
+    system = build_system(case)
+    y0 = initial_state(case, system)
+    from csim.fast import integrate_compiled
+
+    fast = integrate_compiled(system, y0, case.integration_settings())
+    ref = integrate(system, y0, case.integration_settings())
+    assert fast.status == ref.status == "success"
+    assert (fast.nsteps, fast.njev, fast.nlu) == (ref.nsteps, ref.njev, ref.nlu)
+    assert fast.nsteps > 200 and fast.njev > 10
+    # scipy's difference Jacobian evaluates f at (t, y) once more each time, which the kernel has
+    assert 0 <= ref.nfev - fast.nfev <= ref.njev + len(ref.event_times) + 1
+    assert len(fast.event_times) == len(ref.event_times) > 5 and fast.event_labels == ref.event_labels
+    # the Newton iterations stop within their tolerance (about sqrt(rtol) of the error scale): the
+    # two round-offs part there, and each restart at an event carries the difference on
+    # (measured 2e-8 s in the event times, 8.5e-6 in a velocity of 6 rad/s)
+    assert np.max(np.abs(np.subtract(fast.event_times, ref.event_times))) < 2e-7
+    m = system.m
+    assert np.max(np.abs(fast.y[:, :2 * m] - ref.y[:, :2 * m])) < 1e-4
+
+
+def test_compiled_radau_meets_the_tight_reference(reference):
+    res = run_case(qr_case("simulation.integrator=Radau", "simulation.rtol=1e-9", "simulation.atol=1e-9",
+                           "stabilization.method=projection"))
+    assert res.ok and res.backend == "compiled", res.message
+    assert abs(res.q[-1, 0] - reference["q1"]) < 1e-6
+    assert np.allclose(res.event_times, reference["events"], atol=1e-6)
+
+
+def test_compiled_radau_converges_at_high_order():
+    """Cutting force off (a smooth problem): the error at t = 1 s against the number of steps
+    falls at the order of Radau IIA (5; at least 3.5 asked)."""
+    base = ["simulation.integrator=Radau", "simulation.t_end=1", "loads.cutting_force=0"]
+    ref = run_case(qr_case(*base, "simulation.rtol=1e-12", "simulation.atol=1e-12"))
+    steps, errors = [], []
+    for tol in (1e-5, 1e-7):
+        res = run_case(qr_case(*base, f"simulation.rtol={tol}", f"simulation.atol={tol}"))
+        assert res.backend == "compiled" and res.ok
+        steps.append(res.nsteps)
+        errors.append(abs(res.q[-1, 0] - ref.q[-1, 0]))
+    order = np.log(errors[0] / errors[1]) / np.log(steps[1] / steps[0])
+    assert order > 3.5, (steps, errors, order)  # measured 4.8
+
+
+@pytest.fixture(scope="module")
+def a05_runs():
+    return {backend: run_case(load_case(A05, [f"simulation.backend={backend}"])) for backend in ("compiled", "python")}
+
+
+def test_the_governor_runs_compiled_by_default():
+    from csim.fast import resolve_backend
+
+    assert resolve_backend(load_case(A05)) == "compiled"
+
+
+def test_compiled_drive_rows_take_the_python_paths_steps(a05_runs):
+    """A05 (three free joints, the shaft driven): the same steps and Jacobians on both paths, the
+    slider within 1e-7 m, the drive torque and work and the energy balance alike."""
+    fast, slow = a05_runs["compiled"], a05_runs["python"]
+    assert fast.ok and slow.ok, (fast.message, slow.message)
+    assert (fast.backend, slow.backend) == ("compiled", "python")
+    assert (fast.nsteps, fast.njev, fast.nlu) == (slow.nsteps, slow.njev, slow.nlu)
+    assert np.max(np.abs(fast.q - slow.q)) < 1e-7
+    assert np.max(np.abs(fast.qd - slow.qd)) < 1e-5
+    scale = np.max(np.abs(slow.drive_forces))
+    assert scale > 10.0                                             # 49 N m: a torque worth measuring
+    assert np.max(np.abs(fast.drive_forces - slow.drive_forces)) < 1e-5 * scale
+    assert np.max(np.abs(fast.drive_work - slow.drive_work)) < 1e-5 * np.max(np.abs(slow.drive_work))
+    assert fast.energy_error_relative < 1e-4 and slow.energy_error_relative < 1e-4
+    assert fast.lam.shape == slow.lam.shape == (fast.t.size, 0)    # the drive rows are not the mechanism's
+
+
+def test_compiled_governor_against_its_rotating_frame_equations(a05_runs):
+    fast = a05_runs["compiled"]
+    s_ref = a05_motion(fast.t)[0][:, 0]
+    assert np.max(np.abs(fast.q[:, fast.coordinate_names.index("s_slide")] - s_ref)) < 1e-5  # measured 2.7e-6 m
+    shaft = fast.coordinate_names.index("q_shaft")
+    assert np.allclose(fast.q[:, shaft], 2 * np.pi * fast.t, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("method", ["none", "baumgarte", "sliding_mode"])
+def test_compiled_drive_rows_on_a_closed_loop_equal_python(method):
+    """The driven slider-crank of tests/test_driven.py (a loop and a drive: the stabilized rates of
+    the drive row need Phi_t = -f'(t)), DOP853, on both paths."""
+    from test_driven import _data
+
+    from csim.case import validate_case
+
+    overrides = {"none": {}, "baumgarte": {"d": 1.0, "w": 20.0}, "sliding_mode": {}}[method]
+    runs = {}
+    for backend in ("compiled", "python"):
+        data = _data(backend=backend, rtol=1e-9, atol=1e-9)
+        data["stabilization"] = {"method": method, **overrides}
+        runs[backend] = run_case(validate_case(data))
+    fast, slow = runs["compiled"], runs["python"]
+    assert fast.ok and slow.ok and fast.backend == "compiled", (fast.message, slow.message)
+    assert fast.nsteps == slow.nsteps
+    np.testing.assert_allclose(fast.q, slow.q, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(fast.phi, slow.phi, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(fast.phi_dot, slow.phi_dot, rtol=0, atol=1e-8)
+    scale = np.max(np.abs(slow.drive_forces))
+    np.testing.assert_allclose(fast.drive_forces, slow.drive_forces, rtol=0, atol=1e-7 * scale)
+    np.testing.assert_allclose(fast.drive_work, slow.drive_work, rtol=0, atol=1e-7 * scale)
+
+
+def test_projection_with_drives_stays_on_the_python_path():
+    from csim.fast.support import unsupported
+
+    case = load_case(A05, ["stabilization.method=projection"])
+    assert any("projection" in why and "drive" in why for why in unsupported(case))
+    assert run_case(load_case(A05, ["stabilization.method=projection", "simulation.t_end=0.2"])).backend == "python"
