@@ -237,7 +237,7 @@ def assemble_result(case: Case, system: ConstrainedSystem, traj: Trajectory, wal
                     backend: str = "python") -> Result:
     """Evaluate every recorded quantity at the output times of a trajectory (``backend``: what integrated it)."""
     m = system.m
-    arrays, failure = _sample_values(system, traj, backend, len(case.mechanism.observables))
+    arrays, failure, drive_forces = _sample_values(system, traj, backend, len(case.mechanism.observables))
     status, message, kind = traj.status, traj.message, traj.failure
     if failure is not None and status == "success":  # e.g. the last state of a failed run is singular
         status, message, kind = "failed", str(failure), failure.kind
@@ -253,14 +253,17 @@ def assemble_result(case: Case, system: ConstrainedSystem, traj: Trajectory, wal
         nfev=traj.nfev, njev=traj.njev, nlu=traj.nlu, nsteps=traj.nsteps,
         event_times=np.asarray(traj.event_times, dtype=float), event_labels=list(traj.event_labels),
         backend=backend,
+        drive_forces=drive_forces,
         **arrays,
         **mechanism_units(case.mechanism, system.model, system.par),
     )
 
 
 def _sample_values(system: ConstrainedSystem, traj: Trajectory, backend: str,
-                   o: int) -> tuple[dict[str, np.ndarray], SimulationFailure | None]:
-    """Every recorded quantity at every sample, and the first failure (None: every sample evaluated).
+                   o: int) -> tuple[dict[str, np.ndarray], SimulationFailure | None, np.ndarray | None]:
+    """Every recorded quantity at every sample, the first failure (None: every sample evaluated),
+    and a compiled driven run's drive forces (N, d) (None: :func:`csim.solver.driven.record_drives`
+    evaluates them).
 
     A compiled run's samples are evaluated in one compiled call, by the right-hand side that
     integrated them; a sample where that fails (and every sample of a Python run) by
@@ -271,6 +274,7 @@ def _sample_values(system: ConstrainedSystem, traj: Trajectory, backend: str,
     arrays = {name: np.full(shape, np.nan) for name, shape in dict(
         qdd=(N, m), lam=(N, r), phi=(N, r), phi_dot=(N, r), loads=(N, k), generalized_forces=(N, m),
         kinetic=(N,), potential=(N,), observables=(N, o), observable_rates=(N, o)).items()}
+    drive_forces = None
     if backend == "compiled" and N:
         from csim.fast.runner import evaluate_compiled
 
@@ -278,6 +282,8 @@ def _sample_values(system: ConstrainedSystem, traj: Trajectory, backend: str,
         for name, a in arrays.items():
             a[:] = values[name]
         todo = np.flatnonzero(~values["ok"])
+        if values["drive_forces"].shape[1]:
+            drive_forces = np.where(values["ok"][:, None], values["drive_forces"], np.nan)
     else:
         todo = range(N)
         model, par = system.model, system.par
@@ -297,4 +303,4 @@ def _sample_values(system: ConstrainedSystem, traj: Trajectory, backend: str,
                             ("loads", ev.u), ("generalized_forces", ev.Q), ("kinetic", ev.kinetic),
                             ("potential", ev.potential)):
             arrays[name][i] = value
-    return arrays, failure
+    return arrays, failure, drive_forces

@@ -31,6 +31,7 @@ from csim.errors import CaseError
 from csim.fast import resolve_backend
 from csim.fast.support import INTEGRATORS as COMPILED_INTEGRATORS
 from csim.solver.integrators import INTEGRATORS
+from csim.solver.methods import STABILIZERS
 
 #: a case as :func:`csim.compare.compare` takes it: a file, a dict as read from YAML, or a Case
 CaseInput = str | Path | dict | Case
@@ -256,6 +257,15 @@ def _prefix(per_method: dict[str, list[float]], methods: list[str], values: list
     return (", ".join(parts) + ": ") if parts else ""
 
 
+def _own_integrator(case: Case) -> bool:
+    """Whether the case's integrator only Python has: one the compiled backend lacks, or a
+    method's own (``ggl``'s Radau IIA for DAEs, the augmented Lagrangian method's trapezoidal
+    rule: a method that declares its integrators and that the kernels do not run)."""
+    method = STABILIZERS.get(case.stabilization.method)
+    return (case.simulation.integrator not in COMPILED_INTEGRATORS
+            or (method is not None and not method.compiled and method.integrators is not None))
+
+
 def _one_backend(runs: _RunCases, cases: dict[tuple[str, float], Case],
                  chosen: list[str]) -> tuple[dict[tuple[str, float], Case], str]:
     """The cases on one backend, so that wall times compare methods, not backends, and why.
@@ -267,8 +277,7 @@ def _one_backend(runs: _RunCases, cases: dict[tuple[str, float], Case],
     "" when every run is on one backend as it is.
     """
     on_python = {m for (m, _), c in cases.items() if resolve_backend(c) == "python"}
-    own = sorted({m for (m, _), c in cases.items() if m in on_python and c.simulation.integrator not in
-                  COMPILED_INTEGRATORS}, key=chosen.index)
+    own = sorted({m for (m, _), c in cases.items() if m in on_python and _own_integrator(c)}, key=chosen.index)
     python_only = sorted(on_python - set(own), key=chosen.index)
     if len(on_python) >= len(chosen) or not on_python:
         return cases, ""

@@ -233,8 +233,9 @@ def evaluate_compiled(system: ConstrainedSystem, t: np.ndarray, y: np.ndarray,
         ``ok`` (N,) bool (False: singular KKT matrix, the row is NaN), ``qdd`` (N, m),
         ``lam`` (N, r), ``phi`` (N, r), ``phi_dot`` (N, r), ``loads`` (N, k),
         ``generalized_forces`` (N, m), ``kinetic`` (N,) and ``potential`` (N,) [J], as
-        :meth:`csim.solver.system.ConstrainedSystem.evaluate` gives them one at a time, and
-        ``observables`` (N, o) and ``observable_rates`` (N, o).
+        :meth:`csim.solver.system.ConstrainedSystem.evaluate` gives them one at a time,
+        ``observables`` (N, o) and ``observable_rates`` (N, o), and ``drive_forces`` (N, d), a
+        driven system's tau = -lambda_d (:meth:`csim.solver.driven.DrivenSystem.drive_forces`; d = 0 else).
     """
     par, pf, pi = pack_problem(system)
     mod = _kernels_for(system)  # one copy per process for a run of one method
@@ -244,5 +245,5 @@ def evaluate_compiled(system: ConstrainedSystem, t: np.ndarray, y: np.ndarray,
             np.ascontiguousarray(mode, dtype=np.bool_), par, pf, pi)
     m, r, o = system.m, system.r, obs.shape[1] // 2  # (a driven system's drive rows follow its r rows)
     return dict(ok=ok, qdd=x[:, :m], lam=x[:, m:m + r], phi=phi[:, :r], phi_dot=phi_dot[:, :r], loads=u,
-                generalized_forces=Q,
+                drive_forces=-x[:, m + r:], generalized_forces=Q,
                 kinetic=energy[:, 0], potential=energy[:, 1], observables=obs[:, :o], observable_rates=obs[:, o:])

@@ -231,7 +231,9 @@ def record_drives(result, system: DrivenSystem, t: np.ndarray, y: np.ndarray, mo
     Parameters
     ----------
     result : csim.result.Result
-        As assembled from the trajectory (its ``work`` holds the drives' work as extra columns).
+        As assembled from the trajectory (its ``work`` holds the drives' work as extra columns;
+        its ``drive_forces``, where the compiled evaluation of the samples gave them, are kept,
+        and only their NaN rows evaluated here).
     system : DrivenSystem
     t : ndarray (N,); y : ndarray (N, n_state); mode : ndarray (N, n_switches)
         The trajectory's samples.
@@ -239,8 +241,10 @@ def record_drives(result, system: DrivenSystem, t: np.ndarray, y: np.ndarray, mo
         The driven coordinates and the unit of each drive's force (N m or N).
     """
     N, k = t.size, system.k
-    tau = np.full((N, system.d), np.nan)
-    for i in range(N):
+    given = result.drive_forces
+    tau = np.array(given, dtype=float) if given is not None and given.shape == (N, system.d) else \
+        np.full((N, system.d), np.nan)
+    for i in np.flatnonzero(np.isnan(tau).any(axis=1)):
         try:
             with np.errstate(over="ignore", invalid="ignore"):
                 tau[i] = system.drive_forces(t[i], y[i], mode[i])
