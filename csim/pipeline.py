@@ -170,7 +170,7 @@ def constraint_watch(case: Case, model: NumericModel, par: np.ndarray):
         values = dict(linkage.tables.values)  # with the run's parameter values
         values.update({linkage.tables.symbols[p.name]: v for p, v in zip(case.mechanism.parameters, par)
                        if p.name in linkage.tables.symbols})
-        return linkage_watch(linkage.reduction, linkage.topology.variables, values)
+        return linkage_watch(linkage.reduction, linkage.topology.variables, values, linkage.build_key)
     r = model.n_constraints
     return ConstraintWatch(phi=lambda q: model.phi(q, par), phi_q=lambda q: model.phi_q(q, par),
                            labels=[f"Phi_{i + 1}" for i in range(r)], kept=np.arange(r),

@@ -48,3 +48,101 @@ def test_the_key_follows_the_tables_not_the_parameter_values():
     assert linkage_key(base) == linkage_key({**base, "parameters": {"l": 0.2}})
     assert linkage_key(base) != linkage_key({**base, "parameters": {"l2": 0.1}})
     assert linkage_key(base) != linkage_key({**base, "gravity": [0, -9.81, 0]})
+
+
+# ---------------------------------------------------------------------------------------
+# the linkage itself (build_linkage through cached_build) and the constraint watch
+# ---------------------------------------------------------------------------------------
+def _bricard():
+    from conftest import CONFIGS
+
+    from csim.case import parse_yaml
+
+    path = CONFIGS / "iftomm" / "a04_bricard.yaml"
+    return parse_yaml(path.read_text(), str(path))
+
+
+def _counting_builds(monkeypatch):
+    import csim.linkage.model as model
+
+    calls, real = [], model._build_linkage
+
+    def counted(*args):
+        calls.append(1)
+        return real(*args)
+    monkeypatch.setattr(model, "_build_linkage", counted)
+    return calls
+
+
+def test_a_linkage_is_built_once_then_read_back_whole(cache, monkeypatch):
+    from csim.linkage.model import build_linkage
+    from csim.model.cache import _definition_key
+
+    data = _bricard()
+    calls = _counting_builds(monkeypatch)
+    first = build_linkage(data["mechanism"], data.get("initial"))
+    again = build_linkage(data["mechanism"], data.get("initial"))
+    assert calls == [1] and len(list(cache.glob("*_linkage.pickle"))) == 1
+    assert again is not first and again.build_key == first.build_key != ""
+    assert [e.status for e in again.reduction.equations] == [e.status for e in first.reduction.equations]
+    # the definition read back prints to the key it was filed with (the key is not just carried over)
+    assert _definition_key(again.definition) == _definition_key(first.definition) == again.definition_key
+    terms_a, terms_b = first.definition.recursive(), again.definition.recursive()  # (a partial now: picklable)
+    assert [str(e) for e in terms_a.phi] == [str(e) for e in terms_b.phi]
+
+
+def test_other_values_or_start_build_again_a_damaged_file_too(cache, monkeypatch):
+    from csim.linkage.model import build_linkage
+
+    data = _bricard()
+    calls = _counting_builds(monkeypatch)
+    build_linkage(data["mechanism"], data.get("initial"))
+    other = {**data["mechanism"], "parameters": {**(data["mechanism"].get("parameters") or {}), "extra_p": 1.0}}
+    build_linkage(other, data.get("initial"))                             # parameters as written: a new key
+    build_linkage(data["mechanism"], {"guess": {"q_j1": 0.2}})             # another start: a new key
+    assert calls == [1, 1, 1] and len(list(cache.glob("*_linkage.pickle"))) == 3
+    for path in cache.glob("*_linkage.pickle"):
+        path.write_bytes(b"not a pickle")
+    build_linkage(data["mechanism"], data.get("initial"))
+    assert calls == [1, 1, 1, 1]
+    monkeypatch.setenv("CSIM_LINKAGE_CACHE", "0")
+    build_linkage(data["mechanism"], data.get("initial"))
+    assert calls == [1, 1, 1, 1, 1]
+
+
+def test_the_constraint_watch_read_back_equals_the_one_derived(cache):
+    from csim.linkage.constraints import constraint_watch
+    from csim.linkage.model import build_linkage
+
+    data = _bricard()
+    linkage = build_linkage(data["mechanism"], data.get("initial"))
+    args = (linkage.reduction, linkage.topology.variables, dict(linkage.tables.values))
+    derived = constraint_watch(*args)                              # no key: derived here
+    assert not list(cache.glob("*_watch_*.py"))
+    filed = constraint_watch(*args, key=linkage.build_key)         # derived, then filed
+    read = constraint_watch(*args, key=linkage.build_key)          # read back
+    assert {p.name.split("_", 1)[1] for p in cache.glob("*_watch_*.py")} == \
+        {"watch_phi.py", "watch_pattern.py", "watch_jac.py", "watch_gamma.py"}
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        q, qd = rng.normal(size=5), rng.normal(size=5)
+        for watch in (filed, read):
+            np.testing.assert_array_equal(watch.phi(q), derived.phi(q))
+            np.testing.assert_array_equal(watch.phi_q(q), derived.phi_q(q))
+            np.testing.assert_array_equal(watch.gamma_removed(q, qd), derived.gamma_removed(q, qd))
+    assert derived.removed.size == 1 and np.any(derived.phi_q(q) != 0)
+
+
+def test_the_linkage_cache_keeps_the_newest(tmp_path):
+    import os
+
+    from csim.linkage.lambdacache import _evict
+
+    for i in range(5):
+        path = tmp_path / f"k{i}_linkage.pickle"
+        path.write_bytes(b"x")
+        os.utime(path, (1000 + i, 1000 + i))
+    (tmp_path / "k0_watch_phi.py").write_text("")
+    _evict(tmp_path, "*_linkage.pickle", 2)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["k0_watch_phi.py", "k3_linkage.pickle",
+                                                          "k4_linkage.pickle"]

@@ -25,6 +25,7 @@ from csim.errors import CaseError
 from csim.linkage.frames import Frames
 from csim.linkage.joints import JOINT_TYPES, CutGeometry
 from csim.linkage.kinematics import residual_report, solve_positions
+from csim.linkage.lambdacache import cached_lambdify
 from csim.linkage.tables import Coupling, Tables
 from csim.linkage.topology import JointVariable
 from csim.linkage.transforms import simplify_entry
@@ -106,17 +107,29 @@ class Reduction:
         return [e for e in self.equations if e.status == KEPT]
 
 
-def _numeric(exprs: list[sp.Expr], q_syms: list[sp.Symbol], parameters: dict[sp.Symbol, float]):
-    """phi(q) (r,) and phi_q(q) (r, n) as numpy functions at the given parameter values."""
+def _numeric(exprs: list[sp.Expr], q_syms: list[sp.Symbol], parameters: dict[sp.Symbol, float],
+             key: str = ""):
+    """phi(q) (r,) and phi_q(q) (r, n) as numpy functions at the given parameter values (their
+    source filed in the cache under ``key``, :func:`csim.linkage.lambdacache.cached_lambdify`;
+    "": derived here)."""
     r, n = len(exprs), len(q_syms)
-    vec = sp.Matrix(exprs) if exprs else sp.zeros(0, 1)
-    jac = sparse_jacobian(exprs, q_syms)
-    # only the nonzero entries of Phi_q are generated (a long chain's is mostly zeros)
-    rows, cols = (np.array(ix, dtype=int) for ix in ([i for i in range(r) for j in range(n) if jac[i, j] != 0],
-                                                     [j for i in range(r) for j in range(n) if jac[i, j] != 0]))
     p_syms, p_vals = list(parameters), list(parameters.values())
-    f = sp.lambdify([q_syms, p_syms], vec, "numpy", cse=True)
-    g = sp.lambdify([q_syms, p_syms], [jac[i, j] for i, j in zip(rows, cols)], "numpy", cse=True)
+
+    derived: dict = {}
+
+    def nonzero():
+        # only the nonzero entries of Phi_q are generated (a long chain's is mostly zeros); their
+        # rows and columns are a function of their own (no arguments), cached as the entries are
+        if not derived:
+            jac = sparse_jacobian(exprs, q_syms)
+            derived["jac"], derived["at"] = jac, [(i, j) for i in range(r) for j in range(n) if jac[i, j] != 0]
+        return derived["jac"], derived["at"]
+
+    f = cached_lambdify(key, "watch_phi", lambda: ([q_syms, p_syms], sp.Matrix(exprs) if exprs else sp.zeros(0, 1)))
+    pattern = cached_lambdify(key, "watch_pattern", lambda: ([], [[i for i, _ in nonzero()[1]],
+                                                                  [j for _, j in nonzero()[1]]]))
+    g = cached_lambdify(key, "watch_jac", lambda: ([q_syms, p_syms], [nonzero()[0][i, j] for i, j in nonzero()[1]]))
+    rows, cols = (np.asarray(ix, dtype=int) for ix in pattern())
 
     def phi(q):
         return np.asarray(f(list(q), p_vals), dtype=float).reshape(r)
@@ -326,36 +339,44 @@ def plane_of_motion(tables: Tables, frames: Frames, variables: list[JointVariabl
     return Plane(normal, {n: T[:3, :3].T @ normal for n, T in numeric.items()})
 
 
-def constraint_watch(reduction: Reduction, variables: list[JointVariable], values: dict[sp.Symbol, float]):
+def constraint_watch(reduction: Reduction, variables: list[JointVariable], values: dict[sp.Symbol, float],
+                     key: str = ""):
     """Every non-trivial equation of ``reduction`` as a :class:`csim.solver.integrity.ConstraintWatch`:
     the kept ones (the model's Phi, in its order) and the ones removed as dependent, with
     gamma of the removed ones (derived here: the model derives the kept ones'), at the
-    parameter ``values``."""
+    parameter ``values``; the numeric functions filed in the cache under ``key`` (the
+    linkage's :attr:`~csim.linkage.model.Linkage.build_key`, which the equations' status
+    depends on; "": derived here)."""
     from csim.solver.integrity import ConstraintWatch
 
     live = [e for e in reduction.equations if e.status != ZERO]
     q_syms = [v.symbol for v in variables]
-    phi, phi_q = _numeric([e.expression for e in live], q_syms, values)
+    phi, phi_q = _numeric([e.expression for e in live], q_syms, values, key)
     removed = [e for e in live if e.status == DEPENDENT]
     return ConstraintWatch(phi=phi, phi_q=phi_q, labels=[e.label for e in live],
                            kept=np.array([i for i, e in enumerate(live) if e.status == KEPT], dtype=int),
                            removed=np.array([i for i, e in enumerate(live) if e.status == DEPENDENT], dtype=int),
                            rank=reduction.generic_rank,
-                           gamma_removed=_numeric_gamma([e.expression for e in removed], variables, values),
+                           gamma_removed=_numeric_gamma([e.expression for e in removed], variables, values, key),
                            units=[e.unit for e in live])
 
 
-def _numeric_gamma(exprs: list[sp.Expr], variables: list[JointVariable], parameters: dict[sp.Symbol, float]):
-    """gamma(q, qd) (len(exprs),) = -(d(Phi_q qd)/dq) qd of ``exprs``, as a numpy function."""
+def _numeric_gamma(exprs: list[sp.Expr], variables: list[JointVariable], parameters: dict[sp.Symbol, float],
+                   key: str = ""):
+    """gamma(q, qd) (len(exprs),) = -(d(Phi_q qd)/dq) qd of ``exprs``, as a numpy function (filed
+    under ``key`` as :func:`_numeric`'s)."""
     q_syms, qd_syms = [v.symbol for v in variables], [v.velocity for v in variables]
     r = len(exprs)
     if not r:
         return lambda q, qd: np.zeros(0)
-    qd_vec = sp.Matrix(qd_syms)
-    rate = sparse_jacobian(exprs, q_syms) * qd_vec  # Phi_q qd
-    gamma = -(sparse_jacobian(list(rate), q_syms) * qd_vec)
     p_syms, p_vals = list(parameters), list(parameters.values())
-    f = sp.lambdify([q_syms, qd_syms, p_syms], gamma, "numpy", cse=True)
+
+    def make():
+        qd_vec = sp.Matrix(qd_syms)
+        rate = sparse_jacobian(exprs, q_syms) * qd_vec  # Phi_q qd
+        return [q_syms, qd_syms, p_syms], -(sparse_jacobian(list(rate), q_syms) * qd_vec)
+
+    f = cached_lambdify(key, "watch_gamma", make)
 
     def gamma_removed(q, qd):
         return np.asarray(f(list(q), list(qd), p_vals), dtype=float).reshape(r)

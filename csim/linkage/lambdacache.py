@@ -1,4 +1,4 @@
-"""Numeric functions of a linkage, their generated source kept on disk between runs.
+"""A linkage's symbolic model and numeric functions, kept on disk between runs.
 
 The tree-joint reactions (:mod:`csim.linkage.reactions`) evaluate functions that sympy
 derives from the linkage's symbolic transforms and force elements, then lambdifies: most of
@@ -7,6 +7,16 @@ governor's 9 s). Their source depends only on the mechanism as written (not on i
 parameter values, which are arguments) and on csim's linkage code, so it is filed in the
 cache (``<cache>/linkage/<key>.py``) under a hash of both, and a later run of the same
 mechanism reads it back instead of deriving it again.
+
+The linkage itself (:class:`csim.linkage.model.Linkage`: the tables, the spanning tree, the
+symbolic transforms, the kept and removed closure equations, the mechanism's definition) is
+built from the case's ``mechanism`` and ``initial`` sections (the assembly that chooses the
+independent equations runs at the parameter values and start given there) by seconds of
+sympy work: :func:`cached_build` files it, pickled, under a hash of both sections as
+written, the build's options and every csim source file, and a later validation of the same
+case reads it back (2.7 s -> 0.1 s for Bricard's mechanism). Only a build that succeeded is
+filed, and the newest :data:`MAX_LINKAGES` are kept. The cache is the user's own folder, as
+numba's is; a damaged file is built again.
 """
 from __future__ import annotations
 
@@ -15,6 +25,7 @@ import hashlib
 import inspect
 import json
 import os
+import pickle
 from collections.abc import Callable
 from pathlib import Path
 
@@ -36,6 +47,47 @@ def linkage_key(mechanism: dict) -> str:
     parts = [json.dumps(shape, sort_keys=True, default=str), sympy.__version__,
              *(p.read_text() for p in sorted(HERE.glob("*.py")))]
     return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:24]
+
+
+def build_key(mechanism: dict, initial: dict | None, options: dict) -> str:
+    """Hash of what :func:`csim.linkage.model.build_linkage` reads: the sections as written (in
+    their order: the order of drives and rows is part of the model), its options, sympy's
+    version and csim's sources."""
+    import sympy
+
+    sources = sorted(HERE.parent.rglob("*.py"))
+    parts = [json.dumps([mechanism, initial, options], default=repr), sympy.__version__,
+             *(hashlib.sha256(p.read_bytes()).hexdigest() for p in sources)]
+    return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:24]
+
+
+def cached_build(key: str, build: Callable[[], object]):
+    """``build()``, or the linkage a build with the same :func:`build_key` filed in the cache
+    (see the module docstring; ``key`` "": not cached)."""
+    if not key:
+        return build()
+    path = cache_dir() / "linkage" / f"{key}_linkage.pickle"
+    if path.is_file():
+        with contextlib.suppress(Exception):  # a damaged or foreign file: built again below
+            return pickle.loads(path.read_bytes())
+    linkage = build()
+    with contextlib.suppress(Exception):  # a cache that cannot be written costs the next run the build
+        write_atomically(path, pickle.dumps(linkage, protocol=pickle.HIGHEST_PROTOCOL))
+        _evict(path.parent, "*_linkage.pickle", MAX_LINKAGES)
+    return linkage
+
+
+#: the most linkages kept in the cache (a sweep over a parameter files one per value): the
+#: least recently written go first
+MAX_LINKAGES = 200
+
+
+def _evict(folder: Path, pattern: str, keep: int) -> None:
+    """Remove all but the ``keep`` newest files of ``folder`` matching ``pattern``."""
+    files = sorted(folder.glob(pattern), key=lambda p: p.stat().st_mtime)
+    for old in files[:max(len(files) - keep, 0)]:
+        with contextlib.suppress(OSError):  # another process removed it first
+            old.unlink()
 
 
 def cached_lambdify(key: str | None, name: str, make: Callable[[], Lambdified]) -> Callable:

@@ -17,6 +17,7 @@ The result is handled by :mod:`csim.model` and the solvers like a hand-written m
 """
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -37,11 +38,12 @@ from csim.linkage.forces import Contribution, Geometry, build_forces
 from csim.linkage.frames import Frames, build_frames
 from csim.linkage.inertia import check_inertia
 from csim.linkage.joints import JOINT_TYPES
-from csim.linkage.lambdacache import cache_enabled, linkage_key
+from csim.linkage.lambdacache import build_key, cache_enabled, cached_build, linkage_key
 from csim.linkage.recursive import recursive_terms
 from csim.linkage.tables import Coupling, Tables, parse_tables
 from csim.linkage.topology import Topology, analyse, grubler_kutzbach
 from csim.linkage.transforms import simplify_entry
+from csim.model.cache import definition_key, remember_key
 from csim.model.definition import Drawing, MechanismDefinition, Observable, Parameter
 from csim.model.recursive import sparse_jacobian
 from csim.quantities import convert, is_quantity
@@ -73,6 +75,12 @@ class Linkage:
         What ``mechanism.forces`` adds: potential [J], loads and observables.
     cache_key : str
         Files the numeric functions derived from the linkage after a run (the reactions).
+    build_key : str
+        Files the linkage itself and the functions that depend on how it was assembled (the
+        constraint watch): :func:`csim.linkage.lambdacache.build_key` ("": not cached).
+    definition_key : str
+        :func:`csim.model.cache.definition_key` of ``definition`` ("": none), kept so that a
+        linkage read back from the cache need not print its definition again to find it.
     """
 
     tables: Tables
@@ -90,6 +98,9 @@ class Linkage:
     forces: Contribution = field(default_factory=Contribution)
     #: :func:`csim.linkage.lambdacache.linkage_key` of the mechanism ("": its functions are not cached)
     cache_key: str = ""
+    #: :func:`csim.linkage.lambdacache.build_key` of the sections it was built from ("": not cached)
+    build_key: str = ""
+    definition_key: str = ""
 
     @property
     def variable_names(self) -> list[str]:
@@ -267,7 +278,8 @@ def drawing_and_observables(tables: Tables, frames: Frames, planar: bool = True)
 
 def build_linkage(mechanism: dict, initial: dict | None = None, tol: float = 1e-12, max_iter: int = 50,
                   definition: bool = True) -> Linkage:
-    """Derive the whole link-coupling model of a case's ``mechanism`` section.
+    """Derive the whole link-coupling model of a case's ``mechanism`` section (read back from
+    the cache where the same sections were built before: :func:`csim.linkage.lambdacache.cached_build`).
 
     Parameters
     ----------
@@ -294,6 +306,17 @@ def build_linkage(mechanism: dict, initial: dict | None = None, tol: float = 1e-
         free, before the assembly that holds the drives), a mechanism that cannot be
         assembled.
     """
+    key = build_key(mechanism, initial, dict(tol=tol, max_iter=max_iter, definition=definition)) \
+        if cache_enabled() else ""
+    linkage = cached_build(key, lambda: _build_linkage(mechanism, initial, tol, max_iter, definition, key))
+    if linkage.definition is not None and linkage.definition_key:
+        remember_key(linkage.definition, linkage.definition_key)
+    return linkage
+
+
+def _build_linkage(mechanism: dict, initial: dict | None, tol: float, max_iter: int, definition: bool,
+                   key: str) -> Linkage:
+    """:func:`build_linkage`, every time (``key``: its build key, recorded)."""
     problems: list[str] = []
     tables = parse_tables(mechanism, problems)
     if tables is None:
@@ -327,11 +350,12 @@ def build_linkage(mechanism: dict, initial: dict | None = None, tol: float = 1e-
                       grubler=grubler_kutzbach(tables, planar), dof=dof, drive=drive,
                       start=dict(zip(names, reduction.q_start.tolist())), notes=list(reduction.notes),
                       drive_source=drive_source, forces=forces,
-                      cache_key=linkage_key(mechanism) if cache_enabled() else "")
+                      cache_key=linkage_key(mechanism) if cache_enabled() else "", build_key=key)
     if drive and _drive_count(drive, dof, partial):
         raise CaseError(_drive_count(drive, dof, partial))
     if definition:
         linkage.definition = _definition(linkage)
+        linkage.definition_key = definition_key(linkage.definition)
     return linkage
 
 
@@ -463,7 +487,7 @@ def _definition(linkage: Linkage) -> MechanismDefinition:
         default_independent={n: linkage.start[n] for n in independent},
         default_independent_velocities={n: 0.0 for n in independent},
         default_guess={n: linkage.start[n] for n in names if n not in independent},
-        recursive=lambda: recursive_terms(tables, topology, frames, kept),
+        recursive=functools.partial(recursive_terms, tables, topology, frames, kept),  # (picklable: cached)
     )
 
 

@@ -40,10 +40,34 @@ FUNCTIONS: dict[str, tuple[tuple[str, ...], str, str]] = {
 CODEGEN_VERSION = "4"
 
 
+#: id(definition) -> (definition, its key): printing a large definition takes a fifth of a second
+_KEYS: dict[int, tuple[MechanismDefinition, str]] = {}
+#: the most keys remembered (a sweep builds a definition per run)
+_MAX_KEYS = 64
+
+
+def remember_key(definition: MechanismDefinition, key: str) -> None:
+    """Let :func:`definition_key` of this very object return ``key`` (computed by it before, on
+    an equal definition: a linkage read back from the cache carries its definition's key)."""
+    if len(_KEYS) >= _MAX_KEYS:
+        _KEYS.clear()
+    _KEYS[id(definition)] = (definition, key)
+
+
 def definition_key(definition: MechanismDefinition) -> str:
     """A hash of everything the generated code depends on (a light definition carries its own)."""
     if isinstance(definition, LightDefinition):
         return definition.key
+    known = _KEYS.get(id(definition))
+    if known is not None and known[0] is definition:
+        return known[1]
+    key = _definition_key(definition)
+    remember_key(definition, key)
+    return key
+
+
+def _definition_key(definition: MechanismDefinition) -> str:
+    """:func:`definition_key`, computed."""
     import sympy as sp
 
     parts = [
