@@ -124,7 +124,7 @@ def test_fixed_partition_meets_the_rocker_dead_point():
     system = build_system(qr_case())
     cond = {tuple(v): max(dependent_block_inverse(system.model.phi_q(q, system.par), list(v))[1] for q in auto.q)
             for v in ([1, 2], [0, 2])}
-    assert cond[(1, 2)] < 15  # crank independent: well conditioned throughout
+    assert cond[(1, 2)] < 12  # crank independent: well conditioned throughout (measured 11.9)
     assert cond[(0, 2)] > 100  # rocker independent: near-singular within the first second
 
 
