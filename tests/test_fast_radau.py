@@ -42,22 +42,40 @@ def test_the_coefficients_are_scipys():
         assert getattr(ours, name) == getattr(common, name), name
 
 
-def test_compiled_radau_takes_scipys_steps_with_events():
-    """The quick-return mechanism with its cutting-force switches: the same steps, Jacobians, LU
-    factorizations and events as scipy's Radau, the states equal to well within the tolerance."""
-    case = qr_case("simulation.integrator=Radau", "simulation.rtol=1e-7", "simulation.atol=1e-7",
-                   "simulation.t_end=2")
+def _both_paths(*overrides):
+    case = qr_case("simulation.integrator=Radau", *overrides)
     system = build_system(case)
     y0 = initial_state(case, system)
     from csim.fast import integrate_compiled
 
-    fast = integrate_compiled(system, y0, case.integration_settings())
-    ref = integrate(system, y0, case.integration_settings())
-    assert fast.status == ref.status == "success"
+    return system, integrate_compiled(system, y0, case.integration_settings()), \
+        integrate(system, y0, case.integration_settings())
+
+
+@pytest.mark.parametrize("overrides", [(), ("simulation.max_step=0.003",), ("simulation.first_step=1e-4",),
+                                       ("stabilization.method=baumgarte",), ("stabilization.method=minimal",)],
+                         ids=["plain", "max_step", "first_step", "baumgarte", "minimal"])
+def test_compiled_radau_takes_scipys_steps_one_for_one(overrides):
+    """Up to the first cutting-force event (0.093 s): every step, Jacobian and LU factorization
+    as scipy's Radau takes them, and the states equal to round-off. (Over a long run the two
+    round-offs may part one accept/reject decision: the step sequence of either path moves as
+    much under a change of rtol in its 13th digit.)"""
+    system, fast, ref = _both_paths("simulation.rtol=1e-7", "simulation.atol=1e-7", "simulation.t_end=0.09",
+                                    *overrides)
+    assert fast.status == ref.status == "success" and not ref.event_times
     assert (fast.nsteps, fast.njev, fast.nlu) == (ref.nsteps, ref.njev, ref.nlu)
-    assert fast.nsteps > 200 and fast.njev > 10
-    # scipy's difference Jacobian evaluates f at (t, y) once more each time, which the kernel has
-    assert 0 <= ref.nfev - fast.nfev <= ref.njev + len(ref.event_times) + 1
+    assert fast.nsteps >= 10 and fast.nlu >= 4
+    # scipy's Jacobian evaluates f at the step's start again (jac(t, y) is not given f): once a Jacobian
+    assert ref.nfev - fast.nfev == ref.njev
+    np.testing.assert_allclose(fast.y, ref.y, rtol=0, atol=1e-9)
+
+
+def test_compiled_radau_follows_scipys_through_the_events():
+    """The quick-return mechanism with its cutting-force switches over 2 s: the same events, the
+    steps within a few percent, the states equal to well within the tolerance."""
+    system, fast, ref = _both_paths("simulation.rtol=1e-7", "simulation.atol=1e-7", "simulation.t_end=2")
+    assert fast.status == ref.status == "success"
+    assert abs(fast.nsteps - ref.nsteps) <= 0.03 * ref.nsteps and fast.nsteps > 200
     assert len(fast.event_times) == len(ref.event_times) > 5 and fast.event_labels == ref.event_labels
     # the Newton iterations stop within their tolerance (about sqrt(rtol) of the error scale): the
     # two round-offs part there, and each restart at an event carries the difference on
@@ -77,9 +95,10 @@ def test_compiled_radau_meets_the_tight_reference(reference):
 
 def test_compiled_radau_converges_at_high_order():
     """Cutting force off (a smooth problem): the error at t = 1 s against the number of steps
-    falls at the order of Radau IIA (5; at least 3.5 asked)."""
+    falls at the order of Radau IIA (5; at least 3.5 asked), the reference another integrator's."""
     base = ["simulation.integrator=Radau", "simulation.t_end=1", "loads.cutting_force=0"]
-    ref = run_case(qr_case(*base, "simulation.rtol=1e-12", "simulation.atol=1e-12"))
+    ref = run_case(qr_case(*base, "simulation.integrator=DOP853", "simulation.rtol=1e-13", "simulation.atol=1e-13"))
+    assert ref.ok and ref.nsteps > 100
     steps, errors = [], []
     for tol in (1e-5, 1e-7):
         res = run_case(qr_case(*base, f"simulation.rtol={tol}", f"simulation.atol={tol}"))
@@ -102,12 +121,14 @@ def test_the_governor_runs_compiled_by_default():
 
 
 def test_compiled_drive_rows_take_the_python_paths_steps(a05_runs):
-    """A05 (three free joints, the shaft driven): the same steps and Jacobians on both paths, the
-    slider within 1e-7 m, the drive torque and work and the energy balance alike."""
+    """A05 (three free joints, the shaft driven): the steps and Jacobians of both paths (within
+    2 %: see test_compiled_radau_takes_scipys_steps_one_for_one; measured equal), the slider
+    within 1e-7 m, the drive torque and work and the energy balance alike."""
     fast, slow = a05_runs["compiled"], a05_runs["python"]
     assert fast.ok and slow.ok, (fast.message, slow.message)
     assert (fast.backend, slow.backend) == ("compiled", "python")
-    assert (fast.nsteps, fast.njev, fast.nlu) == (slow.nsteps, slow.njev, slow.nlu)
+    for a, b in ((fast.nsteps, slow.nsteps), (fast.njev, slow.njev), (fast.nlu, slow.nlu)):
+        assert abs(a - b) <= 0.02 * b, (a, b)
     assert np.max(np.abs(fast.q - slow.q)) < 1e-7
     assert np.max(np.abs(fast.qd - slow.qd)) < 1e-5
     scale = np.max(np.abs(slow.drive_forces))

@@ -560,3 +560,19 @@ def test_the_rebuild_deadline_gives_back_a_callers_own_timer():
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, previous)
+
+
+@pytest.mark.parametrize("kind", ["comparison", "sweep"])
+def test_comparison_and_sweep_files_whose_tables_expand_beyond_them_are_refused(tmp_path, kind):
+    """A comparison's /summary or a sweep's /runs with a dataset that would read as 160 GB."""
+    from csim.io.hdf5 import COMPARISON_KIND, ResultFileError, read_comparison
+    from csim.io.sweep_file import SWEEP_KIND, read_sweep
+
+    path = tmp_path / f"{kind}.h5"
+    with h5py.File(path, "w") as fh:
+        fh.attrs["kind"] = COMPARISON_KIND if kind == "comparison" else SWEEP_KIND
+        fh.attrs["keys"] = "[]"
+        table = fh.create_group("summary" if kind == "comparison" else "runs")
+        table.create_dataset("wall_time", shape=(10**10, 2), dtype="f8", chunks=(10**6, 2), compression="gzip")
+    with pytest.raises(ResultFileError, match="would hold 1.6e.11 bytes once read"):
+        (read_comparison if kind == "comparison" else read_sweep)(path)

@@ -1443,14 +1443,16 @@ def _record_event(t, mode, roots, has_root, ev_t, ev_sw, n_ev):
 # ---------------------------------------------------------------------------------------
 @hot
 def _max_phi(t, y, par, pf, pi, w, piv):
-    """(code, max |Phi|) at time t and the integrated state y (NaN where y is not finite: the step check says so)."""
+    """(code, max |Phi|) of the mechanism's rows (not the drives', as the Python path's
+    ConstrainedSystem.max_phi) at time t and the integrated state y (NaN where y is not finite:
+    the step check says so)."""
     if not all_finite(y):
         return OK, np.nan
     code, yv = full_state(y, par, pf, pi, w, piv)
     if code != OK:
         return code, np.nan
     phi_at(t, yv, par, pi, w)
-    return OK, max_abs(w[pi[W_PHI]:pi[W_PHI] + pi[PI_NC]])
+    return OK, max_abs(w[pi[W_PHI]:pi[W_PHI] + pi[PI_NC] - pi[PI_ND]])
 
 
 @hot

@@ -65,8 +65,8 @@ MODEL_BACKENDS = ("auto", "c", "numba")
 _KERNELS: dict[bool, ModuleType] = {}
 #: the line of the kernels' source that a variant sets (csim.fast.kernels.WITH_PARTITION)
 _VARIANT_LINE = "WITH_PARTITION = True\n"
-#: id(definition) -> (definition, model): hashing a definition takes milliseconds
-_BY_DEFINITION: dict[int, tuple[MechanismDefinition, CompiledModel]] = {}
+#: (id(definition), drives) -> (definition, model): hashing a definition takes milliseconds
+_BY_DEFINITION: dict[tuple, tuple[MechanismDefinition, CompiledModel]] = {}
 _MODELS: dict[str, CompiledModel] = {}
 #: gamma* kernel -> its cfunc (kept alive: the kernels hold its address)
 _GAMMA_CFUNCS: dict = {}
@@ -338,7 +338,7 @@ def _load_numba(definition, key: str, derived: _Derived, reason: str) -> Compile
 def load_model(definition: MechanismDefinition, drives: Drives | None = None) -> CompiledModel:
     """The model functions of ``definition``, with the rows of ``drives`` if given (generated and
     built on the first call for this key)."""
-    known = _BY_DEFINITION.get(id(definition)) if drives is None else None
+    known = _BY_DEFINITION.get((id(definition), drives))
     if known is not None and known[0] is definition:
         return known[1]
     key = model_key(definition, drives)
@@ -356,8 +356,7 @@ def load_model(definition: MechanismDefinition, drives: Drives | None = None) ->
                     raise
                 reason = f"{type(exc).__name__}: {exc}"
         _MODELS[memo] = model or _load_numba(definition, key, derived, reason)
-    if drives is None:
-        _BY_DEFINITION[id(definition)] = (definition, _MODELS[memo])
+    _BY_DEFINITION[(id(definition), drives)] = (definition, _MODELS[memo])
     return _MODELS[memo]
 
 

@@ -649,7 +649,8 @@ def read_comparison(path: str | Path) -> ComparisonFile:
     Raises
     ------
     ResultFileError
-        When ``path`` is missing, unreadable, or not a comparison file.
+        When ``path`` is missing, unreadable, or not a comparison file, or one whose datasets
+        would expand far beyond the file (:func:`check_expansion`).
     """
     path = Path(path)
     if not path.is_file():
@@ -659,6 +660,7 @@ def read_comparison(path: str | Path) -> ComparisonFile:
             if _text(fh.attrs.get("kind", "")) != COMPARISON_KIND:
                 raise ResultFileError(f"{path}: not a comparison file (no attribute kind = {COMPARISON_KIND!r}); "
                                       f"read a single run with read_result")
+            check_expansion(fh)  # its tables and every run in it: shapes only, nothing read
             attrs = {}
             for key, value in fh.attrs.items():
                 if isinstance(value, np.ndarray) and value.dtype.kind in "OS":

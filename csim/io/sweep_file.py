@@ -29,7 +29,7 @@ import numpy as np
 
 from csim import __version__
 from csim.errors import ResultFileError
-from csim.io.hdf5 import FORMAT_VERSION, _dataset, atomic_h5, damage, scale, unit_text
+from csim.io.hdf5 import FORMAT_VERSION, _dataset, atomic_h5, check_expansion, damage, scale, unit_text
 from csim.io.units import DIMENSIONLESS, common_unit, per_time
 
 SWEEP_KIND = "sweep"
@@ -200,7 +200,8 @@ def read_sweep(path: str | Path) -> SweepTable:
     Raises
     ------
     ResultFileError
-        When ``path`` is missing, unreadable or not a sweep file.
+        When ``path`` is missing, unreadable or not a sweep file, or one whose datasets would
+        expand far beyond the file (:func:`csim.io.hdf5.check_expansion`).
     """
     path = Path(path)
     try:
@@ -208,6 +209,7 @@ def read_sweep(path: str | Path) -> SweepTable:
             kind = fh.attrs.get("kind", "")
             if (kind.decode() if isinstance(kind, bytes) else str(kind)) != SWEEP_KIND:
                 raise ResultFileError(f"{path}: not a csim sweep file")
+            check_expansion(fh)  # the table and the kept signals: shapes only, nothing read
             try:
                 return _read(fh)
             except (KeyError, ValueError, TypeError, AttributeError, IndexError) as exc:  # json errors included
