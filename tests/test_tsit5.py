@@ -1,5 +1,6 @@
-"""Tsitouras' 5(4) pair (csim.solver.tsit5): its order, its interpolant's, and a run of the
-quick-return against DOP853 (independent coefficients, one order of the pair each)."""
+"""Tsitouras' 5(4) pair (csim.solver.tsit5, csim.physics.tableaus): its order, its
+interpolant's, a run of the quick-return against DOP853 (independent coefficients, one order
+of the pair each), and the compiled steps of Tsit5 and RK45 against scipy's machinery."""
 from __future__ import annotations
 
 import numpy as np
@@ -48,7 +49,7 @@ def test_quick_return_with_tsit5_agrees_with_dop853():
     ref = run_case(load_case(CONFIGS / "quick_return.yaml", sets))
     tsit5 = run_case(load_case(CONFIGS / "quick_return.yaml", [*sets, "simulation.integrator=Tsit5"]))
     assert tsit5.ok, tsit5.message
-    assert tsit5.backend == "python"
+    assert tsit5.backend == "compiled"
     assert np.max(np.abs(tsit5.q - ref.q)) < 1e-7
     assert tsit5.nfev > ref.nfev  # a 5th-order pair takes more evaluations at 1e-10 than DOP853
 
@@ -57,3 +58,30 @@ def test_quick_return_with_tsit5_agrees_with_dop853():
 def test_the_tableau_has_scipys_shapes(attr):
     shapes = {"A": (6, 6), "B": (6,), "C": (6,), "E": (7,), "P": (7, 4)}
     assert getattr(Tsit5, attr).shape == shapes[attr]
+
+
+def test_the_rk45_tableau_is_scipys():
+    from scipy.integrate import RK45
+
+    from csim.physics import tableaus
+
+    for attr in ("A", "B", "C", "E", "P"):
+        assert np.array_equal(getattr(tableaus, f"RK45_{attr}"), getattr(RK45, attr)), attr
+    assert RK45.error_estimator_order == Tsit5.error_estimator_order == tableaus.ERROR_ESTIMATOR_ORDER
+
+
+@pytest.mark.parametrize("integrator", ["Tsit5", "RK45"])
+def test_both_backends_take_the_same_steps(integrator):
+    """The quick-return with its cutting-force events over 1.5 s: the same steps, evaluations
+    and events on the compiled backend as with scipy's machinery on the Python path, the states
+    equal to round-off (as DOP853's, tests/test_fast.py)."""
+    sets = ["simulation.t_end=1.5", "simulation.rtol=1e-9", "simulation.atol=1e-9",
+            f"simulation.integrator={integrator}"]
+    fast = run_case(load_case(CONFIGS / "quick_return.yaml", [*sets, "simulation.backend=compiled"]))
+    slow = run_case(load_case(CONFIGS / "quick_return.yaml", [*sets, "simulation.backend=python"]))
+    assert (fast.backend, slow.backend) == ("compiled", "python")
+    assert fast.ok and slow.ok, (fast.message, slow.message)
+    assert (fast.nfev, fast.nsteps) == (slow.nfev, slow.nsteps) and fast.nsteps > 300
+    assert len(fast.event_times) == len(slow.event_times) > 5 and fast.event_labels == slow.event_labels
+    np.testing.assert_allclose(fast.event_times, slow.event_times, rtol=0, atol=1e-11)
+    np.testing.assert_allclose(fast.q, slow.q, rtol=0, atol=1e-9)

@@ -1,4 +1,4 @@
-"""Compiled kernels: the step loops of DOP853, RK4 and Radau with event location, over the shared core.
+"""Compiled kernels: the step loops of DOP853, RK4, RK45, Tsit5 and Radau with event location, over the shared core.
 
 One module for every mechanism, compiled once per installation: :mod:`csim.fast.module`
 loads it (through a copy named by the hash of everything it depends on, so that numba's
@@ -16,7 +16,8 @@ the load laws, the projection, the step checks, the minimal-coordinate method's 
 the assembly branch and its partition (:mod:`csim.physics.branch`) and the status codes are
 the functions of :mod:`csim.physics` and of the method files (:mod:`csim.solver.methods`),
 the same ones the Python driver calls. What is here is what must be compiled: the step
-loops, the ports of scipy's ``DOP853`` (step-size control, error estimate, dense output),
+loops, the ports of scipy's ``DOP853`` (step-size control, error estimate, dense output) and
+``RungeKutta`` (for the 5(4) pairs RK45 and Tsit5, :mod:`csim.physics.tableaus`),
 ``Radau`` (with the difference Jacobian of ``num_jac``, capped as
 :class:`csim.solver.dae.DifferenceJacobian` caps it) and ``brentq``, the cubic Hermite
 dense output of :class:`csim.solver.rk4.RK4`, and the glue: the model evaluated into the
@@ -145,6 +146,19 @@ from csim.physics.status import (
     STEP_TOO_SMALL,
 )
 from csim.physics.steps import all_finite, check_step
+from csim.physics.tableaus import (
+    ERROR_ESTIMATOR_ORDER,
+    RK45_A,
+    RK45_B,
+    RK45_C,
+    RK45_E,
+    RK45_P,
+    TSIT5_A,
+    TSIT5_B,
+    TSIT5_C,
+    TSIT5_E,
+    TSIT5_P,
+)
 from csim.solver.methods.baumgarte import baumgarte_gamma_star
 from csim.solver.methods.sliding_mode import sliding_mode_gamma_star
 
@@ -211,11 +225,22 @@ RAD_TI = np.ascontiguousarray(_RADAU_TI)
 RAD_TI_COMPLEX = np.ascontiguousarray(_RADAU_TI_COMPLEX)
 RAD_P = np.ascontiguousarray(_RADAU_P)
 
+# the 5(4) pairs, stacked (index 0: RK45, 1: Tsit5), A and B padded to ERK_NS stages
+ERK_NS = 6
+ERK_A = np.ascontiguousarray(np.stack([np.pad(a, ((0, 0), (0, ERK_NS - a.shape[1]))) for a in (RK45_A, TSIT5_A)]))
+ERK_B = np.ascontiguousarray(np.stack((RK45_B, TSIT5_B)))
+ERK_C = np.ascontiguousarray(np.stack((RK45_C, TSIT5_C)))
+ERK_E = np.ascontiguousarray(np.stack((RK45_E, TSIT5_E)))
+ERK_P = np.ascontiguousarray(np.stack((RK45_P, TSIT5_P)))
+ERK_EXPONENT = -1 / (ERROR_ESTIMATOR_ORDER + 1)
+
 # integrators (csim.fast.runner.INTEGRATOR_CODES), and the dense output of an empty step
 DOP853 = 0
 RK4 = 1
 CONSTANT = 2
 RADAU = 3
+RK45 = 4
+TSIT5 = 5
 
 # scalars of the loop, in one float array ts_ and one int array cs_ (R_*: Radau's)
 T, T_OLD, H_ABS, HSTEP, T_STOP, SEG_START, R_H_OLD, R_ERR_OLD, R_NEWTON_TOL, R_SOL_T, R_SOL_H = range(11)
@@ -649,7 +674,7 @@ def _project_failed(code, max_phi, t, info):
 # ---------------------------------------------------------------------------------------
 @hot
 def dense_eval(kind, tau, t_old, h, y_old, F, out):
-    """The last step's interpolant at tau into out (kind: DOP853, RK4 (Hermite), RADAU, CONSTANT)."""
+    """The last step's interpolant at tau into out (kind: DOP853, RK4 (Hermite), RADAU, RK45 or TSIT5, CONSTANT)."""
     n = y_old.size
     if kind == CONSTANT:
         for i in range(n):
@@ -659,6 +684,12 @@ def dense_eval(kind, tau, t_old, h, y_old, F, out):
     if kind == RADAU:  # scipy's RadauDenseOutput: y_old + Q (x, x^2, x^3), Q^T in F[:3]
         for i in range(n):
             out[i] = F[0, i] * x + F[1, i] * (x * x) + F[2, i] * (x * x * x) + y_old[i]
+        return
+    if kind in (RK45, TSIT5):  # scipy's RkDenseOutput: y_old + h Q (x, x^2, x^3, x^4), Q^T in F[:4]
+        x2 = x * x
+        x3 = x2 * x
+        for i in range(n):
+            out[i] = h * (F[0, i] * x + F[1, i] * x2 + F[2, i] * x3 + F[3, i] * (x3 * x)) + y_old[i]
         return
     if kind == DOP853:
         # scipy's Dop853DenseOutput: nested products with x and 1 - x over F reversed
@@ -1234,6 +1265,98 @@ def _radau_step(ts_, t_end, rtol, tolv, max_step, y, f, F, y_old, y_new, f_new, 
     return OK, t_new, True
 
 
+# ---------------------------------------------------------------------------------------
+# the 5(4) pairs RK45 and Tsit5: scipy's RungeKutta step (csim.physics.tableaus)
+# ---------------------------------------------------------------------------------------
+@hot
+def _erk_stages(k, t, hstep, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmode, locate, w, piv, cs, info):
+    """scipy's rk_step with pair k (0: RK45, 1: Tsit5): the stages, y_new and f_new = f(t + h, y_new)
+    into K[ERK_NS]. Returns the status."""
+    n = y.size
+    for i in range(n):
+        K[0, i] = f[i]
+    for s in range(1, ERK_NS):
+        for i in range(n):  # dy = (K[:s]^T a[:s]) h
+            acc = 0.0
+            for jj in range(s):
+                acc += K[jj, i] * ERK_A[k, s, jj]
+            ytmp[i] = y[i] + acc * hstep
+        cs[NFEV] += 1
+        status = feval(t + ERK_C[k, s] * hstep, ytmp, rmode, locate, par, pf, pi, w, piv, K[s], info)
+        if status != OK:
+            return status
+    for i in range(n):  # y_new = y + h K[:s]^T B
+        acc = 0.0
+        for jj in range(ERK_NS):
+            acc += K[jj, i] * ERK_B[k, jj]
+        y_new[i] = y[i] + hstep * acc
+    cs[NFEV] += 1
+    status = feval(t + hstep, y_new, rmode, locate, par, pf, pi, w, piv, f_new, info)
+    if status != OK:
+        return status
+    for i in range(n):
+        K[ERK_NS, i] = f_new[i]
+    return OK
+
+
+@hot
+def _erk_error(k, K, y, y_new, tolv, rtol, hstep):
+    """scipy RungeKutta._estimate_error_norm: rms of h K^T E / (atol + max(|y|, |y_new|) rtol)."""
+    n = y.size
+    s = 0.0
+    for i in range(n):
+        acc = 0.0
+        for jj in range(ERK_NS + 1):
+            acc += K[jj, i] * ERK_E[k, jj]
+        v = acc * hstep / (tolv[i] + max(abs(y[i]), abs(y_new[i])) * rtol)
+        s += v * v
+    return math.sqrt(s / n)
+
+
+@hot
+def _erk_step(k, ts_, t_end, rtol, tolv, max_step, y, f, K, F, ytmp, y_new, f_new, par, pf, pi, rmode, locate, w, piv,
+              cs, info):
+    """One accepted step of pair k from ts_[T] (scipy's RungeKutta._step_impl); its dense output
+    Q = K^T P into F[:4]. Returns (status, t_new, step_ok)."""
+    n = y.size
+    t = ts_[T]
+    min_step = 10 * spacing(t)
+    h_abs = ts_[H_ABS]
+    if h_abs > max_step:
+        h_abs = max_step
+    elif h_abs < min_step:
+        h_abs = min_step
+    rejected = False
+    while True:
+        if h_abs < min_step:
+            ts_[H_ABS] = h_abs
+            return OK, t, False
+        t_new = t + h_abs
+        if t_new - t_end > 0:
+            t_new = t_end
+        hstep = t_new - t
+        h_abs = abs(hstep)
+        status = _erk_stages(k, t, hstep, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmode, locate, w, piv, cs, info)
+        if status != OK:
+            return status, t, True
+        err = _erk_error(k, K, y, y_new, tolv, rtol, hstep)
+        if err < 1:
+            factor = MAX_FACTOR if err == 0 else min(MAX_FACTOR, SAFETY * err ** ERK_EXPONENT)
+            if rejected:
+                factor = min(1.0, factor)
+            ts_[H_ABS] = h_abs * factor
+            ts_[HSTEP] = hstep
+            for i in range(n):
+                for p in range(4):
+                    acc = 0.0
+                    for jj in range(ERK_NS + 1):
+                        acc += K[jj, i] * ERK_P[k, jj, p]
+                    F[p, i] = acc
+            return OK, t_new, True
+        h_abs *= max(MIN_FACTOR, SAFETY * err ** ERK_EXPONENT)
+        rejected = True
+
+
 @hot
 def _dop_dense(t_old, h, y_old, y, f, mode, locate, par, pf, pi, w, piv, K, F, ytmp, info):
     """scipy's DOP853._dense_output_impl: three extra stages, then the interpolant F (7, n)."""
@@ -1512,9 +1635,10 @@ def _start_segment(method, ts_, y, f, t_end, rtol, atol, max_step, first_step, t
     ts_[H_ABS] = 0.0
     ts_[SEG_START] = ts_[T]
     cs[SEG_STEPS] = 0
-    if method in (DOP853, RADAU):
+    if method != RK4:  # the error estimator's order: DOP853 7, Radau 3, the 5(4) pairs 4
+        order = 7 if method == DOP853 else (3 if method == RADAU else ERROR_ESTIMATOR_ORDER)
         status, h = _initial_step(ts_[T], y, f, t_end, rtol, tolv, max_step, first_step, par, pf, pi, rmode, locate, w,
-                                  piv, ytmp, f1, scl, cs, info, 7 if method == DOP853 else 3)
+                                  piv, ytmp, f1, scl, cs, info, order)
         ts_[H_ABS] = h
     if status == OK and method == RADAU:
         status = _radau_start(ts_, y, f, tolv, rtol, RM, RJ, par, pf, pi, rmode, locate, w, piv, cs, info)
@@ -1539,6 +1663,9 @@ def _take_step(method, ts_, t_end, rtol, tolv, fixed_h, max_step, y, f, K, F, y_
         status, t_new, ok = _dop853_step(ts_, t_end, rtol, tolv, max_step, y, f, K, ytmp, y_new, f_new, par, pf, pi,
                                          rmode, locate, w, piv, cs,
                                          info)
+    elif method in (RK45, TSIT5):
+        status, t_new, ok = _erk_step(method - RK45, ts_, t_end, rtol, tolv, max_step, y, f, K, F, ytmp, y_new, f_new,
+                                      par, pf, pi, rmode, locate, w, piv, cs, info)
     elif method == RADAU:
         status, t_new, ok = _radau_step(ts_, t_end, rtol, tolv, max_step, y, f, F, y_old, y_new, f_new, RM, RJ, RLR,
                                         RLC, rpiv, rcv, par, pf, pi, rmode, locate, w, piv, cs, info)

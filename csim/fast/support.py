@@ -13,8 +13,9 @@
     the reference Python path (:func:`csim.solver.simulate.integrate`), for debugging.
 
 Supported: ``formulation.method: kkt``; every ``stabilization.method`` whose class says
-``compiled = True`` (:mod:`csim.solver.methods`); ``simulation.integrator`` DOP853, RK4 or Radau
-(scipy's Radau step for step, :mod:`csim.fast.kernels`); events on or off; drives
+``compiled = True`` (:mod:`csim.solver.methods`); ``simulation.integrator`` DOP853, RK45, Tsit5,
+RK4 or Radau (each scipy's, or csim's Python class's, step for step, :mod:`csim.fast.kernels`);
+events on or off; drives
 (``mechanism.drive_mode: dynamic``) with every such method but ``projection``.
 """
 from __future__ import annotations
@@ -27,7 +28,7 @@ BACKENDS = ("auto", "python", "compiled")
 
 #: what the compiled backend implements
 FORMULATIONS = ("kkt",)
-INTEGRATORS = ("DOP853", "RK4", "Radau")
+INTEGRATORS = ("DOP853", "RK45", "Tsit5", "RK4", "Radau")
 
 
 def compiled_stabilizers() -> list[str]:
