@@ -883,12 +883,17 @@ def _dop853_stages(t, hstep, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmode, lo
 
 
 @hot
-def _dop853_step(ts_, t_end, rtol, tolv, max_step, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmode, locate, w, piv, cs,
-                 info):
-    """One accepted DOP853 step from ts_[T] (scipy's _step_impl). Returns (status, t_new, step_ok).
+def _explicit_step(method, ts_, t_end, rtol, tolv, max_step, y, f, K, F, ytmp, y_new, f_new, par, pf, pi, rmode, locate,
+                   w, piv, cs, info):
+    """One accepted step of DOP853, RK45 or Tsit5 from ts_[T] (scipy's RungeKutta._step_impl, the
+    error estimate each one's). Returns (status, t_new, step_ok).
 
-    ts_[H_ABS] carries the step size over; ts_[HSTEP] gets the accepted step.
+    ts_[H_ABS] carries the step size over; ts_[HSTEP] gets the accepted step. The 5(4) pairs'
+    dense output Q = K^T P goes to F[:4] (DOP853's is built when first needed, _dop_dense).
     """
+    n = y.size
+    k = method - RK45  # the pair's row of the ERK_* tables
+    exponent = -1 / 8 if method == DOP853 else ERK_EXPONENT  # -1 / (error estimator's order + 1)
     t = ts_[T]
     min_step = 10 * spacing(t)
     h_abs = ts_[H_ABS]
@@ -906,18 +911,30 @@ def _dop853_step(ts_, t_end, rtol, tolv, max_step, y, f, K, ytmp, y_new, f_new, 
             t_new = t_end
         hstep = t_new - t
         h_abs = abs(hstep)
-        status = _dop853_stages(t, hstep, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmode, locate, w, piv, cs, info)
+        if method == DOP853:
+            status = _dop853_stages(t, hstep, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmode, locate, w, piv, cs, info)
+        else:
+            status = _erk_stages(k, t, hstep, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmode, locate, w, piv, cs,
+                                 info)
         if status != OK:
             return status, t, True
-        err = _dop853_error(K, y, y_new, tolv, rtol, hstep)
+        err = _dop853_error(K, y, y_new, tolv, rtol, hstep) if method == DOP853 else \
+            _erk_error(k, K, y, y_new, tolv, rtol, hstep)
         if err < 1:
-            factor = MAX_FACTOR if err == 0 else min(MAX_FACTOR, SAFETY * err ** (-1 / 8))
+            factor = MAX_FACTOR if err == 0 else min(MAX_FACTOR, SAFETY * err ** exponent)
             if rejected:
                 factor = min(1.0, factor)
             ts_[H_ABS] = h_abs * factor
             ts_[HSTEP] = hstep
+            if method != DOP853:
+                for i in range(n):
+                    for p in range(4):
+                        acc = 0.0
+                        for jj in range(ERK_NS + 1):
+                            acc += K[jj, i] * ERK_P[k, jj, p]
+                        F[p, i] = acc
             return OK, t_new, True
-        h_abs *= max(MIN_FACTOR, SAFETY * err ** (-1 / 8))
+        h_abs *= max(MIN_FACTOR, SAFETY * err ** exponent)
         rejected = True
 
 
@@ -1312,51 +1329,6 @@ def _erk_error(k, K, y, y_new, tolv, rtol, hstep):
         s += v * v
     return math.sqrt(s / n)
 
-
-@hot
-def _erk_step(k, ts_, t_end, rtol, tolv, max_step, y, f, K, F, ytmp, y_new, f_new, par, pf, pi, rmode, locate, w, piv,
-              cs, info):
-    """One accepted step of pair k from ts_[T] (scipy's RungeKutta._step_impl); its dense output
-    Q = K^T P into F[:4]. Returns (status, t_new, step_ok)."""
-    n = y.size
-    t = ts_[T]
-    min_step = 10 * spacing(t)
-    h_abs = ts_[H_ABS]
-    if h_abs > max_step:
-        h_abs = max_step
-    elif h_abs < min_step:
-        h_abs = min_step
-    rejected = False
-    while True:
-        if h_abs < min_step:
-            ts_[H_ABS] = h_abs
-            return OK, t, False
-        t_new = t + h_abs
-        if t_new - t_end > 0:
-            t_new = t_end
-        hstep = t_new - t
-        h_abs = abs(hstep)
-        status = _erk_stages(k, t, hstep, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmode, locate, w, piv, cs, info)
-        if status != OK:
-            return status, t, True
-        err = _erk_error(k, K, y, y_new, tolv, rtol, hstep)
-        if err < 1:
-            factor = MAX_FACTOR if err == 0 else min(MAX_FACTOR, SAFETY * err ** ERK_EXPONENT)
-            if rejected:
-                factor = min(1.0, factor)
-            ts_[H_ABS] = h_abs * factor
-            ts_[HSTEP] = hstep
-            for i in range(n):
-                for p in range(4):
-                    acc = 0.0
-                    for jj in range(ERK_NS + 1):
-                        acc += K[jj, i] * ERK_P[k, jj, p]
-                    F[p, i] = acc
-            return OK, t_new, True
-        h_abs *= max(MIN_FACTOR, SAFETY * err ** ERK_EXPONENT)
-        rejected = True
-
-
 @hot
 def _dop_dense(t_old, h, y_old, y, f, mode, locate, par, pf, pi, w, piv, K, F, ytmp, info):
     """scipy's DOP853._dense_output_impl: three extra stages, then the interpolant F (7, n)."""
@@ -1659,13 +1631,9 @@ def _take_step(method, ts_, t_end, rtol, tolv, fixed_h, max_step, y, f, K, F, y_
             f_new[i] = f[i]
         ts_[HSTEP] = 0.0
         return OK, t_end, True, CONSTANT
-    if method == DOP853:
-        status, t_new, ok = _dop853_step(ts_, t_end, rtol, tolv, max_step, y, f, K, ytmp, y_new, f_new, par, pf, pi,
-                                         rmode, locate, w, piv, cs,
-                                         info)
-    elif method in (RK45, TSIT5):
-        status, t_new, ok = _erk_step(method - RK45, ts_, t_end, rtol, tolv, max_step, y, f, K, F, ytmp, y_new, f_new,
-                                      par, pf, pi, rmode, locate, w, piv, cs, info)
+    if method in (DOP853, RK45, TSIT5):
+        status, t_new, ok = _explicit_step(method, ts_, t_end, rtol, tolv, max_step, y, f, K, F, ytmp, y_new, f_new,
+                                           par, pf, pi, rmode, locate, w, piv, cs, info)
     elif method == RADAU:
         status, t_new, ok = _radau_step(ts_, t_end, rtol, tolv, max_step, y, f, F, y_old, y_new, f_new, RM, RJ, RLR,
                                         RLC, rpiv, rcv, par, pf, pi, rmode, locate, w, piv, cs, info)

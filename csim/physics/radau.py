@@ -3,11 +3,12 @@
 The compiled Radau of :mod:`csim.fast.kernels` is scipy's ``Radau`` (``scipy.integrate._ivp.radau``)
 step for step, with the Jacobian of scipy's ``num_jac`` whose step factors are capped as
 :class:`csim.solver.dae.DifferenceJacobian` caps them. The coefficients are scipy's
-(``tests/test_kernels_radau.py`` compares them with scipy's module): the collocation nodes C
-(the Radau IIA nodes, the roots of the Radau polynomial), the error weights E, the eigenvalues
-of the inverse of the Butcher matrix (one real, MU_REAL, and a complex pair, MU_COMPLEX), the
-transformation T (A^-1 = T diag(MU) T^-1 in real form) and its inverse TI, and the
-interpolation matrix P of the dense output y_old + Z^T P (x, x^2, x^3).
+(``tests/test_fast_radau.py`` compares them with scipy's module; :mod:`csim.solver.dae`
+reads them too): the collocation nodes C (the Radau IIA nodes, the roots of the Radau
+polynomial), the error weights E, the eigenvalues of the inverse of the Butcher matrix (one
+real, MU_REAL, and a complex pair, MU_COMPLEX), the transformation T (A^-1 = T diag(MU) T^-1
+in real form) and its inverse TI, and the interpolation matrix P of the dense output
+y_old + Z^T P (x, x^2, x^3).
 """
 from __future__ import annotations
 
@@ -28,6 +29,7 @@ TI = np.array([
     [4.17871859155190428, 0.32768282076106237, 0.52337644549944951],
     [-4.17871859155190428, -0.32768282076106237, 0.47662355450055044],
     [0.50287263494578682, -2.57192694985560522, 0.59603920482822492]])
+TI_REAL = TI[0]
 TI_COMPLEX = TI[1] + 1j * TI[2]
 P = np.array([
     [13 / 3 + 7 * S6 / 3, -23 / 3 - 22 * S6 / 3, 10 / 3 + 5 * S6],

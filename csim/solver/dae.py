@@ -37,9 +37,8 @@ evaluations of the finite-difference Jacobian, and that its difference step is n
 down with atol below sqrt(eps) 1e-5, see ``JAC_DIFFERENTIAL_THRESHOLD``).
 
 The Butcher constants, the transformation matrices and the dense-output coefficients are
-copied from scipy (``scipy/integrate/_ivp/radau.py``, BSD-3-Clause, Copyright (c) 2001-2002
-Enthought, Inc. and 2003-2024 SciPy Developers), so that this module does not depend on
-scipy's private names beside ``num_jac``.
+scipy's (:mod:`csim.physics.radau`, which the compiled Radau reads too), so that this
+module does not depend on scipy's private names beside ``num_jac``.
 """
 from __future__ import annotations
 
@@ -51,40 +50,13 @@ from scipy.integrate._ivp.common import num_jac
 from scipy.linalg import LinAlgWarning, lu_factor, lu_solve
 from scipy.sparse import issparse
 
-from csim.physics.radau import JAC_MAX_FACTOR
+from csim.physics.radau import JAC_MAX_FACTOR, MU_COMPLEX, MU_REAL, TI, TI_COMPLEX, TI_REAL, C, E, P, T
 
 EPS = np.finfo(float).eps
 
-# --- Radau IIA, 3 stages (copied from scipy/integrate/_ivp/radau.py) ----------------------
-S6 = 6**0.5
-
-# Butcher tableau: nodes C, and the weights E of the embedded error estimate.
-# A itself is not used: the collocation system is solved in A's eigenbasis, A^-1 = T L TI.
-C = np.array([(4 - S6) / 10, (4 + S6) / 10, 1])
-E = np.array([-13 - 7 * S6, -13 + 7 * S6, -1]) / 3
-
-# Eigenvalues of A^-1: one real, one complex-conjugate pair.
-MU_REAL = 3 + 3 ** (2 / 3) - 3 ** (1 / 3)
-MU_COMPLEX = 3 + 0.5 * (3 ** (1 / 3) - 3 ** (2 / 3)) - 0.5j * (3 ** (5 / 6) + 3 ** (7 / 6))
-
-# Transformation matrices (W = TI Z, Z = T W).
-T = np.array([
-    [0.09443876248897524, -0.14125529502095421, 0.03002919410514742],
-    [0.25021312296533332, 0.20412935229379994, -0.38294211275726192],
-    [1, 1, 0]])
-TI = np.array([
-    [4.17871859155190428, 0.32768282076106237, 0.52337644549944951],
-    [-4.17871859155190428, -0.32768282076106237, 0.47662355450055044],
-    [0.50287263494578682, -2.57192694985560522, 0.59603920482822492]])
-TI_REAL = TI[0]
-TI_COMPLEX = TI[1] + 1j * TI[2]
-
-# Dense output: y(t_old + x h) = y_old + (Z^T P) [x, x^2, x^3].
-P = np.array([
-    [13 / 3 + 7 * S6 / 3, -23 / 3 - 22 * S6 / 3, 10 / 3 + 5 * S6],
-    [13 / 3 - 7 * S6 / 3, -23 / 3 + 22 * S6 / 3, 10 / 3 - 5 * S6],
-    [1 / 3, -8 / 3, 10 / 3]])
-
+# --- Radau IIA, 3 stages: scipy's constants (csim.physics.radau): the nodes C, the error
+# weights E, the eigenvalues MU of A^-1, the transformations W = TI Z, Z = T W, and the dense
+# output y(t_old + x h) = y_old + (Z^T P) [x, x^2, x^3]
 NEWTON_MAXITER = 6  # Newton iterations per attempt, the polishing of the constraints included
 MIN_FACTOR = 0.2  # largest decrease of the step after an error-test failure
 MAX_FACTOR = 10  # largest increase of the step
