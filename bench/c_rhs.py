@@ -17,7 +17,7 @@ import numpy as np
 import sympy as sp
 from sympy.printing.c import C99CodePrinter
 
-from csim.fast.codegen import TERMS
+from csim.fast.codegen import TERMS, _term
 from csim.model.derive import derive
 from csim.model.recursive import needed
 
@@ -36,7 +36,7 @@ def c_source(definition, y, par, u, n_eval: int) -> str:
     printer = _Printer()
     exprs, offsets, off = [], {}, 0
     for attr in TERMS:
-        mat = getattr(d, attr)
+        mat = _term(d, attr)  # (Phi_t: zeros, no drives here)
         offsets[attr] = off
         exprs += list(mat)
         off += len(list(mat))
