@@ -852,33 +852,35 @@ def _dop853_error(K, y, y_new, tolv, rtol, hstep):
     return abs(hstep) * e5 / math.sqrt((e5 + 0.01 * e3) * n)
 
 
-@hot
-def _dop853_stages(t, hstep, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmode, locate, w, piv, cs, info):
-    """scipy's rk_step: the 12 stages, y_new and f_new = f(t + h, y_new) into K[DOP_NS]. Returns the status."""
+@sized
+def _rk_stages(A, B, C, ns, t, hstep, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmode, locate, w, piv, cs, info):
+    """scipy's rk_step with the tableau (A, B, C) of ns stages (DOP853's, or a 5(4) pair's): the
+    stages, y_new and f_new = f(t + h, y_new) into K[ns]. Returns the status. (Inlined where
+    called: DOP853's tables and stage count stay constants of its loop.)"""
     n = y.size
     for i in range(n):
         K[0, i] = f[i]
-    for s in range(1, DOP_NS):
-        for i in range(n):
+    for s in range(1, ns):
+        for i in range(n):  # dy = (K[:s]^T a[:s]) h
             acc = 0.0
             for jj in range(s):
-                acc += K[jj, i] * DOP_A[s, jj]
+                acc += K[jj, i] * A[s, jj]
             ytmp[i] = y[i] + acc * hstep
         cs[NFEV] += 1
-        status = feval(t + DOP_C[s] * hstep, ytmp, rmode, locate, par, pf, pi, w, piv, K[s], info)
+        status = feval(t + C[s] * hstep, ytmp, rmode, locate, par, pf, pi, w, piv, K[s], info)
         if status != OK:
             return status
-    for i in range(n):
+    for i in range(n):  # y_new = y + h K[:s]^T B
         acc = 0.0
-        for jj in range(DOP_NS):
-            acc += K[jj, i] * DOP_B[jj]
+        for jj in range(ns):
+            acc += K[jj, i] * B[jj]
         y_new[i] = y[i] + hstep * acc
     cs[NFEV] += 1
     status = feval(t + hstep, y_new, rmode, locate, par, pf, pi, w, piv, f_new, info)
     if status != OK:
         return status
     for i in range(n):
-        K[DOP_NS, i] = f_new[i]
+        K[ns, i] = f_new[i]
     return OK
 
 
@@ -912,10 +914,11 @@ def _explicit_step(method, ts_, t_end, rtol, tolv, max_step, y, f, K, F, ytmp, y
         hstep = t_new - t
         h_abs = abs(hstep)
         if method == DOP853:
-            status = _dop853_stages(t, hstep, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmode, locate, w, piv, cs, info)
+            status = _rk_stages(DOP_A, DOP_B, DOP_C, DOP_NS, t, hstep, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmode,
+                                locate, w, piv, cs, info)
         else:
-            status = _erk_stages(k, t, hstep, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmode, locate, w, piv, cs,
-                                 info)
+            status = _rk_stages(ERK_A[k], ERK_B[k], ERK_C[k], ERK_NS, t, hstep, y, f, K, ytmp, y_new, f_new, par, pf,
+                                pi, rmode, locate, w, piv, cs, info)
         if status != OK:
             return status, t, True
         err = _dop853_error(K, y, y_new, tolv, rtol, hstep) if method == DOP853 else \
@@ -1285,37 +1288,6 @@ def _radau_step(ts_, t_end, rtol, tolv, max_step, y, f, F, y_old, y_new, f_new, 
 # ---------------------------------------------------------------------------------------
 # the 5(4) pairs RK45 and Tsit5: scipy's RungeKutta step (csim.physics.tableaus)
 # ---------------------------------------------------------------------------------------
-@hot
-def _erk_stages(k, t, hstep, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmode, locate, w, piv, cs, info):
-    """scipy's rk_step with pair k (0: RK45, 1: Tsit5): the stages, y_new and f_new = f(t + h, y_new)
-    into K[ERK_NS]. Returns the status."""
-    n = y.size
-    for i in range(n):
-        K[0, i] = f[i]
-    for s in range(1, ERK_NS):
-        for i in range(n):  # dy = (K[:s]^T a[:s]) h
-            acc = 0.0
-            for jj in range(s):
-                acc += K[jj, i] * ERK_A[k, s, jj]
-            ytmp[i] = y[i] + acc * hstep
-        cs[NFEV] += 1
-        status = feval(t + ERK_C[k, s] * hstep, ytmp, rmode, locate, par, pf, pi, w, piv, K[s], info)
-        if status != OK:
-            return status
-    for i in range(n):  # y_new = y + h K[:s]^T B
-        acc = 0.0
-        for jj in range(ERK_NS):
-            acc += K[jj, i] * ERK_B[k, jj]
-        y_new[i] = y[i] + hstep * acc
-    cs[NFEV] += 1
-    status = feval(t + hstep, y_new, rmode, locate, par, pf, pi, w, piv, f_new, info)
-    if status != OK:
-        return status
-    for i in range(n):
-        K[ERK_NS, i] = f_new[i]
-    return OK
-
-
 @hot
 def _erk_error(k, K, y, y_new, tolv, rtol, hstep):
     """scipy RungeKutta._estimate_error_norm: rms of h K^T E / (atol + max(|y|, |y_new|) rtol)."""
