@@ -673,6 +673,18 @@ def _project_failed(code, max_phi, t, info):
 # dense output and the zeros of the switching functions on it
 # ---------------------------------------------------------------------------------------
 @hot
+def _dense_weights(M, P, F):
+    """Q^T = (M^T P)^T into F[:P.shape[1]]: the power-basis weights of a step's dense output from
+    its stages M (s, n) (Radau's Z, an explicit pair's K) and the method's P (s, powers)."""
+    for i in range(M.shape[1]):
+        for p in range(P.shape[1]):
+            acc = 0.0
+            for a in range(P.shape[0]):
+                acc += M[a, i] * P[a, p]
+            F[p, i] = acc
+
+
+@hot
 def dense_eval(kind, tau, t_old, h, y_old, F, out):
     """The last step's interpolant at tau into out (kind: DOP853, RK4 (Hermite), RADAU, RK45 or TSIT5, CONSTANT)."""
     n = y_old.size
@@ -893,7 +905,6 @@ def _explicit_step(method, ts_, t_end, rtol, tolv, max_step, y, f, K, F, ytmp, y
     ts_[H_ABS] carries the step size over; ts_[HSTEP] gets the accepted step. The 5(4) pairs'
     dense output Q = K^T P goes to F[:4] (DOP853's is built when first needed, _dop_dense).
     """
-    n = y.size
     k = method - RK45  # the pair's row of the ERK_* tables
     exponent = -1 / 8 if method == DOP853 else ERK_EXPONENT  # -1 / (error estimator's order + 1)
     t = ts_[T]
@@ -930,12 +941,7 @@ def _explicit_step(method, ts_, t_end, rtol, tolv, max_step, y, f, K, F, ytmp, y
             ts_[H_ABS] = h_abs * factor
             ts_[HSTEP] = hstep
             if method != DOP853:
-                for i in range(n):
-                    for p in range(4):
-                        acc = 0.0
-                        for jj in range(ERK_NS + 1):
-                            acc += K[jj, i] * ERK_P[k, jj, p]
-                        F[p, i] = acc
+                _dense_weights(K[:ERK_NS + 1], ERK_P[k], F)
             return OK, t_new, True
         h_abs *= max(MIN_FACTOR, SAFETY * err ** exponent)
         rejected = True
@@ -992,14 +998,21 @@ def _radau_rms(M, row0, rows, scale):
 
 
 @hot
-def _radau_column_diff(f, fc):
-    """(index, |fc - f| there, max(|f|, |fc|) there) of the largest |fc - f| (num_jac's max_ind, max_diff, scale)."""
+def _radau_column(t, yt, j, value, f, fc, par, pf, pi, rmode, locate, w, piv, cs, info):
+    """One difference column: fc = F(t, yt) with yt[j] = value, then num_jac's (max_diff, scale):
+    the largest |fc - f| and max(|f|, |fc|) where it is. Returns (status, max_diff, scale); a
+    non-finite column is no failure (status OK)."""
+    yt[j] = value
+    cs[NFEV] += 1
+    status = feval(t, yt, rmode, locate, par, pf, pi, w, piv, fc, info)
+    if status == NONFINITE_RHS:
+        status = OK
     best, at = -1.0, 0
     for i in range(f.size):
         v = abs(fc[i] - f[i])
         if v > best:
             best, at = v, i
-    return at, best, max(abs(f[at]), abs(fc[at]))
+    return status, best, max(abs(f[at]), abs(fc[at]))
 
 
 @hot
@@ -1024,21 +1037,17 @@ def _radau_jacobian(t, y, f, tolv, RJ, RM, par, pf, pi, rmode, locate, w, piv, c
         while hj == 0:
             factor[j] *= NUM_JAC_FACTOR_INCREASE
             hj = (y[j] + factor[j] * y_scale) - y[j]
-        yt[j] = y[j] + hj
-        cs[NFEV] += 1
-        status = feval(t, yt, rmode, locate, par, pf, pi, w, piv, fc, info)
-        if status != OK and status != NONFINITE_RHS:
+        status, max_diff, scale = _radau_column(t, yt, j, y[j] + hj, f, fc, par, pf, pi, rmode, locate, w, piv, cs,
+                                                info)
+        if status != OK:
             return status
-        _, max_diff, scale = _radau_column_diff(f, fc)
         if max_diff < NUM_JAC_DIFF_REJECT * scale:
             new_factor = NUM_JAC_FACTOR_INCREASE * factor[j]
             h_new = (y[j] + new_factor * y_scale) - y[j]
-            yt[j] = y[j] + h_new
-            cs[NFEV] += 1
-            status = feval(t, yt, rmode, locate, par, pf, pi, w, piv, fc2, info)
-            if status != OK and status != NONFINITE_RHS:
+            status, max_diff_new, scale_new = _radau_column(t, yt, j, y[j] + h_new, f, fc2, par, pf, pi, rmode, locate,
+                                                            w, piv, cs, info)
+            if status != OK:
                 return status
-            _, max_diff_new, scale_new = _radau_column_diff(f, fc2)
             if max_diff * scale_new < max_diff_new * scale:
                 factor[j], hj, max_diff, scale = new_factor, h_new, max_diff_new, scale_new
                 for i in range(n):
@@ -1190,14 +1199,11 @@ def _radau_step(ts_, t_end, rtol, tolv, max_step, y, f, F, y_old, y_new, f_new, 
             t_new = t_end
         h = t_new - t
         h_abs = abs(h)
-        for a in range(3):  # Z0: the last dense output at t + c h, less y (zero at a start)
+        for a in range(3):  # Z0: the last step's dense output at t + c h, less y (zero at a start)
             if cs[R_SOL] == 1:
-                x = (t + h * RAD_C[a] - ts_[R_SOL_T]) / ts_[R_SOL_H]
-                for i in range(n):
-                    RM[R_Z0 + a, i] = F[0, i] * x + F[1, i] * (x * x) + F[2, i] * (x * x * x) + y_old[i] - y[i]
-            else:
-                for i in range(n):
-                    RM[R_Z0 + a, i] = 0.0
+                dense_eval(RADAU, t + h * RAD_C[a], ts_[R_SOL_T], ts_[R_SOL_H], y_old, F, RM[R_Z0 + a])
+            for i in range(n):
+                RM[R_Z0 + a, i] = RM[R_Z0 + a, i] - y[i] if cs[R_SOL] == 1 else 0.0
         for i in range(n):
             scale[i] = tolv[i] + abs(y[i]) * rtol
         converged = False
@@ -1273,12 +1279,7 @@ def _radau_step(ts_, t_end, rtol, tolv, max_step, y, f, F, y_old, y_new, f_new, 
     ts_[R_ERR_OLD] = err_norm
     ts_[H_ABS] = h_abs * factor
     ts_[HSTEP] = h
-    for i in range(n):  # the dense output y_old + Q (x, x^2, x^3), x = (t - t_old) / h, Q = Z^T P
-        for p in range(3):
-            acc = 0.0
-            for a in range(3):
-                acc += RM[R_Z + a, i] * RAD_P[a, p]
-            F[p, i] = acc
+    _dense_weights(RM[R_Z:R_Z + 3], RAD_P, F)  # the dense output y_old + Q (x, x^2, x^3), Q = Z^T P
     ts_[R_SOL_T] = t
     ts_[R_SOL_H] = h
     cs[R_SOL] = 1

@@ -241,7 +241,7 @@ def with_drive_rows(derived: DerivedModel, driven: list[int], drives: list[sp.Ex
     rows = sp.zeros(len(driven), m)
     for i, j in enumerate(driven):
         rows[i, j] = 1
-    f = [sp.sympify(e).subs({s: t for s in sp.sympify(e).free_symbols if s.name == "t"}) for e in drives]
+    f = [e.subs({s: t for s in e.free_symbols if s.name == "t"}) for e in map(sp.sympify, drives)]
     return dataclasses.replace(
         derived,
         phi=sp.Matrix(list(derived.phi) + [q[j] - fj for j, fj in zip(driven, f)]),
