@@ -486,7 +486,8 @@ def sweep(
         "--vary", "-v", metavar="KEY=VALUES",
         help="A case key and its values: a list (stabilization.method=none,baumgarte), a range "
              "(simulation.step=lin:1e-3:1e-2:10, stabilization.w=log:1:1000:13) or @FILE (one value per "
-             "line). Several --vary make a grid of every combination.")] = None,
+             "line); values may carry their unit (initial.q.q1=170 deg,172 deg; simulation.t_end=lin:1 s:2 s:5). "
+             "Several --vary make a grid of every combination.")] = None,
     sample: Annotated[str, typer.Option(
         "--sample", metavar="grid|random|lhs",
         help="grid: every combination; random or lhs (Latin hypercube): --samples runs drawn from the "

@@ -221,6 +221,15 @@ def test_quick_return_as_tables_agrees_with_the_registered_mechanism():
     ({"type": "actuator", "joint": "slide", "force": "F0*sin(w*t)"},
      "mechanism.forces[0] (f).force: got 'F0*sin(w*t)' (string); unknown name 'F0', not a parameter of "
      "mechanism.parameters (define it there)"),
+    ({"type": "actuator", "joint": "slide", "force": "2 kg"},
+     "mechanism.forces[0] (f).force: got '2 kg' (string); 'kg' is the unit of a mass ([mass]), not of a force"),
+    ({"type": "force", "link": "block", "point": "G", "direction": [1, 0, 0], "value": 1,
+      "window": ["10 deg", "1 m"]},
+     "mechanism.forces[0] (f).window[0]: got '10 deg' (string); 'deg' is the unit of a pure number or an angle, "
+     "not of a length"),
+    ({"type": "force", "link": "block", "point": "G", "direction": [1, 0, 0], "value": 1, "window": [1, 0]},
+     "mechanism.forces[0] (f).window: got [1, 0] (list); expected [lo, hi] with lo < hi, numbers in m or written "
+     "with their unit"),
     ({"type": "damper", "joint": "slide"},
      "mechanism.forces[0] (f).type: got 'damper' (string); expected one of spring, joint_spring, actuator, force, "
      "torque"),
@@ -283,13 +292,17 @@ def test_forces_with_a_drive_are_rejected_not_ignored():
     assert any(p.startswith("mechanism.forces: given with mechanism.drive") for p in excinfo.value.problems)
 
 
-@pytest.mark.parametrize("on", [None, "G_x", {"distance": [["ground", "E"], ["block", "G"]]}])
+@pytest.mark.parametrize("on", [None, "G_x", {"distance": [["ground", "E"], ["block", "G"]]}, "units"])
 def test_switched_force_stops_at_its_window_bound(on):
     """A constant push F on the block at rest while x <= 0.8 m (or its distance from E = (-1, 0)
-    <= 1.8 m): s = F t^2 / (2 m) until t1 = sqrt(1.6 m / F), then s = 0.8 + (F t1 / m) (t - t1)."""
+    <= 1.8 m): s = F t^2 / (2 m) until t1 = sqrt(1.6 m / F), then s = 0.8 + (F t1 / m) (t - t1).
+    ``units``: the same push and window written with units (5000 mN, [-1 km, 800 mm])."""
     m, F = 2.0, 5.0
     force = {"name": "push", "type": "force", "link": "block", "point": "G", "direction": [1, 0, 0], "value": "F",
              "window": [-1e9, 0.8]}
+    if on == "units":
+        force.update(value="5000 mN", window=["-1 km", "800 mm"])
+        on = None
     if isinstance(on, dict):
         force.update(on=on, window=[-1e9, 1.8])
     elif on is not None:

@@ -21,6 +21,17 @@ def test_a_grid_is_every_combination_first_key_slowest(case):
     assert plan.run_case(4).data["stabilization"]["d"] == 1
 
 
+def test_values_with_units_are_planned_in_the_keys_unit(case):
+    plan = make_plan(case, [parse_variation("initial.q.q1=170 deg,172 deg"),
+                            parse_variation("simulation.t_end=lin:100 ms:200 ms:2")])
+    assert plan.column("initial.q.q1") == pytest.approx([np.radians(170)] * 2 + [np.radians(172)] * 2)
+    assert plan.column("simulation.t_end") == [0.1, 0.2, 0.1, 0.2]
+    assert plan.run_case(3).data["simulation"]["t_end"] == 0.2
+    with pytest.raises(CaseError) as info:
+        make_plan(case, [parse_variation("loads.torque=1 kg,2 N*m")])
+    assert "--vary 'loads.torque=1 kg,2 N*m': the value '1 kg': 'kg' is the unit of a mass" in str(info.value)
+
+
 def test_random_designs_are_reproducible_and_stay_in_their_ranges(case):
     vs = [parse_variation("stabilization.w=log:1:1000"), parse_variation("stabilization.method=none,baumgarte")]
     a = make_plan(case, vs, sampling="random", samples=200, seed=7)

@@ -50,6 +50,32 @@ def test_values_from_a_file(tmp_path):
     assert parse_variation("stabilization.method=@m.yaml", base=tmp_path).values == ("none", "projection")
 
 
+def test_values_and_range_ends_with_units_are_converted_to_the_keys_unit():
+    v = parse_variation("initial.q.q1=170 deg, 172 deg, 3.0")
+    assert v.has_units and v.in_unit("rad").values == pytest.approx((np.radians(170), np.radians(172), 3.0))
+    r = parse_variation("simulation.t_end=lin:100 ms:2 s:20")
+    assert r.values == () and r.ends == ("100 ms", "2 s")
+    s = r.in_unit("s")
+    assert len(s.values) == 20 and s.values[0] == 0.1 and s.values[-1] == 2.0 and s.bounds == (0.1, 2.0)
+    lhs = parse_variation("mechanism.parameters.l1=log:100 mm:1 m").in_unit("m")
+    assert lhs.values == () and lhs.bounds == (0.1, 1.0)
+    np.testing.assert_allclose(lhs.sample(np.array([0.5])), [10 ** -0.5])
+    plain = parse_variation("simulation.t_end=1,2")
+    assert not plain.has_units and plain.in_unit("s") is plain
+
+
+@pytest.mark.parametrize("text, unit, words", [
+    ("simulation.t_end=lin:100 kg:2 s:3", "s", "START '100 kg': 'kg' is the unit of a mass"),
+    ("simulation.rtol=1e-6 s,1e-8", "", "the value '1e-6 s': this key has no unit"),
+    ("simulation.t_end=log:-1 s:2 s:3", "s", "a log range needs positive START and STOP"),
+    ("loads.x=lin:1 m:2 m:3", None, "csim does not know the unit of loads.x"),
+])
+def test_units_that_do_not_fit_the_key_name_the_option_and_the_value(text, unit, words):
+    with pytest.raises(CaseError) as info:
+        parse_variation(text).in_unit(unit)
+    assert words in str(info.value) and "--vary" in str(info.value)
+
+
 @pytest.mark.parametrize("text, words", [
     ("stabilization.w", "expected KEY=VALUES"),
     ("=1,2", "key is empty"),

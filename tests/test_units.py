@@ -301,11 +301,21 @@ def test_a_wrong_dimension_in_a_table_names_the_entry(where, value, fragment):
     assert msg.startswith(fragment), msg
 
 
+def test_a_constant_force_law_takes_its_unit_and_a_wrong_one_is_refused():
+    doc = read("fourbar_gravity.yaml")
+    doc["mechanism"]["forces"] = [{"name": "push", "type": "actuator", "joint": "q_B", "torque": "2 kN*cm"}]
+    (load,) = validate_case(copy.deepcopy(doc)).linkage.forces.loads
+    assert load.law == 20 and load.unit == "N m"
+    doc["mechanism"]["forces"][0]["torque"] = "2 N"
+    (msg,) = problems_of(doc)
+    assert msg.startswith("mechanism.forces[0] (push).torque: got '2 N' (string); 'N' is the unit of a force"), msg
+
+
 def test_a_unit_where_a_table_entry_has_none_is_refused_and_expressions_are_unchanged():
     doc = read("fourbar_gravity.yaml")
-    doc["mechanism"]["forces"] = [{"name": "push", "type": "actuator", "joint": "q_B", "torque": "2 N*m"}]
+    doc["mechanism"]["forces"] = [{"name": "push", "type": "torque", "link": 1, "axis": [0, 0, "1 m"], "value": 1}]
     (msg,) = problems_of(doc)
-    assert "got '2 N*m' (string); a unit is not read in this entry" in msg, msg
+    assert "axis[2]: got '1 m' (string); a unit is not read in this entry" in msg, msg
     doc = read("fourbar_gravity.yaml")
     doc["mechanism"]["parameters"]["a"] = "10 blorbs"
     assert problems_of(doc)[0].startswith("mechanism.parameters.a: got '10 blorbs' (string); unknown unit 'blorbs'")

@@ -40,6 +40,7 @@ from csim.linkage.topology import Topology
 from csim.linkage.transforms import simplify_entry
 from csim.loads import VELOCITY_CONDITIONS
 from csim.model.definition import Load, Observable, time_symbol
+from csim.quantities import convert, is_quantity
 from csim.schema import describe
 
 
@@ -445,9 +446,11 @@ def law_symbols(geo: ElementGeometry, local: dict[str, sp.Symbol]) -> dict[str, 
     return names
 
 
-def law_of(geo: ElementGeometry, path: str, raw: Any, local: dict[str, sp.Expr], problems: list[str]) -> sp.Expr | None:
+def law_of(geo: ElementGeometry, path: str, raw: Any, local: dict[str, sp.Expr], problems: list[str],
+           unit: str | None = None) -> sp.Expr | None:
     """A force law: a number or an expression of :func:`law_symbols`, with the element's own
-    names (``local``: name -> expression of q and qd) substituted."""
+    names (``local``: name -> expression of q and qd) substituted. A constant law may be
+    written with its unit (``2 kN``, ``150 N cm``), converted to ``unit`` (N or N m)."""
     # an own name that is also a parameter's or coordinate's is ambiguous where the law uses it
     clash = sorted(set(local) & (set(geo.symbols) | set(geo.variables())))
     used = set(re.findall(r"[A-Za-z_][A-Za-z0-9_]*", raw)) if isinstance(raw, str) else set()
@@ -458,7 +461,7 @@ def law_of(geo: ElementGeometry, path: str, raw: Any, local: dict[str, sp.Expr],
         return None
     local = {name: value for name, value in local.items() if name not in clash}
     own = {name: sp.Symbol(name, real=True) for name in local}
-    expr = parse_expression(path, raw, law_symbols(geo, own), problems, geo.values)
+    expr = parse_expression(path, raw, law_symbols(geo, own), problems, geo.values, unit)
     if expr is None:
         return None
     return expr.xreplace({own[name]: value for name, value in local.items()})
@@ -504,21 +507,12 @@ def _switching(geo: ElementGeometry, element: Element, default: tuple[sp.Expr, s
     """The switching law of a row: (s(q), unit of s, window, velocity condition).
 
     ``on`` chooses s; without it s is ``default`` (None: the element has no coordinate of
-    its own, so a window or a velocity condition needs ``on``).
+    its own, so a window or a velocity condition needs ``on``). A window bound may be
+    written with its unit (``[10 mm, 50 mm]``, ``[-30 deg, 30 deg]``), converted to s's.
     """
     row, path = element.row, element.path
     window_raw, velocity = row.get("window"), row.get("velocity", "any")
-    window = (-math.inf, math.inf)
     ok = True
-    if window_raw is not None:
-        good = isinstance(window_raw, list) and len(window_raw) == 2 and all(
-            isinstance(w, (int, float)) and not isinstance(w, bool) for w in window_raw)
-        if not good or not window_raw[0] < window_raw[1]:
-            problems.append(f"{path}.window: got {describe(window_raw)}; expected [lo, hi] with lo < hi (use .inf "
-                            f"for an open end)")
-            ok = False
-        else:
-            window = (float(window_raw[0]), float(window_raw[1]))
     if velocity not in VELOCITY_CONDITIONS:
         problems.append(f"{path}.velocity: got {describe(velocity)}; expected one of {', '.join(VELOCITY_CONDITIONS)}")
         ok = False
@@ -533,7 +527,37 @@ def _switching(geo: ElementGeometry, element: Element, default: tuple[sp.Expr, s
     if not ok:
         return None
     s, unit = on if on is not None else (sp.Integer(0), "-")
+    window = _window(f"{path}.window", window_raw, unit, problems)
+    if window is None:
+        return None
     return s, unit, window, velocity
+
+
+def _window(path: str, raw: Any, unit: str, problems: list[str]) -> tuple[float, float] | None:
+    """``window: [lo, hi]`` as floats in ``unit`` (s's: m, rad, or - for none); None, reported,
+    for anything but two numbers (or quantities, or .inf) in increasing order."""
+    if raw is None:
+        return -math.inf, math.inf
+    expected = (f"expected [lo, hi] with lo < hi, numbers in {unit} or written with their unit (use .inf for an "
+                f"open end)" if unit not in ("-", "") else "expected [lo, hi] with lo < hi (use .inf for an open end)")
+    if not isinstance(raw, list) or len(raw) != 2:
+        problems.append(f"{path}: got {describe(raw)}; {expected}")
+        return None
+    bounds = []
+    for n, value in enumerate(raw):
+        if is_quantity(value):
+            value, problem = convert(value, unit)
+            if problem is not None:
+                problems.append(f"{path}[{n}]: got {describe(raw[n])}; {problem}")
+                return None
+        if not isinstance(value, (int, float)) or isinstance(value, bool) or math.isnan(value):
+            problems.append(f"{path}: got {describe(raw)}; {expected}")
+            return None
+        bounds.append(float(value))
+    if not bounds[0] < bounds[1]:
+        problems.append(f"{path}: got {describe(raw)}; {expected}")
+        return None
+    return bounds[0], bounds[1]
 
 
 # ---------------------------------------------------------------------------------------
@@ -590,7 +614,7 @@ def build_spring(element: Element, geo: ElementGeometry, problems: list[str]) ->
             problems.append(f"{element.path}: got force together with {', '.join(both)}; expected either force (a "
                             f"law of l, ldot, t) or the linear keys")
             return None
-        law = law_of(geo, element.key("force"), element.row["force"], {"l": length, "ldot": rate}, problems)
+        law = law_of(geo, element.key("force"), element.row["force"], {"l": length, "ldot": rate}, problems, "N")
         if law is None:
             return None
         out.loads.append(Load(element.name, length, "N", "m", f"tension of spring {element.name!r}, f(l, ldot, t)",
@@ -637,7 +661,7 @@ def _applied_load(element: Element, geo: ElementGeometry, law_key: str, coordina
                   direction: list[sp.Expr] | None, local: dict[str, sp.Expr], unit: str, what: str,
                   problems: list[str]) -> Contribution | None:
     """A load u = active * law(...) with its switching law (``window``, ``velocity``, ``on``)."""
-    law = law_of(geo, element.key(law_key), element.row.get(law_key), local, problems)
+    law = law_of(geo, element.key(law_key), element.row.get(law_key), local, problems, unit)
     switch = _switching(geo, element, coordinate, problems)
     if law is None or switch is None:
         return None

@@ -162,6 +162,30 @@ def _check_values(case: Case, data: dict, variations: list[Variation]) -> list[s
     return problems
 
 
+def unit_of(case: Case, key: str) -> str | None:
+    """The unit a value of ``key`` written with a unit is converted to (a schema key's declared
+    unit, which refuses units where it is ``""`` or the unit of Phi; a parameter's, a
+    coordinate's or a load's unit); None where csim does not know it, or for a text key."""
+    from csim.io.units import key_unit
+
+    spec = SETTABLE.get(key)
+    if spec is not None:
+        return None if spec.type in ("string", "boolean") else spec.unit
+    return key_unit(case, key) or None
+
+
+def _in_units(case: Case, variations: list[Variation]) -> tuple[list[Variation], list[str]]:
+    """The variations with values written with a unit converted to their keys' units."""
+    converted, problems = [], []
+    for v in variations:
+        try:
+            converted.append(v.in_unit(unit_of(case, v.key)) if v.has_units else v)
+        except CaseError as exc:
+            problems += exc.problems
+            converted.append(v)
+    return converted, problems
+
+
 def make_plan(case: Case, variations: list[Variation], sampling: str = "grid", samples: int | None = None,
               seed: int | None = None, data: dict | None = None) -> SweepPlan:
     """Check the options and every key's values against the base case; list the runs.
@@ -169,14 +193,19 @@ def make_plan(case: Case, variations: list[Variation], sampling: str = "grid", s
     ``data`` is the base case as read, before validation (default: the validated data,
     whose filled-in defaults belong to the base case's mechanism).
 
+    Values written with a unit (``170 deg``, ``lin:100 ms:2 s:20``) are converted to the
+    key's unit first (:func:`unit_of`), so the plan and the sweep file hold numbers.
+
     Raises
     ------
     CaseError
-        Listing every problem: a key varied twice, a grid range without N, a value the
+        Listing every problem: a unit that does not fit its key, a key varied twice, a grid range without N, a value the
         case check rejects (naming the key, the value and what was expected).
     """
     data = copy.deepcopy(case.data if data is None else data)
-    problems = _check_options(variations, sampling, samples, seed)
+    variations, problems = _in_units(case, variations)
+    if not problems:
+        problems = _check_options(variations, sampling, samples, seed)
     if not problems:
         problems = _check_values(case, data, [v for v in variations if v.values or v.bounds])
     if problems:
