@@ -416,3 +416,26 @@ def test_a_run_asked_to_stop_before_it_begins_ends_at_once(monkeypatch):
     with pytest.raises(KeyboardInterrupt), parallel.stoppable_run():
         ran.append(1)
     assert not ran and parallel._IN_RUN["active"] is False
+
+
+def test_ctrl_c_on_a_dask_cluster_keeps_the_runs_the_chunks_under_way_finished():
+    """Ctrl-C (here: raised as the first chunk is delivered) sets the sweep's stop Event: the
+    long chunk running beside it stops between two runs and brings back those it finished,
+    far before its last run."""
+    distributed = pytest.importorskip("distributed")
+    plan = _plan("stabilization.w=lin:10:20:400", "simulation.step=2e-3")
+    work = execute.Work(data=plan.data, source="test", keys=tuple(plan.keys))
+    short, long = [(0, plan.rows[0])], [(i, plan.rows[i]) for i in range(1, len(plan.rows))]
+    delivered: list[int] = []
+
+    def deliver(done):
+        delivered.extend(i for i, _, _ in done)
+        if delivered == [0]:
+            raise KeyboardInterrupt
+
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False, dashboard_address=None) as cl, \
+            distributed.Client(cl) as client:
+        outcome = execute.run_dask(work, [short, long], client, deliver, grace=30.0)
+    assert outcome.interrupted and delivered[0] == 0
+    rest = delivered[1:]
+    assert rest == list(range(1, 1 + len(rest))) and 1 <= len(rest) < len(long) // 2, len(rest)

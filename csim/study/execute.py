@@ -21,8 +21,11 @@ from __future__ import annotations
 import concurrent.futures as cf
 import contextlib
 import copy
+import dataclasses
 import math
 import os
+import time
+import uuid
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -73,6 +76,33 @@ class Work:
     keys: tuple[str, ...]
     reference: tuple[np.ndarray, np.ndarray] | None = None  # (t, q) of the reference run
     keep: bool = False
+    stop_event: str | None = None  # on a Dask cluster: the name of the Event that asks chunks to stop
+
+
+#: how often a chunk on a Dask cluster asks the scheduler whether to stop [s]
+STOP_POLL = 0.25
+#: how long Ctrl-C waits for the chunks under way on a Dask cluster to bring back their runs [s]
+DASK_GRACE = 5.0
+
+
+def _stop_check(name: str | None) -> Callable[[], bool]:
+    """Whether the sweep's parent asked to stop, asked of the Dask Event ``name`` at most
+    every :data:`STOP_POLL` seconds (a scheduler round trip); always False without one."""
+    if name is None:
+        return lambda: False
+    from distributed import Event
+
+    event, last = Event(name), [-math.inf]  # asked before the first run, then every STOP_POLL s
+
+    def check() -> bool:
+        if time.monotonic() - last[0] < STOP_POLL:
+            return False
+        last[0] = time.monotonic()
+        try:
+            return event.is_set()
+        except Exception:  # the scheduler is gone: the parent will not take the rows anyway
+            return True
+    return check
 
 
 def run_chunk(work: Work, chunk: Sequence[tuple[int, tuple]]) -> list[Done]:
@@ -84,8 +114,9 @@ def run_chunk(work: Work, chunk: Sequence[tuple[int, tuple]]) -> list[Done]:
     from csim.pipeline import run_case
 
     out = []
+    stop_asked = _stop_check(work.stop_event)
     for i, values in chunk:
-        if stop_requested():  # the parent asked to stop between two runs: start no other
+        if stop_requested() or stop_asked():  # the parent asked to stop between two runs: start no other
             break
         try:
             data = apply_overrides(copy.deepcopy(work.data), [override(k, v) for k, v in zip(work.keys, values)])
@@ -194,11 +225,19 @@ def connect(address: str):
                         f"{exc}); expected an address such as tcp://HOST:8786") from None
 
 
-def run_dask(work: Work, parts: list, client, deliver: Callable[[list[Done]], None]) -> Outcome:
-    """The chunks on the Dask cluster of ``client`` (from :func:`connect`)."""
-    from distributed import as_completed
+def run_dask(work: Work, parts: list, client, deliver: Callable[[list[Done]], None],
+             grace: float = DASK_GRACE) -> Outcome:
+    """The chunks on the Dask cluster of ``client`` (from :func:`connect`).
 
-    scattered = client.scatter(work, broadcast=True)  # sent once, not with every chunk
+    Ctrl-C sets a Dask Event that every chunk reads between its runs: a chunk under way
+    finishes the run it has started (a remote run cannot be signalled), starts no other and
+    comes back with the runs it finished, for at most ``grace`` seconds; the chunks still
+    out then are cancelled, and their runs stay pending (``--resume`` runs them).
+    """
+    from distributed import Event, as_completed
+
+    stop = Event(f"csim-sweep-stop-{uuid.uuid4().hex}", client=client)
+    scattered = client.scatter(dataclasses.replace(work, stop_event=stop.name), broadcast=True)  # sent once
     pending = {client.submit(run_chunk, scattered, part, pure=False): part for part in parts}
     lost = ""
     try:
@@ -208,6 +247,14 @@ def run_dask(work: Work, parts: list, client, deliver: Callable[[list[Done]], No
             deliver(done)
             lost = lost or why
     except KeyboardInterrupt:
+        with contextlib.suppress(Exception, KeyboardInterrupt):  # a second Ctrl-C skips the wait
+            stop.set()
+            deadline = time.monotonic() + grace
+            while pending and time.monotonic() < deadline:
+                for future in [f for f in pending if f.done()]:
+                    pending.pop(future)
+                    deliver(_chunk_result(future)[0])
+                time.sleep(0.02)
         with contextlib.suppress(Exception):
             client.cancel(list(pending))
         return Outcome(interrupted=True, lost=lost)
