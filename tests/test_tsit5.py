@@ -70,13 +70,13 @@ def test_the_rk45_tableau_is_scipys():
     assert RK45.error_estimator_order == Tsit5.error_estimator_order == tableaus.ERROR_ESTIMATOR_ORDER
 
 
-@pytest.mark.parametrize("integrator", ["Tsit5", "RK45"])
-def test_both_backends_take_the_same_steps(integrator):
+@pytest.mark.parametrize("integrator, stabilization", [("Tsit5", "none"), ("RK45", "none"), ("Tsit5", "projection")])
+def test_both_backends_take_the_same_steps(integrator, stabilization):
     """The quick-return with its cutting-force events over 1.5 s: the same steps, evaluations
     and events on the compiled backend as with scipy's machinery on the Python path, the states
     equal to round-off (as DOP853's, tests/test_fast.py)."""
     sets = ["simulation.t_end=1.5", "simulation.rtol=1e-9", "simulation.atol=1e-9",
-            f"simulation.integrator={integrator}"]
+            f"simulation.integrator={integrator}", f"stabilization.method={stabilization}"]
     fast = run_case(load_case(CONFIGS / "quick_return.yaml", [*sets, "simulation.backend=compiled"]))
     slow = run_case(load_case(CONFIGS / "quick_return.yaml", [*sets, "simulation.backend=python"]))
     assert (fast.backend, slow.backend) == ("compiled", "python")

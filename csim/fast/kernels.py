@@ -1,4 +1,5 @@
-"""Compiled kernels: the step loops of DOP853, RK4, RK45, Tsit5 and Radau with event location, over the shared core.
+"""Compiled kernels: the step loops of DOP853, RK4, RK45, Tsit5, Vern7 and Radau with event location, over the shared
+core.
 
 One module for every mechanism, compiled once per installation: :mod:`csim.fast.module`
 loads it (through a copy named by the hash of everything it depends on, so that numba's
@@ -17,7 +18,8 @@ the assembly branch and its partition (:mod:`csim.physics.branch`) and the statu
 the functions of :mod:`csim.physics` and of the method files (:mod:`csim.solver.methods`),
 the same ones the Python driver calls. What is here is what must be compiled: the step
 loops, the ports of scipy's ``DOP853`` (step-size control, error estimate, dense output) and
-``RungeKutta`` (for the 5(4) pairs RK45 and Tsit5, :mod:`csim.physics.tableaus`),
+``RungeKutta`` (for the 5(4) pairs RK45 and Tsit5 and Verner's 7(6) pair,
+:mod:`csim.physics.tableaus`),
 ``Radau`` (with the difference Jacobian of ``num_jac``, capped as
 :class:`csim.solver.dae.DifferenceJacobian` caps it) and ``brentq``, the cubic Hermite
 dense output of :class:`csim.solver.rk4.RK4`, and the glue: the model evaluated into the
@@ -158,6 +160,14 @@ from csim.physics.tableaus import (
     TSIT5_C,
     TSIT5_E,
     TSIT5_P,
+    VERN7_A,
+    VERN7_A_EXTRA,
+    VERN7_B,
+    VERN7_C,
+    VERN7_C_EXTRA,
+    VERN7_E,
+    VERN7_ERROR_ESTIMATOR_ORDER,
+    VERN7_P,
 )
 from csim.solver.methods.baumgarte import baumgarte_gamma_star
 from csim.solver.methods.sliding_mode import sliding_mode_gamma_star
@@ -233,6 +243,16 @@ ERK_C = np.ascontiguousarray(np.stack((RK45_C, TSIT5_C)))
 ERK_E = np.ascontiguousarray(np.stack((RK45_E, TSIT5_E)))
 ERK_P = np.ascontiguousarray(np.stack((RK45_P, TSIT5_P)))
 ERK_EXPONENT = -1 / (ERROR_ESTIMATOR_ORDER + 1)
+# Verner's 7(6) pair: ten stages, the new point, five extra stages for its interpolant
+V7_NS = VERN7_C.size
+V7_A = np.ascontiguousarray(VERN7_A)
+V7_B = np.ascontiguousarray(VERN7_B)
+V7_C = np.ascontiguousarray(VERN7_C)
+V7_E = np.ascontiguousarray(VERN7_E)
+V7_A_EXTRA = np.ascontiguousarray(VERN7_A_EXTRA)
+V7_C_EXTRA = np.ascontiguousarray(VERN7_C_EXTRA)
+V7_P = np.ascontiguousarray(VERN7_P)
+V7_EXPONENT = -1 / (VERN7_ERROR_ESTIMATOR_ORDER + 1)
 
 # integrators (csim.fast.runner.INTEGRATOR_CODES), and the dense output of an empty step
 DOP853 = 0
@@ -241,6 +261,7 @@ CONSTANT = 2
 RADAU = 3
 RK45 = 4
 TSIT5 = 5
+VERN7 = 6
 
 # scalars of the loop, in one float array ts_ and one int array cs_ (R_*: Radau's)
 T, T_OLD, H_ABS, HSTEP, T_STOP, SEG_START, R_H_OLD, R_ERR_OLD, R_NEWTON_TOL, R_SOL_T, R_SOL_H = range(11)
@@ -686,7 +707,8 @@ def _dense_weights(M, P, F):
 
 @hot
 def dense_eval(kind, tau, t_old, h, y_old, F, out):
-    """The last step's interpolant at tau into out (kind: DOP853, RK4 (Hermite), RADAU, RK45 or TSIT5, CONSTANT)."""
+    """The last step's interpolant at tau into out (kind: DOP853, RK4 (Hermite), RADAU, RK45, TSIT5, VERN7 or
+    CONSTANT)."""
     n = y_old.size
     if kind == CONSTANT:
         for i in range(n):
@@ -702,6 +724,13 @@ def dense_eval(kind, tau, t_old, h, y_old, F, out):
         x3 = x2 * x
         for i in range(n):
             out[i] = h * (F[0, i] * x + F[1, i] * x2 + F[2, i] * x3 + F[3, i] * (x3 * x)) + y_old[i]
+        return
+    if kind == VERN7:  # scipy's RkDenseOutput: y_old + h Q (x, ..., x^7), Q^T in F[:7], by Horner
+        for i in range(n):
+            v = 0.0
+            for p in range(VERN7_P.shape[1] - 1, -1, -1):
+                v = (v + F[p, i]) * x
+            out[i] = h * v + y_old[i]
         return
     if kind == DOP853:
         # scipy's Dop853DenseOutput: nested products with x and 1 - x over F reversed
@@ -899,14 +928,16 @@ def _rk_stages(A, B, C, ns, t, hstep, y, f, K, ytmp, y_new, f_new, par, pf, pi, 
 @hot
 def _explicit_step(method, ts_, t_end, rtol, tolv, max_step, y, f, K, F, ytmp, y_new, f_new, par, pf, pi, rmode, locate,
                    w, piv, cs, info):
-    """One accepted step of DOP853, RK45 or Tsit5 from ts_[T] (scipy's RungeKutta._step_impl, the
-    error estimate each one's). Returns (status, t_new, step_ok).
+    """One accepted step of DOP853, RK45, Tsit5 or Vern7 from ts_[T] (scipy's RungeKutta._step_impl,
+    the error estimate each one's). Returns (status, t_new, step_ok).
 
     ts_[H_ABS] carries the step size over; ts_[HSTEP] gets the accepted step. The 5(4) pairs'
-    dense output Q = K^T P goes to F[:4] (DOP853's is built when first needed, _dop_dense).
+    dense output Q = K^T P goes to F[:4] (DOP853's and Vern7's, which need extra stages, are
+    built when first needed: _ensure_dense).
     """
-    k = method - RK45  # the pair's row of the ERK_* tables
-    exponent = -1 / 8 if method == DOP853 else ERK_EXPONENT  # -1 / (error estimator's order + 1)
+    k = method - RK45  # a 5(4) pair's row of the ERK_* tables
+    # -1 / (the error estimator's order + 1)
+    exponent = -1 / 8 if method == DOP853 else (V7_EXPONENT if method == VERN7 else ERK_EXPONENT)
     t = ts_[T]
     min_step = 10 * spacing(t)
     h_abs = ts_[H_ABS]
@@ -927,20 +958,27 @@ def _explicit_step(method, ts_, t_end, rtol, tolv, max_step, y, f, K, F, ytmp, y
         if method == DOP853:
             status = _rk_stages(DOP_A, DOP_B, DOP_C, DOP_NS, t, hstep, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmode,
                                 locate, w, piv, cs, info)
+        elif method == VERN7:
+            status = _rk_stages(V7_A, V7_B, V7_C, V7_NS, t, hstep, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmode,
+                                locate, w, piv, cs, info)
         else:
             status = _rk_stages(ERK_A[k], ERK_B[k], ERK_C[k], ERK_NS, t, hstep, y, f, K, ytmp, y_new, f_new, par, pf,
                                 pi, rmode, locate, w, piv, cs, info)
         if status != OK:
             return status, t, True
-        err = _dop853_error(K, y, y_new, tolv, rtol, hstep) if method == DOP853 else \
-            _erk_error(k, K, y, y_new, tolv, rtol, hstep)
+        if method == DOP853:
+            err = _dop853_error(K, y, y_new, tolv, rtol, hstep)
+        elif method == VERN7:
+            err = _erk_error(V7_E, K, y, y_new, tolv, rtol, hstep)
+        else:
+            err = _erk_error(ERK_E[k], K, y, y_new, tolv, rtol, hstep)
         if err < 1:
             factor = MAX_FACTOR if err == 0 else min(MAX_FACTOR, SAFETY * err ** exponent)
             if rejected:
                 factor = min(1.0, factor)
             ts_[H_ABS] = h_abs * factor
             ts_[HSTEP] = hstep
-            if method != DOP853:
+            if method in (RK45, TSIT5):
                 _dense_weights(K[:ERK_NS + 1], ERK_P[k], F)
             return OK, t_new, True
         h_abs *= max(MIN_FACTOR, SAFETY * err ** exponent)
@@ -1287,17 +1325,18 @@ def _radau_step(ts_, t_end, rtol, tolv, max_step, y, f, F, y_old, y_new, f_new, 
 
 
 # ---------------------------------------------------------------------------------------
-# the 5(4) pairs RK45 and Tsit5: scipy's RungeKutta step (csim.physics.tableaus)
+# the pairs RK45, Tsit5 and Vern7: scipy's RungeKutta step (csim.physics.tableaus)
 # ---------------------------------------------------------------------------------------
 @hot
-def _erk_error(k, K, y, y_new, tolv, rtol, hstep):
-    """scipy RungeKutta._estimate_error_norm: rms of h K^T E / (atol + max(|y|, |y_new|) rtol)."""
+def _erk_error(E, K, y, y_new, tolv, rtol, hstep):
+    """scipy RungeKutta._estimate_error_norm: rms of h K^T E / (atol + max(|y|, |y_new|) rtol), E
+    over the stages and the new point."""
     n = y.size
     s = 0.0
     for i in range(n):
         acc = 0.0
-        for jj in range(ERK_NS + 1):
-            acc += K[jj, i] * ERK_E[k, jj]
+        for jj in range(E.size):
+            acc += K[jj, i] * E[jj]
         v = acc * hstep / (tolv[i] + max(abs(y[i]), abs(y_new[i])) * rtol)
         s += v * v
     return math.sqrt(s / n)
@@ -1330,13 +1369,38 @@ def _dop_dense(t_old, h, y_old, y, f, mode, locate, par, pf, pi, w, piv, K, F, y
 
 
 @hot
+def _vern7_dense(t_old, h, y_old, mode, locate, par, pf, pi, w, piv, K, F, ytmp, info):
+    """Vern7's dense output (csim.solver.vern7): five extra stages after the ten and the new
+    point in K[:11], then Q = K^T P into F[:7]."""
+    n = y_old.size
+    for e in range(V7_C_EXTRA.size):
+        s = V7_NS + 1 + e
+        for i in range(n):  # y_old + h sum_j a_sj K_j, j over every stage before s
+            acc = 0.0
+            for jj in range(s):
+                acc += K[jj, i] * V7_A_EXTRA[e, jj]
+            ytmp[i] = y_old[i] + acc * h
+        code = feval(t_old + V7_C_EXTRA[e] * h, ytmp, mode, locate, par, pf, pi, w, piv, K[s], info)
+        if code != OK:
+            return code
+    _dense_weights(K[:V7_P.shape[0]], V7_P, F)
+    return OK
+
+
+@hot
 def _ensure_dense(dense_ready, dense_kind, t_old, h, y_old, y, f, mode, locate, par, pf, pi, w, piv, K, F, ytmp, cs,
                   info):
-    """The step's dense output, built on its first use (DOP853's three extra stages); returns the status.
+    """The step's dense output, built on its first use (DOP853's three extra stages, Vern7's five);
+    returns the status.
 
-    RK4's Hermite data and an empty step's constant need no evaluation.
+    RK4's Hermite data, an empty step's constant and the 5(4) pairs' interpolant need no evaluation.
     """
-    if dense_ready or dense_kind != DOP853:
+    if dense_ready:
+        return OK
+    if dense_kind == VERN7:
+        cs[NFEV] += V7_C_EXTRA.size
+        return _vern7_dense(t_old, h, y_old, mode, locate, par, pf, pi, w, piv, K, F, ytmp, info)
+    if dense_kind != DOP853:
         return OK
     cs[NFEV] += 3
     return _dop_dense(t_old, h, y_old, y, f, mode, locate, par, pf, pi, w, piv, K, F, ytmp, info)
@@ -1580,8 +1644,10 @@ def _start_segment(method, ts_, y, f, t_end, rtol, atol, max_step, first_step, t
     ts_[H_ABS] = 0.0
     ts_[SEG_START] = ts_[T]
     cs[SEG_STEPS] = 0
-    if method != RK4:  # the error estimator's order: DOP853 7, Radau 3, the 5(4) pairs 4
+    if method != RK4:  # the error estimator's order: DOP853 7, Vern7 6, Radau 3, the 5(4) pairs 4
         order = 7 if method == DOP853 else (3 if method == RADAU else ERROR_ESTIMATOR_ORDER)
+        if method == VERN7:
+            order = VERN7_ERROR_ESTIMATOR_ORDER
         status, h = _initial_step(ts_[T], y, f, t_end, rtol, tolv, max_step, first_step, par, pf, pi, rmode, locate, w,
                                   piv, ytmp, f1, scl, cs, info, order)
         ts_[H_ABS] = h
@@ -1604,7 +1670,7 @@ def _take_step(method, ts_, t_end, rtol, tolv, fixed_h, max_step, y, f, K, F, y_
             f_new[i] = f[i]
         ts_[HSTEP] = 0.0
         return OK, t_end, True, CONSTANT
-    if method in (DOP853, RK45, TSIT5):
+    if method in (DOP853, RK45, TSIT5, VERN7):
         status, t_new, ok = _explicit_step(method, ts_, t_end, rtol, tolv, max_step, y, f, K, F, ytmp, y_new, f_new,
                                            par, pf, pi, rmode, locate, w, piv, cs, info)
     elif method == RADAU:

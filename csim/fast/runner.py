@@ -23,7 +23,7 @@ from csim.solver.partitioned import PartitionedSystem
 from csim.solver.settings import IntegrationSettings, Trajectory, output_times
 from csim.solver.system import ConstrainedSystem
 
-INTEGRATOR_CODES = {"DOP853": 0, "RK4": 1, "Radau": 3, "RK45": 4, "Tsit5": 5}
+INTEGRATOR_CODES = {"DOP853": 0, "RK4": 1, "Radau": 3, "RK45": 4, "Tsit5": 5, "Vern7": 6}
 
 
 def pack_problem(system: ConstrainedSystem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

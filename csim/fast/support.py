@@ -28,7 +28,7 @@ BACKENDS = ("auto", "python", "compiled")
 
 #: what the compiled backend implements
 FORMULATIONS = ("kkt",)
-INTEGRATORS = ("DOP853", "RK45", "Tsit5", "RK4", "Radau")
+INTEGRATORS = ("DOP853", "RK45", "Tsit5", "Vern7", "RK4", "Radau")
 
 
 def compiled_stabilizers() -> list[str]:

@@ -45,6 +45,7 @@ INTEGRATORS: dict[str, IntegratorInfo] = {
     "RK45": IntegratorInfo("scipy.integrate:RK45", True, "explicit Runge-Kutta 5(4), Dormand-Prince"),
     "DOP853": IntegratorInfo("scipy.integrate:DOP853", True, "explicit Runge-Kutta 8(5,3), Dormand-Prince"),
     "Tsit5": IntegratorInfo("csim.solver.tsit5:Tsit5", True, "explicit Runge-Kutta 5(4), Tsitouras"),
+    "Vern7": IntegratorInfo("csim.solver.vern7:Vern7", True, "explicit Runge-Kutta 7(6), Verner"),
     "Radau": IntegratorInfo("scipy.integrate:Radau", True, "implicit Runge-Kutta Radau IIA, order 5 (stiff)",
                             implicit=True),
     "BDF": IntegratorInfo("scipy.integrate:BDF", True, "implicit multistep BDF, orders 1-5 (stiff)", implicit=True),

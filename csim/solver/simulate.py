@@ -19,7 +19,8 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-from scipy.integrate import BDF, DOP853, RK45, Radau
+from scipy.integrate import BDF, Radau
+from scipy.integrate._ivp.rk import RungeKutta
 from scipy.optimize import brentq
 
 from csim.errors import PartitionBreakdown, SimulationFailure
@@ -240,12 +241,13 @@ def _check_chatter(events_t: list, events_sw: list, labels: list, settings: Inte
 def _swap_state(solver, y) -> bool:
     """Hand a (projected) state to a running integrator in place of its own; False if it cannot.
 
-    One-step methods (explicit Runge-Kutta, RK4, Radau) carry (y, f) into the next step
+    One-step methods (scipy's explicit Runge-Kutta pairs and csim's Tsit5 and Vern7, RK4,
+    Radau) carry (y, f) into the next step
     (Radau also its last dense output, used only as the Newton start). BDF's history is a
     difference array whose row 0 is y. LSODA's state is inside Fortran (the case validation
     rejects projection with LSODA).
     """
-    if isinstance(solver, (RK45, DOP853, RK4, Radau)):
+    if isinstance(solver, (RungeKutta, RK4, Radau)):
         solver.y, solver.f = y.copy(), solver.fun(solver.t, y)
         return True
     if isinstance(solver, BDF):
