@@ -535,6 +535,7 @@ def validate_case(data: dict, source: str = "<dict>") -> Case:
         linkage = _build_linkage(out, problems)
         mech = linkage.definition
     _validate_parameters(out, mech, problems)
+    notes = _angle_notes(out["initial"], mech)
     _validate_initial(out, mech, problems)
     _validate_loads(out, mech, problems)
     _validate_formulation(out, mech, problems)
@@ -544,8 +545,27 @@ def validate_case(data: dict, source: str = "<dict>") -> Case:
     _validate_combination(case, problems)
     if problems:
         raise CaseError(problems)
-    case.warnings = _stability_warnings(case)
+    case.warnings = notes + _stability_warnings(case)
     return case
+
+
+#: a plain number beyond this many radians in initial.q or initial.guess is noted (degrees written without deg?)
+ANGLE_NOTE_RAD = 2 * math.pi
+
+
+def _angle_notes(initial: dict, mech) -> list[str]:
+    """Warnings for angles written as plain numbers beyond a full turn in ``initial.q`` and
+    ``initial.guess`` (``q1: 172``: 27 turns, most likely meant as 172 deg). Only a note: an
+    angle may lie beyond a turn, and a value written with its unit is never noted."""
+    units = dict(zip(mech.coordinate_names, mech.coordinate_units))
+    notes = []
+    for key in ("q", "guess"):
+        values = initial.get(key)
+        for name, value in (values.items() if isinstance(values, dict) else ()):
+            if units.get(str(name)) == "rad" and finite_number(value) and abs(value) > ANGLE_NOTE_RAD:
+                notes.append(f"initial.{key}.{name}: {value:g} rad is {abs(value) / (2 * math.pi):.3g} turns; a plain "
+                             f"number is in rad; if you meant degrees, write '{value:g} deg'")
+    return notes
 
 
 def _stability_warnings(case: Case) -> list[str]:

@@ -163,3 +163,25 @@ def test_a_drive_that_stops_being_finite_fails_the_run_with_a_file():
     result = run_case(case)
     assert result.status == "failed" and "mechanism.drive is not finite at t = 0.25 s" in result.message
     assert result.t[-1] == pytest.approx(0.2)  # the samples before are kept
+
+
+@pytest.mark.parametrize("text, refused", [
+    ("0.5^999999999", True), ("(1/3)^999999999", True), ("deg^999999", True), ("1.0001^100000", True),
+    ("0.5^999999999*t", True), ("2^1000", False), ("9^300", False), ("(2.5e-3)^4", False), ("2^0.5", False),
+])
+def test_a_power_of_constants_with_a_huge_exact_value_is_refused_at_once(text, refused):
+    """Tiny or ordinary float values whose exact value (sympy's) has millions of digits are
+    refused before sympy sees them; small exact powers pass."""
+    import time
+
+    import sympy as sp
+
+    from csim.linkage.expressions import parse_expression
+
+    problems: list[str] = []
+    start = time.perf_counter()
+    expr = parse_expression("mass", text, {"t": sp.Symbol("t", real=True)}, problems)
+    assert time.perf_counter() - start < 2.0
+    assert (expr is None) == refused, problems
+    if refused:
+        assert "a power of constants" in problems[0] and "digits" in problems[0], problems

@@ -358,3 +358,16 @@ def test_angular_velocities_in_rpm_and_degrees_per_second_convert():
 
     assert convert("60 rpm", "rad/s")[0] == pytest.approx(2 * math.pi)
     assert convert("180 deg/s", "rad/s")[0] == pytest.approx(math.pi)
+
+
+def test_an_angle_written_as_a_plain_number_beyond_a_turn_is_noted():
+    """q1: 172 is taken in rad, as every plain number in its key's unit, but noted: 27 turns
+    is most likely 172 degrees written without its unit. 172 deg and 3.0 are not noted."""
+    from csim.case import load_case
+
+    noted = load_case(CONFIGS / "quick_return.yaml", ["initial.q.q1=172"])
+    assert noted.data["initial"]["q"]["q1"] == 172.0
+    assert any(w.startswith("initial.q.q1: 172 rad is 27.4 turns") and "'172 deg'" in w for w in noted.warnings)
+    for value in ("172 deg", "3.0"):
+        case = load_case(CONFIGS / "quick_return.yaml", [f"initial.q.q1={value}"])
+        assert not [w for w in case.warnings if w.startswith("initial.q")], case.warnings

@@ -1,7 +1,7 @@
 """Cut-joint constraint equations, the removal of trivial and dependent ones, DOF counts.
 
 A cut joint (i, k)-(j, m) contributes the equations of its type's record in
-:data:`csim.linkage.joints.JOINT_TYPES` (the brief's table: R gives r_ik = r_jm and
+:data:`csim.linkage.joints.JOINT_TYPES` (the link-coupling paper's table: R gives r_ik = r_jm and
 z_ik = z_jm, ..., S gives r_ik = r_jm), each with one reaction unknown, its multiplier.
 
 Of these, equations that vanish identically (every out-of-plane one of a planar mechanism)

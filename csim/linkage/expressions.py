@@ -50,6 +50,8 @@ MAX_EXPRESSION_CHARS = 1000
 #: the largest |exponent| of a power of a non-constant expression (of the parameters, the
 #: coordinates or t), whose expansion or derivatives would otherwise grow without bound
 MAX_EXPONENT = 64
+#: the most digits of the exact value of a power of constants (sympy computes 0.5^999999999 exactly)
+MAX_EXACT_DIGITS = 10_000
 #: the deepest nesting of parentheses and calls
 MAX_NESTING = 50
 #: the largest |exponent| of a number written 1e-5 (floats reach 1e308; below 1e-324 they are 0)
@@ -71,9 +73,10 @@ def bound_problem(text: str) -> str | None:
     """Why the expression ``text`` (``^`` for powers) is too large to hand to sympy, or None.
 
     Walks Python's parse of the text, computing every constant part in floating point:
-    a constant beyond the float range (``9^999999999``, ``((9^99)^99)^99``) or a power
-    of a non-constant part beyond :data:`MAX_EXPONENT` is refused, so that sympy never
-    computes a huge exact integer or expansion. The cost is that of the text.
+    a constant beyond the float range (``9^999999999``, ``((9^99)^99)^99``), a power of
+    constants with a huge exact value (``0.5^999999999``, :data:`MAX_EXACT_DIGITS`) or a
+    power of a non-constant part beyond :data:`MAX_EXPONENT` is refused, so that sympy never
+    computes a huge exact integer, fraction or expansion. The cost is that of the text.
     """
     if len(text) > MAX_EXPRESSION_CHARS:
         return f"{len(text):,} characters long; expected at most {MAX_EXPRESSION_CHARS:,}"
@@ -123,6 +126,8 @@ def _constant_value(node: ast.AST) -> float | None:
                             f"most {MAX_EXPONENT} in magnitude")
         if left is None or right is None:
             return None
+        if isinstance(node.op, ast.Pow):
+            _check_exact_power(left, right)
         return _checked(lambda: _BINARY[type(node.op)](left, right))
     if isinstance(node, ast.Call) and isinstance(node.func, ast.Name):
         args = [_constant_value(a) for a in node.args]
@@ -133,6 +138,20 @@ def _constant_value(node: ast.AST) -> float | None:
     for child in ast.iter_child_nodes(node):  # anything else: its parts are still bounded
         _constant_value(child)
     return None
+
+
+def _check_exact_power(base: float, exponent: float) -> None:
+    """Raise :class:`_TooLarge` for a power of constants whose exact value (sympy's: a
+    written number is a fraction, 0.5 = 1/2, 1.0001 = 10001/10000) has more than
+    :data:`MAX_EXACT_DIGITS` digits, about |exponent| times the digits of the base, even where
+    its float value is ordinary (``0.5^999999999`` is 0.0, ``1.0001^100000`` is 2.2e4)."""
+    if base in (0.0, 1.0, -1.0):
+        return
+    digits = abs(exponent) * len(repr(abs(base)).replace(".", "").replace("e-", "").replace("e+", ""))
+    if digits > MAX_EXACT_DIGITS:
+        raise _TooLarge(f"a power of constants ({base:g}^{exponent:g}) whose exact value has about {digits:.3g} "
+                        f"digits, which sympy would compute; expected at most {MAX_EXACT_DIGITS:,} (write the "
+                        f"value as a number)")
 
 
 def _checked(compute) -> float | None:

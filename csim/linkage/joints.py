@@ -170,7 +170,7 @@ class JointType:
         How its z axis lies in a planar mechanism (:data:`PLANAR_AXES`); None: a mechanism
         with this joint is spatial.
     placement : str
-        The brief's rule for placing its joint frame on a link.
+        The link-coupling paper's rule for placing its joint frame on a link.
     measure : callable (CutGeometry, simplify) -> tuple of sympy expressions, or None
         The joint variables measured from the two frames of the joint when it is cut (for
         force elements on a cut joint, :mod:`csim.linkage.forces`): the inverse of

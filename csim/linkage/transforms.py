@@ -136,7 +136,7 @@ def simplify_entry(expr: sp.Expr) -> sp.Expr:
     """Expand, then turn products of sines and cosines into sines and cosines of sums
     (cos a cos b - sin a sin b -> cos(a + b)) where that makes the expression shorter.
 
-    Exact and cheap: planar chains collapse to the brief's cos(q1 + q2 + q3) form, spatial
+    Exact and cheap: planar chains collapse to the paper's cos(q1 + q2 + q3) form, spatial
     ones keep the shorter expanded product form.
     """
     expr = _chop(sp.expand(expr))

@@ -80,7 +80,7 @@ def definition() -> MechanismDefinition:
     V = sum(b.potential_energy(P["g"]) for b in bodies)
 
     constraints = [
-        # A lies on the rocker line BC: (A - B) x e2 = 0, written as in the brief
+        # A lies on the rocker line BC: (A - B) x e2 = 0, written as in the sliding-mode paper
         l1 * sp.sin(q1 - q2) + h1 * sp.cos(q2),
         # D stays on the ram guide, y_D = h2
         h2 - D[1],
@@ -177,7 +177,7 @@ def definition() -> MechanismDefinition:
         drawing=drawing,
         default_independent={"q1": 3.0020},
         default_independent_velocities={"q1": 6.2832},
-        # branch of the brief: rocker leaning left of A's side, cos q3 < 0
+        # the paper's branch: rocker leaning left of A's side, cos q3 < 0
         default_guess={"q2": 2.0, "q3": 2.8},
         figures=figures,
         sites=sites,
