@@ -10,7 +10,7 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[test]'
-	$(BIN)/python -m csim.fast.warm
+	$(BIN)/python -m csim.warmup
 	touch $(STAMP)
 
 install: $(STAMP)  ## create .venv, install csim with its test dependencies, compile the kernels once

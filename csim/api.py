@@ -288,27 +288,63 @@ def export(path: str | Path, out_dir: str | Path, fmt: str = "csv") -> list[Path
     keeps the units in each field's metadata (``units``) and in the schema's
     ``csim_units`` (JSON). :func:`read_export` reads either back.
 
+    The file is read whole before ``out_dir`` is created. Each file goes through a temporary
+    file beside it (:func:`csim.io.atomic.atomic_path`): a failure (a full disk, ``ulimit
+    -f``) leaves no partial file, and a symbolic link at a file's name is replaced by the
+    file, never written through.
+
     Returns
     -------
     list of Path
         The files written.
+
+    Raises
+    ------
+    ResultFileError
+        When ``path`` is missing, not a csim file, or one with a missing or damaged part (a
+        comparison or sweep file is read as ``csim plot`` reads it first), or pandas
+        (pyarrow) is not installed.
+    OSError
+        When a file cannot be written; the files before it are kept.
     """
+    from csim.io.atomic import atomic_path
+    from csim.io.hdf5 import check_expansion, damage, read_comparison
+    from csim.study.sweep_file import read_sweep
+
     if fmt not in FORMATS:
         raise ValueError(f"format {fmt!r}: expected one of {', '.join(FORMATS)}")
     if fmt == "parquet":
         _need("pyarrow")
+    k = kind(path)
+    if k == "comparison":  # its tables, settings and sizes checked, as for csim plot
+        read_comparison(path)
+    elif k == "sweep":
+        read_sweep(path)
+    else:
+        try:
+            with h5py.File(path, "r") as fh:
+                check_expansion(fh)  # shapes only, nothing read
+        except OSError as exc:
+            raise ResultFileError(f"{path}: not a readable HDF5 file ({exc})") from None
+    try:
+        found = frames(path)
+    except (KeyError, ValueError, TypeError, AttributeError, IndexError) as exc:  # a damaged or crafted file
+        writer = {"run": "csim run", "comparison": "csim compare", "sweep": "csim sweep"}[k]
+        raise ResultFileError(f"{path}: a {k} file with a missing or damaged part ({damage(exc)}); expected a "
+                              f"file written by {writer}") from None
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     written = []
-    for name, frame in frames(path).items():
+    for name, frame in found.items():
         target = out_dir / f"{name}.{fmt}"
         units = frame.attrs.get("units", {})
-        if fmt == "csv":
-            renamed = frame.rename(columns={c: _with_unit(c, units.get(c, "")) for c in frame.columns})
-            renamed.index.name = _with_unit(frame.index.name, units.get(frame.index.name, ""))
-            renamed.to_csv(target, na_rep="nan")
-        else:
-            _write_parquet(frame, units, target)
+        with atomic_path(target) as tmp:
+            if fmt == "csv":
+                renamed = frame.rename(columns={c: _with_unit(c, units.get(c, "")) for c in frame.columns})
+                renamed.index.name = _with_unit(frame.index.name, units.get(frame.index.name, ""))
+                renamed.to_csv(tmp, na_rep="nan")
+            else:
+                _write_parquet(frame, units, tmp)
         written.append(target)
     return written
 

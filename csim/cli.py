@@ -114,15 +114,7 @@ def check_writable(out: Path, protect: list[Path] = (), suffixes: tuple[str, ...
     ResultFileError
         Naming the option, the path and what was expected.
     """
-    too_long = next((part for part in out.parts if len(os.fsencode(part)) > MAX_NAME_BYTES), None)
-    if too_long is not None:  # a temporary file beside it, and OUT.interrupted.h5, add to the name
-        raise ResultFileError(f"{option} {short_repr(str(out))}: the name {short_repr(too_long)} is "
-                              f"{len(os.fsencode(too_long))} bytes long; expected at most {MAX_NAME_BYTES} (file "
-                              f"systems allow 255, and the temporary and interrupted files beside it add to it)")
-    folder = next((p for p in reversed(out.parents) if p.exists() and not p.is_dir()), None)
-    if folder is not None:
-        raise ResultFileError(f"{option} {out}: cannot write there, {folder} is a file, not a folder; expected a "
-                              f"path in a folder")
+    check_output_path(out, option)
     if out.exists() and any(out.resolve() == p.resolve() for p in protect):
         raise ResultFileError(f"{option} {out}: that is an input file; choose another result path")
     if out.is_dir():
@@ -136,6 +128,38 @@ def check_writable(out: Path, protect: list[Path] = (), suffixes: tuple[str, ...
             pass
     except OSError as exc:
         raise ResultFileError(f"{option} {out}: cannot write there ({exc.strerror or exc})") from None
+
+
+def check_output_path(out: Path, option: str | None = "--output", folder: bool = False) -> None:
+    """The checks of an output path that change nothing on disk: no name in it longer than
+    :data:`MAX_NAME_BYTES`, and no file where a folder must be.
+
+    Parameters
+    ----------
+    out : Path
+        The file (or, with ``folder``, the folder) to be written.
+    option : str or None
+        How messages name the option (``--output``); None: by the path alone (an argument).
+    folder : bool
+        ``out`` is a folder to write files into (``csim plot``, ``export``, ``examples``):
+        it may not be a file either.
+
+    Raises
+    ------
+    ResultFileError
+        Naming the option, the path and the cause.
+    """
+    where = f"{option} " if option else ""
+    too_long = next((part for part in out.parts if len(os.fsencode(part)) > MAX_NAME_BYTES), None)
+    if too_long is not None:  # a temporary file beside it, and OUT.interrupted.h5, add to the name
+        raise ResultFileError(f"{where}{short_repr(str(out))}: the name {short_repr(too_long)} is "
+                              f"{len(os.fsencode(too_long))} bytes long; expected at most {MAX_NAME_BYTES} (file "
+                              f"systems allow 255, and the temporary and interrupted files beside it add to it)")
+    above = [*reversed(out.parents), out] if folder else reversed(out.parents)
+    blocker = next((p for p in above if p.exists() and not p.is_dir()), None)
+    if blocker is not None:
+        raise ResultFileError(f"{where}{out}: cannot write there, {blocker} is a file, not a folder; expected a "
+                              f"{'folder path' if folder else 'path in a folder'}")
 
 
 #: what the summary adds to the result path when -o was left out
@@ -511,7 +535,7 @@ def sweep(
     scheduler: Annotated[str | None, typer.Option(
         "--scheduler", metavar="ADDRESS",
         help="Run on a Dask distributed cluster, e.g. tcp://10.0.0.5:8786 "
-             "(pip install 'csim-multibody[dask]').")] = None,
+             "(pip install 'csim-multibody\\[dask]').")] = None,
     keep: Annotated[bool, typer.Option(
         "--keep", help="Also store each run's signals (t, q, qd, Phi, Phi_q qd, energy-balance error).")] = False,
     resume: Annotated[bool, typer.Option(
@@ -553,7 +577,7 @@ def sweep(
         if problems:
             raise CaseError(problems)
         if resume and seed is None and sample != "grid":  # the design is the file's: its seed
-            from csim.io.sweep_file import read_sweep
+            from csim.study.sweep_file import read_sweep
 
             seed = int(read_sweep(out).attrs.get("seed", -1))
             seed = None if seed < 0 else seed
@@ -679,6 +703,7 @@ def _check_folder(folder: Path) -> None:
     """Fail before the runs when the result folder (``-o DIR``) cannot be created or written."""
     if folder.exists() and not folder.is_dir():
         raise ResultFileError(f"--output {folder}: that is a file; expected a folder for the result files")
+    check_output_path(folder, folder=True)
     try:
         folder.mkdir(parents=True, exist_ok=True)
         with tempfile.TemporaryFile(dir=folder):
@@ -750,6 +775,10 @@ def plot(
     from csim.plot.files import parse_only
 
     out = output or result.parent / f"{result.stem}_plots"
+    try:
+        check_output_path(out, folder=True)
+    except CsimError as exc:
+        _fail_input(exc)
     if out.suffix.lower().lstrip(".") in ("png", "pdf", "svg", "jpg", "jpeg", "gif", "mp4") and not out.is_dir():
         _fail_input(ResultFileError(f"--output {out}: csim plot writes a folder of figures, one file per figure; "
                                     f"expected a folder name such as {out.with_suffix('')} (--format {fmt} sets "
@@ -771,7 +800,7 @@ def export(
     result: Annotated[Path, typer.Argument(help="Result, comparison or sweep file (csim run, compare, sweep).",
                                            show_default=False, metavar="RESULT.h5")],
     fmt: Annotated[str, typer.Option("--format", "-f", metavar="csv|parquet",
-                                     help="csv: the header gives each column's unit, 'q:q1 [rad]'; parquet: "
+                                     help="csv: the header gives each column's unit, 'q:q1 \\[rad]'; parquet: "
                                           "the units in the fields' metadata.")] = "csv",
     output: Annotated[Path | None, typer.Option(
         "--output", "-o", metavar="DIR", help="Folder for the files, one per table and run. "
@@ -793,9 +822,8 @@ def export(
     if fmt not in FORMATS:
         _fail_input(CsimError(f"--format {fmt!r}: expected one of {', '.join(FORMATS)}"))
     out = output or result.parent / f"{result.stem}_export"
-    if out.exists() and not out.is_dir():
-        _fail_input(ResultFileError(f"--output {out}: exists and is not a folder"))
     try:
+        check_output_path(out, folder=True)
         written = write_tables(result, out, fmt)
     except CsimError as exc:
         _fail_input(exc)
@@ -821,10 +849,12 @@ def examples(
 
     Example: csim examples my_cases && csim run my_cases/quick_return.yaml
     """
+    from csim.case import json_schema
     from csim.io.examples import copy_examples
 
     try:
-        written = copy_examples(folder)
+        check_output_path(folder, option=None, folder=True)
+        written = copy_examples(folder, json_schema())
     except CsimError as exc:
         _fail_input(exc)
     if not quiet:
@@ -862,6 +892,7 @@ def animate(
 
     out = output or result.with_suffix(".gif")
     try:
+        check_output_path(out)
         animation = animate_file(result, out, group=group, fps=fps, speed=speed, max_frames=max_frames, dpi=dpi)
     except CsimError as exc:
         _fail_input(exc)
@@ -887,7 +918,7 @@ def describe(
 
     Example: csim describe configs/rrr3_planar.yaml --link 7
     """
-    from csim.linkage.describe import describe_main
+    from csim.describe import describe_main
     from csim.progress import reporting
 
     try:

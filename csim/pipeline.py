@@ -104,7 +104,7 @@ def run_case(case: Case, progress: Callable[[float], None] | None = None) -> Res
     if case.kinematic:
         from csim.linkage.kinematics import run_kinematics
 
-        return run_kinematics(case, progress=progress)
+        return run_kinematics(case, numeric_model(case), progress=progress)
     system = build_system(case)  # the model: derived, or loaded from the cache (not timed)
     settings = case.integration_settings()
     start = time.perf_counter()

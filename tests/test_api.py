@@ -168,3 +168,94 @@ def test_export_of_a_file_that_is_not_csim_is_bad_input(tmp_path):
     assert r.exit_code == 2 and "not a csim result" in r.output
     with pytest.raises(ResultFileError):
         export(tmp_path / "missing.h5", tmp_path / "out")
+
+
+# --- the units of the constraints of link-coupling mechanisms -----------------------------
+
+#: the unit of each constraint row of a link-coupling case: m for a position equation (a
+#: component of r_jm - r_ik), 1 for an orientation equation (a product of two unit axes)
+LINKAGE_ROWS = {
+    "slider_crank.yaml": ["m", "m"],  # the cut revolute joint C: x, y
+    "quick_return_tables.yaml": ["m", "1", "m", "1"],  # two cut slides: x_ik . d, x_ik . z_jm each
+    "bricard.yaml": ["m", "m", "m", "1"],  # the cut revolute joint 6: d = 0 and one of z_ik = z_jm
+}
+
+
+def _unit(value):
+    """A ``units`` attribute as a str, or a list of str (one per column)."""
+    if isinstance(value, (np.ndarray, list, tuple)):
+        return [v.decode() if isinstance(v, bytes) else str(v) for v in value]
+    return value.decode() if isinstance(value, bytes) else str(value)
+
+
+@pytest.fixture(scope="module")
+def linkage_runs(tmp_path_factory):
+    """A short run of each link-coupling case of LINKAGE_ROWS, with its case and result file."""
+    from csim.case import load_case
+    from csim.io.hdf5 import write_result
+    from csim.pipeline import run_case
+
+    d = tmp_path_factory.mktemp("linkage-units")
+    out = {}
+    for name in LINKAGE_ROWS:
+        case = load_case(CONFIGS / name, ["simulation.t_end=0.1", "simulation.backend=python"])
+        result = run_case(case)
+        assert result.status == "success", result.message
+        path = d / name.replace(".yaml", ".h5")
+        write_result(path, result)
+        out[name] = (case, result, path)
+    return out
+
+
+@pytest.mark.parametrize("name", list(LINKAGE_ROWS))
+def test_link_coupling_constraints_get_the_units_of_their_equations(linkage_runs, name):
+    from csim.io.hdf5 import read_result
+
+    case, result, path = linkage_runs[name]
+    rows = LINKAGE_ROWS[name]
+    # the kind of each kept cut-joint equation, as csim describe labels it
+    assert ["m" if "(r_jm - r_ik)" in label else "1" for label in case.linkage.equation_labels] == rows
+    assert result.constraint_units == rows
+    same = len(set(rows)) == 1
+    phi = rows[0] if same else rows
+    phi_dot = [f"{u}/s" for u in rows]
+    lam = [{"m": "N", "1": "N m"}[u] for u in rows]
+    expected = {"phi": phi, "phi_dot": phi_dot[0] if same else phi_dot, "lambda": lam[0] if same else lam}
+    with h5py.File(path, "r") as fh:
+        assert {k: _unit(fh[k].attrs["units"]) for k in expected} == expected
+    assert read_result(path).constraint_units == rows
+    run = csim.load(path)
+    assert {k: _unit(run[k].attrs["units"]) for k in expected} == expected
+    ureg = pint.UnitRegistry()
+    for units in expected.values():
+        for unit in units if isinstance(units, list) else [units]:
+            ureg.parse_units(unit)
+
+
+@pytest.mark.parametrize("name, rows", [("quick_return.yaml", ["m", "m"]), ("pendulum.yaml", ["m"]),
+                                        ("andrews.yaml", ["m"] * 6)])
+def test_registered_mechanisms_keep_the_units_dimensional_analysis_finds(name, rows):
+    from csim.case import load_case
+    from csim.io.units import declared_constraint_units, mechanism_units
+    from csim.pipeline import numeric_model
+
+    case = load_case(CONFIGS / name)
+    assert declared_constraint_units(case.mechanism) is None  # not the linkage's rows
+    model = numeric_model(case)
+    units = mechanism_units(case.mechanism, model, model.parameter_vector(case.parameters))
+    assert units["constraint_units"] == rows
+
+
+def test_a_unit_that_cannot_be_determined_is_not_written_as_dimensionless():
+    from csim.io.units import UNKNOWN, common_unit, constraint_units, multiplier_unit, per_time
+
+    assert UNKNOWN == "" and common_unit(["", ""]) == "" and common_unit(["m", ""]) == ["m", ""]
+    assert per_time("") == "" and multiplier_unit("") == ""
+    assert (multiplier_unit("m"), multiplier_unit("1"), multiplier_unit("m^2")) == ("N", "N m", "J/m^2")
+
+    def phi(q, par):  # a length (par 0, declared in m), and one in a parameter of unknown unit (par 1)
+        return np.array([q[0] - par[0], q[0] - par[1]])
+
+    par = np.array([0.5, 0.2])
+    assert constraint_units(phi, np.zeros(1), par, np.array([True]), np.array([True, False]),
+                            np.array([False, True])) == ["m", UNKNOWN]

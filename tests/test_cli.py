@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 
 import h5py
@@ -347,6 +348,40 @@ def test_help_lists_flags_without_a_value_type():
     result = invoke("run", "--help")
     assert "--quiet" in result.stdout and "Print nothing but errors" in result.stdout
     assert "130" in result.stdout  # the exit codes, interruption included
+
+
+#: text in square brackets in a help string or docstring, escaped (``\\[dask]``) or not
+BRACKETED = re.compile(r"\\?\[([^\[\]]*)\]")
+#: what the rich help adds around and inside its text: whitespace and the panels' box drawing
+LAYOUT = re.compile(r"[\s\u2500-\u257f]+")
+
+
+def _help_texts(command) -> list[str]:
+    """A command's docstring and the help strings of its options and arguments, as written."""
+    return [text for text in (command.help, *(getattr(p, "help", None) for p in command.params)) if text]
+
+
+def test_bracketed_text_in_help_strings_is_shown_not_taken_for_markup():
+    """typer's rich help reads [name] as a markup tag and drops it (pip install
+    'csim-multibody[dask]' showed as 'csim-multibody'): every bracketed text of a command's
+    help strings and docstring must appear in its --help, escaped as \\[ in the source."""
+    import typer.main
+
+    group = typer.main.get_command(app)
+    commands = [([], group), *(([name], command) for name, command in group.commands.items())]
+    assert len(commands) > 5
+    checked = []
+    for args, command in commands:
+        result = CliRunner().invoke(app, [*args, "--help"], env={"COLUMNS": "200"})
+        assert_clean_exit(result, 0)
+        shown = LAYOUT.sub("", result.stdout)
+        assert "\\[" not in shown, (args, result.stdout)  # an escape is shown as the bracket alone
+        for text in _help_texts(command):
+            for inner in BRACKETED.findall(text):
+                expected = LAYOUT.sub("", f"[{inner}]")
+                assert expected in shown, (args, f"[{inner}]", result.stdout)
+                checked.append(expected)
+    assert "[dask]" in checked and "[rad]" in checked  # the two of the issue, at least
 
 
 # --------------------------------------------------------------------------- output paths

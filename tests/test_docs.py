@@ -10,6 +10,14 @@ import pytest
 from conftest import ROOT
 
 LINK = re.compile(r"\]\(([^)#\s]+)(?:#[^)]*)?\)")
+#: a link to a file outside docs/ (CHANGELOG.md, LICENSE): not a page of the site
+_REPO_LINK = re.compile(r"\[([^\]]+)\]\((?!docs/|https?://)([^)\s]+)\)")
+
+
+def site_index(readme: str) -> str:
+    """docs/index.md, the site's home page: the README with its links made relative to docs/
+    (a repository file outside docs/ named, not linked). ``python tests/test_docs.py`` writes it."""
+    return _REPO_LINK.sub(lambda m: f"`{m.group(2)}`", readme).replace("](docs/", "](")
 
 
 def tracked_text_files():
@@ -52,3 +60,12 @@ def test_the_site_builds_in_strict_mode(tmp_path):
                          cwd=ROOT, capture_output=True, text=True, env={"NO_MKDOCS_2_WARNING": "1", "PATH": ""})
     assert out.returncode == 0, out.stderr[-3000:]
     assert (tmp_path / "site" / "results" / "index.html").is_file()
+
+
+def test_the_site_home_page_is_the_readme():
+    expected = site_index((ROOT / "README.md").read_text())
+    assert (ROOT / "docs" / "index.md").read_text() == expected, "docs/index.md is stale: python tests/test_docs.py"
+
+
+if __name__ == "__main__":  # write docs/index.md from the README
+    (ROOT / "docs" / "index.md").write_text(site_index((ROOT / "README.md").read_text()))

@@ -43,3 +43,38 @@ def test_the_distribution_lists_every_package_and_ships_the_examples():
     assert config["package-dir"]["csim.examples"] == "configs"
     assert not [p for p in (ROOT / "csim").rglob("*.py") if not (p.parent / "__init__.py").exists()]
     assert Path(ROOT / config["package-dir"]["csim.examples.batch"]).is_dir()
+
+
+def test_a_built_wheel_ships_every_example_and_copies_them(tmp_path):
+    """From a wheel (not the source tree): csim.examples is a namespace package there, and the
+    batch manifests' cases (../iftomm/...) must be in it."""
+    import shutil
+    import subprocess
+    import sys
+    import zipfile
+
+    src = tmp_path / "src"
+    src.mkdir()
+    for name in ("pyproject.toml", "README.md", "LICENSE"):
+        shutil.copy(ROOT / name, src / name)
+    for folder in ("csim", "configs"):
+        shutil.copytree(ROOT / folder, src / folder, ignore=shutil.ignore_patterns("__pycache__"))
+    build = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q", "-w",
+                            str(tmp_path / "wheel"), str(src)], capture_output=True, text=True, timeout=300)
+    assert build.returncode == 0, build.stderr[-2000:]
+    (wheel,) = (tmp_path / "wheel").glob("*.whl")
+    with zipfile.ZipFile(wheel) as archive:
+        archive.extractall(tmp_path / "site")
+    shipped = {p.relative_to(tmp_path / "site" / "csim" / "examples")
+               for p in (tmp_path / "site" / "csim" / "examples").rglob("*.yaml")}
+    assert shipped == {p.relative_to(CONFIGS) for p in CONFIGS.rglob("*.yaml")}
+    script = ("import sys; from csim.case import json_schema; from csim.io.examples import copy_examples; "
+              "copy_examples(sys.argv[1], json_schema())")
+    copy = subprocess.run([sys.executable, "-c", script, str(tmp_path / "out")], capture_output=True, text=True,
+                          cwd=tmp_path, env={"PYTHONPATH": str(tmp_path / "site"), "PATH": "/usr/bin:/bin"},
+                          timeout=120)
+    assert copy.returncode == 0, copy.stderr[-2000:]
+    manifest = yaml.safe_load((tmp_path / "out" / "batch" / "iftomm.yaml").read_text())
+    cases = [entry["case"] for entry in manifest["cases"]]
+    assert len(cases) >= 5 and all((tmp_path / "out" / "batch" / case).is_file() for case in cases), cases
+    assert (tmp_path / "out" / "iftomm" / "a04_bricard.yaml").is_file()

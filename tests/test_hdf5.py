@@ -212,6 +212,7 @@ def test_each_status_code_carries_the_kind_its_message_is_filed_under():
     # classifier (for messages without a code) must file every code's message the same way
     from csim.physics import status as st
     from csim.physics.partition import D_CODE, new_partition
+    from csim.solver.failures import failure
 
     assert {name: st.code_kind(code) for name, code in _status_codes().items()} == CODE_KINDS
     # NO_BETTER_PARTITION is the kind of the breakdown it could not get past, as its message reads
@@ -220,8 +221,8 @@ def test_each_status_code_carries_the_kind_its_message_is_filed_under():
     for inner, kind in ((st.DEPENDENT_SINGULAR, "singular"), (st.DEPENDENT_NO_CONVERGENCE, "newton"),
                         (st.BRANCH_LEFT, "branch")):
         detail[D_CODE] = inner
-        exc = st.failure(st.NO_BETTER_PARTITION, 0.0, 0.0, None, SimpleNamespace(tol=1e-13, max_iter=20),
-                         detail=detail, coordinates=["q1", "q2", "q3"])
+        exc = failure(st.NO_BETTER_PARTITION, 0.0, 0.0, None, SimpleNamespace(tol=1e-13, max_iter=20),
+                      detail=detail, coordinates=["q1", "q2", "q3"])
         assert exc.kind == kind == failure_kind(str(exc))
 
 
@@ -229,16 +230,16 @@ def test_each_status_code_carries_the_kind_its_message_is_filed_under():
 def test_every_failure_code_writes_its_kind_as_the_failure_attribute(tmp_path, name):
     from types import SimpleNamespace
 
-    from csim.physics import status as st
     from csim.physics.partition import new_partition
     from csim.result import FAILURES, Result
+    from csim.solver.failures import failure_message
 
     case = qr_case()  # an adaptive integrator (an RK4 step failure is its own kind)
     method = SimpleNamespace(tol=1e-13, max_iter=20)  # the projection's and minimal's settings quoted
     detail = new_partition(3, 2, 0).detail  # the minimal-coordinate codes' details (csim.physics.partition)
     detail[:] = 0.5
-    message = st.failure_message(_status_codes()[name], 1.0, 2.0, case.integration_settings(), method,
-                                 ["cutting_force"], detail=detail, coordinates=["q1", "q2", "q3"])
+    message = failure_message(_status_codes()[name], 1.0, 2.0, case.integration_settings(), method,
+                              ["cutting_force"], detail=detail, coordinates=["q1", "q2", "q3"])
     failed = Result.empty("quick_return", ["q1", "q2", "q3"], [], [], 2, "", message=message)
     assert failed.failure == CODE_KINDS[name] and failed.failure in FAILURES
     path = tmp_path / "f.h5"

@@ -93,6 +93,8 @@ def alias_bomb(levels: int = 9) -> str:
 @pytest.mark.parametrize("mass, fragment", [
     ("((((9^99)^99)^99)^99)^99", "beyond the float range"),
     ("9^999999999", "beyond the float range"),
+    ("(1/3)^999999999", "a power of constants"),
+    ("0.5^999999999*m1", "a power of constants"),
     ("(m1+a)^100000", "expected an exponent of at most 64"),
     ("exp(exp(exp(1000)))", "beyond the float range"),
     ("(" * 60 + "m1" + ")" * 60, "nested 60 parentheses deep"),
@@ -179,15 +181,19 @@ def test_describe_of_a_30_link_chain_ends_within_the_bound_with_progress(tmp_pat
         assert "csim: deriving the kinematics of chain.yaml ..." in proc.stderr
 
 
-def test_plot_of_a_crafted_result_file_does_not_hang(tmp_path):
-    """A result file whose stored case holds a tower of powers: plotted from its samples."""
+@pytest.mark.parametrize("mass", ["((((9^99)^99)^99)^99)^99", "(1/3)^999999999"])
+def test_plot_of_a_crafted_result_file_does_not_hang(tmp_path, mass):
+    """A result file whose stored case holds a tower of powers, or a power of constants
+    with a billion-digit exact value: plotted from its samples, at once."""
     out = tmp_path / "r.h5"
     assert csim("run", PENDULUM, "-o", out, "-q", "--set", "simulation.t_end=0.05", *PYTHON).returncode == 0
     tower = yaml.safe_dump({"mechanism": yaml.safe_load(FOURBAR.read_text())["mechanism"]})
     with h5py.File(out, "r+") as fh:
-        fh.attrs["case"] = tower.replace("mass: m1", "mass: ((((9^99)^99)^99)^99)^99")
+        fh.attrs["case"] = tower.replace("mass: m1", f"mass: {mass}")
+    start = time.monotonic()
     proc = csim("plot", out, "-o", tmp_path / "plots", "--only", "coordinates")
     assert proc.returncode == 0, proc.stderr
+    assert time.monotonic() - start < 15  # the process start and the figure; the stored case is refused at once
     assert (tmp_path / "plots" / "coordinates.png").is_file()
 
 
@@ -410,6 +416,88 @@ def test_schema_replaces_a_symbolic_link_instead_of_writing_through_it(tmp_path)
     assert link.stat().st_mode & 0o777 == 0o666 & ~_umask()
 
 
+#: a file or folder name over MAX_NAME_BYTES (200)
+LONG = "x" * 300
+
+
+@pytest.mark.parametrize("command, output, fragments", [
+    ("plot", ["-o", LONG], ["--output", "is 300 bytes long; expected at most 200"]),
+    ("animate", ["-o", LONG + ".gif"], ["--output", "is 304 bytes long; expected at most 200"]),
+    ("export", ["-o", LONG], ["--output", "is 300 bytes long; expected at most 200"]),
+    ("examples", [LONG], ["is 300 bytes long; expected at most 200"]),
+])
+def test_a_folder_or_file_name_too_long_names_the_output(tmp_path, short_run, command, output, fragments):
+    args = [tmp_path / output[0]] if command == "examples" else [short_run, output[0], tmp_path / output[1]]
+    assert_clear(quick(command, *args), *fragments)
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("command", ["plot", "animate", "export", "examples"])
+def test_an_output_under_a_file_says_the_file_is_not_a_folder_for_every_writer(tmp_path, short_run, command):
+    (tmp_path / "afile").write_text("")
+    out = tmp_path / "afile" / ("a.gif" if command == "animate" else "sub")
+    proc = quick(command, out) if command == "examples" else quick(command, short_run, "-o", out)
+    assert_clear(proc, str(out), f"{tmp_path / 'afile'} is a file, not a folder")
+    assert "File exists" not in proc.stderr
+    if command != "animate":  # the output folder itself a file
+        proc = quick(command, tmp_path / "afile") if command == "examples" else \
+            quick(command, short_run, "-o", tmp_path / "afile")
+        assert_clear(proc, f"{tmp_path / 'afile'} is a file, not a folder")
+
+
+@pytest.mark.parametrize("command, name, dangling", [
+    ("plot", "coordinates.png", False),
+    ("plot", "coordinates.png", True),
+    ("export", "run.csv", False),
+    ("export", "run.csv", True),
+    ("examples", "pendulum.yaml", True),
+])
+def test_a_writer_replaces_a_symbolic_link_instead_of_writing_through_it(tmp_path, short_run, command, name,
+                                                                         dangling):
+    """plot, export and examples write each file through a temporary file renamed over it:
+    the link gives way to the file; its target is left as it was, or not created. (A link to
+    an existing file is an existing file to examples, which refuses to replace it.)"""
+    target = tmp_path / "target"
+    if not dangling:
+        target.write_text("kept")
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / name).symlink_to(target)
+    args = [out] if command == "examples" else [short_run, "-o", out] + (
+        ["--only", "coordinates"] if command == "plot" else [])
+    proc = quick(command, *args, "-q")
+    assert proc.returncode == 0, proc.stderr
+    assert not (out / name).is_symlink() and (out / name).is_file() and (out / name).stat().st_size > 0
+    assert (out / name).stat().st_mode & 0o777 == 0o666 & ~_umask()
+    if dangling:
+        assert not target.exists()
+    else:
+        assert target.read_text() == "kept"
+    assert [p.name for p in out.iterdir() if p.name.startswith(".")] == []  # no temporary file left
+
+
+@pytest.mark.parametrize("kind, fragment", [
+    ("sweep", "a sweep file with a missing or damaged part"),
+    ("comparison", "a comparison file without its /summary table"),
+])
+def test_export_of_a_file_with_only_its_kind_is_a_clear_error(tmp_path, kind, fragment):
+    path = tmp_path / "k.h5"
+    with h5py.File(path, "w") as fh:
+        fh.attrs["kind"] = kind
+    assert_clear(quick("export", path, "-o", tmp_path / "e"), str(path), fragment)
+    assert not (tmp_path / "e").exists()
+
+
+def test_export_to_a_full_disk_is_a_clear_error_leaving_no_partial_file(tmp_path, short_run):
+    """``ulimit -f 1``: run.csv (about 10 kB) cannot be written whole; nothing of it is left."""
+    out = tmp_path / "e"
+    command = f"ulimit -f 1 && exec {sys.executable} -m csim export {short_run} -o {out}"
+    proc = subprocess.run(["bash", "-c", command], capture_output=True, text=True, timeout=LIMIT_S,
+                          env={**os.environ, "PYTHONPATH": str(ROOT)})
+    assert_clear(proc, "--output", str(out), "File too large")
+    assert sorted(p.name for p in out.iterdir()) == []
+
+
 def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)
@@ -566,7 +654,7 @@ def test_the_rebuild_deadline_gives_back_a_callers_own_timer():
 def test_comparison_and_sweep_files_whose_tables_expand_beyond_them_are_refused(tmp_path, kind):
     """A comparison's /summary or a sweep's /runs with a dataset that would read as 160 GB."""
     from csim.io.hdf5 import COMPARISON_KIND, ResultFileError, read_comparison
-    from csim.io.sweep_file import SWEEP_KIND, read_sweep
+    from csim.study.sweep_file import SWEEP_KIND, read_sweep
 
     path = tmp_path / f"{kind}.h5"
     with h5py.File(path, "w") as fh:

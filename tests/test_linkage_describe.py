@@ -7,7 +7,7 @@ import sympy as sp
 import yaml
 from conftest import CONFIGS
 
-from csim.linkage.describe import describe_main
+from csim.describe import describe_main
 
 SLIDE = [0, 0, 0, "90*deg", "90*deg", 0]
 

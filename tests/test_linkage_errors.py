@@ -8,8 +8,8 @@ import pytest
 import yaml
 
 from csim.case import validate_case
+from csim.describe import describe_main
 from csim.errors import CaseError
-from csim.linkage.describe import describe_main
 from csim.linkage.model import build_linkage
 
 FOURBAR = {

@@ -9,7 +9,7 @@ import pytest
 import yaml
 
 from csim.case import load_case
-from csim.linkage.describe import load_linkage
+from csim.describe import load_linkage
 from csim.pipeline import run_case
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"

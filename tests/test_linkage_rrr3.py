@@ -9,7 +9,8 @@ import pytest
 import sympy as sp
 import yaml
 
-from csim.linkage.describe import describe_case, describe_main, load_linkage
+from csim.describe import describe_main, load_linkage
+from csim.linkage.describe import describe_case
 
 CONFIG = Path(__file__).resolve().parents[1] / "configs" / "rrr3_planar.yaml"
 

@@ -439,3 +439,13 @@ def test_drive_and_reactions_figures_plot_the_recorded_values(driven_file):
 def test_drive_and_reactions_figures_are_skipped_with_the_reason(qr_file):
     _, skipped, _ = figures(qr_file)
     assert "no drives" in skipped["drive"] and "no joint reactions" in skipped["reactions"]
+
+
+def test_series_of_one_method_under_several_integrators_look_different():
+    from csim.plot.style import METHOD_COLORS, method_styles
+
+    methods = ["none", "projection", "projection:Tsit5", "projection:Vern7", "ggl:Radau"]
+    styles = method_styles(methods)
+    assert len(set(styles.values())) == len(methods)
+    assert styles["projection"] == (METHOD_COLORS["projection"], "D") and styles["projection:Vern7"][1] == "*"
+    assert styles["ggl:Radau"][0] == METHOD_COLORS["ggl"]  # alone of its method: the method's colour

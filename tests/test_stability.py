@@ -17,9 +17,10 @@ import pytest
 from conftest import CONFIGS, invoke
 
 from csim.case import load_case
-from csim.physics.status import MAX_PHI, failure_message
+from csim.physics.status import MAX_PHI
 from csim.physics.switching import SWITCHING_NAMES, slope_at_zero, switch
 from csim.pipeline import build_system, initial_state
+from csim.solver.failures import failure_message
 from csim.solver.methods import make_stabilizer
 from csim.solver.settings import IntegrationSettings
 from csim.solver.stability import (

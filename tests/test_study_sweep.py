@@ -8,10 +8,11 @@ from conftest import CONFIGS, qr_case
 from typer.testing import CliRunner
 
 from csim.cli import app
-from csim.io.sweep_file import PENDING, read_sweep
 from csim.physics import status as st
 from csim.pipeline import run_case
+from csim.solver.failures import failure_message
 from csim.study import execute, failure_reason, make_plan, parse_variation, run_sweep
+from csim.study.sweep_file import PENDING, read_sweep
 
 #: Baumgarte under RK4 on the quick-return: w h = 400 * 2e-2 = 8 lies far outside RK4's stability interval
 BASE = ("simulation.t_end=0.5", "stabilization.method=baumgarte", "simulation.integrator=RK4")
@@ -50,7 +51,7 @@ def test_rows_equal_the_runs_made_one_at_a_time(grid_file):
 
 
 def test_kept_signals_are_the_runs_samples(grid_file):
-    from csim.io.sweep_file import read_signals
+    from csim.study.sweep_file import read_signals
 
     sig = read_signals(grid_file, 0)
     single = run_case(qr_case(*BASE, "stabilization.w=20", "simulation.step=2e-3"))
@@ -67,7 +68,7 @@ def test_kept_signals_are_the_runs_samples(grid_file):
 ])
 def test_every_status_message_has_its_reason(code, reason):
     settings = qr_case().integration_settings()
-    assert failure_reason("failed", st.failure_message(code, 1.0, 2.0, settings)) == reason
+    assert failure_reason("failed", failure_message(code, 1.0, 2.0, settings)) == reason
     assert failure_reason("success", "reached t_end = 5 s") == ""
 
 
@@ -153,7 +154,7 @@ def test_curves_of_one_key_draw_the_files_data(tmp_path):
 
 
 def test_a_new_sweep_does_not_inherit_the_signals_of_a_file_it_replaces(tmp_path):
-    from csim.io.sweep_file import read_signals
+    from csim.study.sweep_file import read_signals
 
     path = tmp_path / "s.h5"
     run_sweep(_plan("stabilization.w=10,20,30", base=(*BASE, "simulation.step=2e-3")), path, jobs=1, keep=True)
@@ -285,8 +286,8 @@ def _synthetic_table(keys_values: dict, case: str, statuses=None, value_units=No
     """A grid sweep table built by hand (no runs): every combination of the keys' values."""
     import itertools
 
-    from csim.io.sweep_file import SweepTable
     from csim.study.metrics import COLUMNS
+    from csim.study.sweep_file import SweepTable
 
     combos = list(itertools.product(*keys_values.values()))
     n = len(combos)

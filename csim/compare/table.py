@@ -56,8 +56,8 @@ def _settings(c: Comparison) -> list[tuple[str, str]]:
     items = [("case", f"{c.source} ({c.mechanism}, {c.integrator})"), ("reference", ref_text),
              ("errors", "motion = max over the output times and coordinates of |q - q_ref| [rad or m]; "
                         "final = the same at t_end"),
-             ("timing", f"wall time of each run in its own process, jobs = {c.jobs}"
-                        + (" (parallel runs share the CPU)" if c.jobs > 1 else ""))]
+             ("timing", f"wall time of each run in its own process, jobs = {c.jobs} (parallel runs share the CPU)"
+                        if c.jobs > 1 else "wall time of each run, one at a time in this process (jobs = 1)")]
     if c.backend_note:
         items.append(("backend", c.backend_note))
     for method, reason in c.skipped.items():

@@ -3,7 +3,7 @@
 Python packs the system (parameters, load laws, the method's settings) into arrays,
 enters the compiled loop once, and turns its status code into the message the Python
 driver (:func:`csim.solver.simulate.integrate`) gives for the same failure: both call
-:func:`csim.physics.status.failure_message`.
+:func:`csim.solver.failures.failure_message`.
 """
 from __future__ import annotations
 
@@ -17,8 +17,9 @@ import numpy as np
 from csim.fast.layout import CONSTRAINED, PARTITIONED, PI_HEAD, workspace
 from csim.fast.module import Drives, kernels_compiled, load_kernels, load_model, method_dispatch
 from csim.physics.events import chattering_switches
-from csim.physics.status import OK, code_kind, failure_message
+from csim.physics.status import OK, code_kind
 from csim.solver.driven import DrivenSystem
+from csim.solver.failures import failure_message
 from csim.solver.partitioned import PartitionedSystem
 from csim.solver.settings import IntegrationSettings, Trajectory, output_times
 from csim.solver.system import ConstrainedSystem

@@ -1,9 +1,11 @@
 """Files written whole or not at all: a temporary file beside the target, renamed over it.
 
-Every file csim writes (results, comparisons, sweeps, JUnit reports, the JSON schema) goes
-through :func:`write_atomically`: a failure while writing (a full disk, ``ulimit -f``, a
-vanished folder) is an ``OSError`` naming the cause, the temporary file is removed, and
-the target is left as it was. The rename replaces a symbolic link at the target by the
+Every file csim writes (results, comparisons, sweeps, JUnit reports, the JSON schema, the
+example cases) goes through :func:`write_atomically`, or, for a writer that wants a path of
+its own (figures, exported tables), :func:`atomic_path`; animations do the same in
+:meth:`csim.plot.animate.MechanismAnimation.save`. A failure while writing (a full disk,
+``ulimit -f``, a vanished folder) is an ``OSError`` naming the cause, the temporary file is
+removed, and the target is left as it was. The rename replaces a symbolic link at the target by the
 file; it never writes through the link into the file it points at. A new file gets the
 mode any new file gets (0666 less the umask, 0644 under the usual umask 022), not
 ``mkstemp``'s 0600.
@@ -12,10 +14,62 @@ from __future__ import annotations
 
 import os
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 #: bytes written per ``os.write`` call
 CHUNK = 1 << 24
+
+
+def _new_file_mode(path: str) -> None:
+    """Give ``path`` the mode of a new file under the umask (``mkstemp`` makes it 0600)."""
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(path, 0o666 & ~umask)
+
+
+@contextmanager
+def atomic_path(path: str | Path) -> Iterator[Path]:
+    """A temporary path beside ``path`` for a writer to fill; renamed over ``path`` when the
+    block ends without an exception, removed when it raises.
+
+    The temporary file (``.STEM.XXXXXXXX.SUFFIX``) keeps the suffix of ``path``, for writers
+    that pick the format from it (matplotlib's ``savefig``). A symbolic link at ``path`` is
+    replaced by the file, never written through.
+
+    Parameters
+    ----------
+    path : str or Path
+        The target; its folder is created when missing.
+
+    Yields
+    ------
+    Path
+        The temporary file (already created, empty) to write.
+
+    Raises
+    ------
+    OSError
+        When the folder cannot be created, or from the writer (a full disk, ``ulimit -f``):
+        no temporary file is left and ``path`` is as it was.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        fd = os.open(tmp, os.O_RDONLY)
+        try:
+            os.fsync(fd)  # durable before it becomes visible
+        finally:
+            os.close(fd)
+        _new_file_mode(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
 
 
 def write_atomically(path: str | Path, data: bytes) -> None:
@@ -46,9 +100,7 @@ def write_atomically(path: str | Path, data: bytes) -> None:
             os.fsync(fd)  # durable before it becomes visible
         finally:
             os.close(fd)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
+        _new_file_mode(tmp)
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)

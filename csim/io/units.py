@@ -11,7 +11,10 @@ Every dataset of a result, comparison or sweep file carries two attributes:
     ``rad/s^2``, ``N m``, ``J/m^2``; ``1`` for a dimensionless number, a count or a text
     label). Where the columns of an array (or the terms of a maximum over columns) have
     different units, as the coordinates of a mechanism with both revolute and prismatic
-    joints do, ``units`` is the list of them, one per column, each parsable.
+    joints do, ``units`` is the list of them, one per column, each parsable. An empty
+    string (:data:`UNKNOWN`), as the whole attribute or as one entry of the list, says that
+    csim could not determine that unit: it is never written as ``1``, which would claim a
+    dimensionless quantity.
 ``description``
     What the dataset holds, in words (:data:`UNITS`).
 
@@ -29,6 +32,10 @@ import numpy as np
 #: the ``units`` of a dimensionless number, a count or a label
 DIMENSIONLESS = "1"
 
+#: the ``units`` of a quantity whose unit csim could not determine (not ``1``: that would
+#: claim it dimensionless)
+UNKNOWN = ""
+
 #: dataset path in a result file -> what it holds and in which unit (the ``description``
 #: attribute; ``per coordinate`` means: see the dataset's ``units``, one entry per column
 #: where the columns differ)
@@ -42,7 +49,8 @@ UNITS: dict[str, str] = {
     "q": "generalized coordinates, per coordinate: rad or m",
     "qd": "generalized velocities, per coordinate: rad/s or m/s",
     "qdd": "generalized accelerations, per coordinate: rad/s^2 or m/s^2",
-    "lambda": "Lagrange multipliers, per constraint: J divided by the constraint's unit "
+    "lambda": "Lagrange multipliers, per constraint: N for a constraint in m (a position equation), N m for a "
+              "dimensionless one (an orientation equation), J divided by the constraint's unit in general "
               "(Phi_q^T lambda is a generalized force)",
     "phi": "constraint residuals Phi(q), per constraint: unit of the constraint function",
     "phi_dot": "velocity-level residuals Phi_q qd, per constraint: unit of the constraint function per s",
@@ -95,38 +103,45 @@ FORCE_UNIT = {"rad": "N m", "m": "N"}
 
 
 def per_time(unit: str, power: int = 1) -> str:
-    """``unit`` divided by s^power, spelled as UDUNITS and pint read it (``rad/s^2``, ``1/s``)."""
-    unit = unit or DIMENSIONLESS
+    """``unit`` divided by s^power, spelled as UDUNITS and pint read it (``rad/s^2``, ``1/s``);
+    :data:`UNKNOWN` for an unknown ``unit``."""
+    if unit == UNKNOWN:
+        return UNKNOWN
     return f"{unit}/s" if power == 1 else f"{unit}/s^{power}"
 
 
 def multiplier_unit(constraint_unit: str) -> str:
     """Unit of a Lagrange multiplier whose constraint has the unit ``constraint_unit``.
 
-    Phi_q^T lambda is a generalized force, so lambda_i Phi_i has the unit of work (J).
+    Phi_q^T lambda is a generalized force, so lambda_i Phi_i has the unit of work (J): a
+    force (N) for a position equation in m, a moment (N m) for a dimensionless orientation
+    equation; :data:`UNKNOWN` for a constraint of unknown unit.
     """
-    if constraint_unit in ("", DIMENSIONLESS):
-        return "J"
-    return {"m": "N"}.get(constraint_unit, f"J/{constraint_unit}")
+    if constraint_unit == UNKNOWN:
+        return UNKNOWN
+    return {"m": "N", DIMENSIONLESS: "N m"}.get(constraint_unit, f"J/{constraint_unit}")
 
 
 def common_unit(units: Sequence[str]) -> str | list[str]:
     """The ``units`` attribute of an array whose columns have ``units``: their unit when they
-    share one (``1`` for an array without columns), else the list of them."""
-    units = [u or DIMENSIONLESS for u in units]
+    share one (``1`` for an array without columns), else the list of them. An unknown unit
+    (:data:`UNKNOWN`) stays unknown, never ``1``."""
+    units = list(units)
     if not units:
         return DIMENSIONLESS
     return units[0] if len(set(units)) == 1 else units
 
 
 def constraint_units(phi: Callable, q: np.ndarray, par: np.ndarray, length_q: np.ndarray,
-                     length_par: np.ndarray) -> list[str]:
+                     length_par: np.ndarray, unknown_par: np.ndarray | None = None) -> list[str]:
     """Unit of each constraint function, found by dimensional analysis.
 
     Lengths (the parameters and coordinates in m) are doubled at a few generic
     configurations: a constraint that doubles is in m, one that does not change is
     dimensionless (``1``), one that grows by 2^k is in m^k. A constraint that scales
-    otherwise, or is zero at every configuration tried, gets ``""``.
+    otherwise, is zero at every configuration tried, or changes with a parameter of
+    unknown unit (``unknown_par``: the doubling cannot know whether to double it) gets
+    :data:`UNKNOWN` (``""``).
 
     Parameters
     ----------
@@ -137,6 +152,8 @@ def constraint_units(phi: Callable, q: np.ndarray, par: np.ndarray, length_q: np
     par : ndarray (n_par,)
     length_q, length_par : ndarray of bool
         Which coordinates and which parameters are lengths [m].
+    unknown_par : ndarray of bool, optional
+        Which parameters have no declared unit (None: none).
 
     Returns
     -------
@@ -144,12 +161,16 @@ def constraint_units(phi: Callable, q: np.ndarray, par: np.ndarray, length_q: np
     """
     q = np.asarray(q, dtype=float)
     length_q, length_par = np.asarray(length_q, bool), np.asarray(length_par, bool)
+    unknown = np.zeros(length_par.shape, bool) if unknown_par is None else np.asarray(unknown_par, bool)
     units: list[str | None] = []
     for trial in range(5):
         qt = 0.37 + 0.29 * np.arange(q.size) + 0.11 * trial
         try:
             base = np.asarray(phi(qt, par), dtype=float)
             scaled = np.asarray(phi(np.where(length_q, 2 * qt, qt), np.where(length_par, 2 * par, par)), dtype=float)
+            # the parameters of unknown unit moved: a constraint that changes depends on them
+            moved = np.asarray(phi(qt, np.where(unknown, 1.7 * par + 0.3, par)), dtype=float) if unknown.any() \
+                else base
         except (ValueError, ZeroDivisionError, OverflowError, TypeError, FloatingPointError, np.linalg.LinAlgError):
             continue
         if not units:
@@ -158,6 +179,9 @@ def constraint_units(phi: Callable, q: np.ndarray, par: np.ndarray, length_q: np
             if units[i] is not None or not (math.isfinite(base[i]) and math.isfinite(scaled[i])) \
                     or abs(base[i]) < 1e-9:
                 continue
+            if not math.isfinite(moved[i]) or abs(moved[i] - base[i]) > 1e-9 * max(1.0, abs(base[i])):
+                units[i] = UNKNOWN
+                continue
             ratio = scaled[i] / base[i]
             k = math.log2(ratio) if ratio > 0 else float("nan")
             if math.isfinite(k) and abs(k - round(k)) < 1e-9:
@@ -165,7 +189,22 @@ def constraint_units(phi: Callable, q: np.ndarray, par: np.ndarray, length_q: np
                 units[i] = DIMENSIONLESS if k == 0 else "m" if k == 1 else f"m^{k}"
         if units and all(u is not None for u in units):
             break
-    return [u or "" for u in units]
+    return [u or UNKNOWN for u in units]
+
+
+def declared_constraint_units(mechanism) -> list[str] | None:
+    """The unit of each constraint row as the mechanism itself says it, or None where it
+    says nothing (a registered mechanism: its units come from dimensional analysis).
+
+    A link-coupling mechanism says it: its definition's ``recursive`` hook
+    (:class:`csim.linkage.model.LinkageTerms`) keeps its kept cut-joint equations, each a
+    position equation (``m``) or an orientation equation (``1``). (Its parameters carry no
+    unit, so dimensional analysis could not tell its lengths.) A light definition is not
+    made to build its symbolic one to answer.
+    """
+    hook = getattr(mechanism, "__dict__", {}).get("recursive")
+    units = getattr(hook, "constraint_units", None)
+    return None if units is None else [str(u) for u in units]
 
 
 def mechanism_units(mechanism, model=None, par: np.ndarray | None = None) -> dict[str, list[str]]:
@@ -176,8 +215,10 @@ def mechanism_units(mechanism, model=None, par: np.ndarray | None = None) -> dic
     mechanism : MechanismDefinition or LightDefinition
         The case's mechanism (its coordinates', loads' and observables' units).
     model : NumericModel, optional
-        Its numeric model; with ``par``, the constraints' units come from it
-        (:func:`constraint_units`), else they are left empty.
+        Its numeric model. The constraints' units are the mechanism's own where it says
+        them (:func:`declared_constraint_units`: a link-coupling mechanism), else, with
+        ``par``, found by dimensional analysis of the model's (:func:`constraint_units`),
+        else left empty. A constraint whose unit cannot be determined gets :data:`UNKNOWN`.
     par : ndarray, optional
 
     Returns
@@ -188,10 +229,16 @@ def mechanism_units(mechanism, model=None, par: np.ndarray | None = None) -> dic
     """
     coords = list(mechanism.coordinate_units)
     c_units: list[str] = []
-    if model is not None and par is not None:
+    declared = declared_constraint_units(mechanism)
+    if declared is not None:
+        c_units = declared
+        if model is not None and model.n_constraints != len(declared):  # rows it does not describe: not guessed
+            c_units = [UNKNOWN] * model.n_constraints
+    elif model is not None and par is not None:
         length_par = np.array([p.unit == "m" for p in mechanism.parameters], dtype=bool)
+        unknown_par = np.array([not p.unit for p in mechanism.parameters], dtype=bool)
         c_units = constraint_units(model.phi, np.zeros(len(coords)), np.asarray(par, float),
-                                   np.array([u == "m" for u in coords], dtype=bool), length_par)
+                                   np.array([u == "m" for u in coords], dtype=bool), length_par, unknown_par)
     return dict(
         coordinate_units=coords,
         constraint_units=c_units,
@@ -211,44 +258,3 @@ def phi_unit_text(unit: str, constraint_unit: str | list[str]) -> str:
     if constraint_unit == DIMENSIONLESS:
         return unit.replace("s/unit of Phi", "s").replace("unit of Phi", DIMENSIONLESS)
     return unit.replace("unit of Phi", constraint_unit)  # m or m^k: no parentheses needed
-
-
-def key_unit(case, key: str, constraint_unit: str | list[str] = "") -> str:
-    """The unit of a case key's value (what ``csim sweep`` varies), parsable; ``1`` for a
-    dimensionless number or a name, ``""`` where csim does not know it.
-
-    Parameters
-    ----------
-    case : Case
-        The validated base case (its mechanism's parameters, coordinates and loads).
-    key : str
-        A dotted key, e.g. ``stabilization.w``, ``mechanism.parameters.l1``, ``initial.q.q1``,
-        ``loads.torque`` or ``loads.torque.magnitude``.
-    constraint_unit : str or list of str
-        The constraints' unit (:func:`common_unit`), for the keys in the unit of Phi.
-    """
-    from csim.case import SETTABLE
-
-    parts = key.split(".")
-    mech = case.mechanism
-    spec = SETTABLE.get(key)
-    if spec is not None:
-        if spec.type in ("string", "boolean"):
-            return DIMENSIONLESS
-        if spec.unit and spec.unit != "-":  # a number, or a gain that may be one per constraint
-            return phi_unit_text(spec.unit, constraint_unit)
-        return DIMENSIONLESS if spec.type in ("number", "integer") else ""
-    if parts[:2] == ["mechanism", "parameters"] and len(parts) == 3:
-        try:
-            return mech.parameter(parts[2]).unit or DIMENSIONLESS
-        except KeyError:
-            return ""
-    if parts[0] == "initial" and len(parts) == 3 and parts[2] in mech.coordinate_names:
-        unit = mech.coordinate_units[mech.coordinate_names.index(parts[2])]
-        return {"q": unit, "qd": per_time(unit), "guess": unit, "q_offset": unit,
-                "qd_offset": per_time(unit)}.get(parts[1], "")
-    if parts[0] == "loads" and len(parts) >= 2:
-        units = {ld.name: ld.unit for ld in mech.loads}
-        if len(parts) == 2 or parts[2] == "magnitude":
-            return units.get(parts[1], "")
-    return ""

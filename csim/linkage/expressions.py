@@ -126,9 +126,10 @@ def _constant_value(node: ast.AST) -> float | None:
                             f"most {MAX_EXPONENT} in magnitude")
         if left is None or right is None:
             return None
+        value = _checked(lambda: _BINARY[type(node.op)](left, right))  # beyond the float range: refused here
         if isinstance(node.op, ast.Pow):
             _check_exact_power(left, right)
-        return _checked(lambda: _BINARY[type(node.op)](left, right))
+        return value
     if isinstance(node, ast.Call) and isinstance(node.func, ast.Name):
         args = [_constant_value(a) for a in node.args]
         function = _FLOAT_FUNCTIONS.get(node.func.id)
@@ -147,7 +148,9 @@ def _check_exact_power(base: float, exponent: float) -> None:
     its float value is ordinary (``0.5^999999999`` is 0.0, ``1.0001^100000`` is 2.2e4)."""
     if base in (0.0, 1.0, -1.0):
         return
-    digits = abs(exponent) * len(repr(abs(base)).replace(".", "").replace("e-", "").replace("e+", ""))
+    text = repr(abs(base)).removesuffix(".0")  # 9.0 -> 9; 0.5 -> 0.5; 2.5e-3 -> 2.5e-3
+    mantissa, _, power = text.partition("e")
+    digits = abs(exponent) * (len(mantissa.replace(".", "").lstrip("0")) + abs(int(power or 0)))
     if digits > MAX_EXACT_DIGITS:
         raise _TooLarge(f"a power of constants ({base:g}^{exponent:g}) whose exact value has about {digits:.3g} "
                         f"digits, which sympy would compute; expected at most {MAX_EXACT_DIGITS:,} (write the "

@@ -210,11 +210,11 @@ def _assembly_message(exc, t: float, max_iter: int, labels: list[str]) -> str:
     return f"{KINEMATIC_RUN}: the mechanism cannot be assembled at t = {t:.6g} s ({why}){residuals}"
 
 
-def run_kinematics(case, model=None, progress: Callable[[float], None] | None = None) -> Result:
+def run_kinematics(case, model, progress: Callable[[float], None] | None = None) -> Result:
     """Kinematic analysis of a link-coupling case with ``mechanism.drive``, as a Result.
 
-    ``model`` supplies phi, phi_q, gamma, energies and observables (default: the case's
-    numeric model, the one dynamics runs on: :func:`csim.pipeline.numeric_model`).
+    ``model`` supplies phi, phi_q, gamma, energies and observables: the case's numeric
+    model, the one dynamics runs on (:func:`csim.pipeline.numeric_model`).
 
     Recorded: q, qd, qdd, Phi, Phi_q qd, kinetic and potential energy (when the links have
     mass), observables. NaN: lambda, loads, work, generalized forces (a kinematic analysis
@@ -222,10 +222,6 @@ def run_kinematics(case, model=None, progress: Callable[[float], None] | None = 
     """
     start_time = time.perf_counter()
     linkage = case.linkage
-    if model is None:
-        from csim.pipeline import numeric_model
-
-        model = numeric_model(case)
     par = model.parameter_vector(case.parameters)
     t_end, dt = case.simulation.t_end, case.output.dt
     count = int(np.floor(t_end / dt + 1e-9)) + 1

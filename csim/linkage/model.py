@@ -17,7 +17,6 @@ The result is handled by :mod:`csim.model` and the solvers like a hand-written m
 """
 from __future__ import annotations
 
-import functools
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -27,6 +26,7 @@ import sympy as sp
 from csim.errors import CaseError
 from csim.linkage.constraints import (
     DEPENDENT,
+    Equation,
     Plane,
     Reduction,
     cut_joint_equations,
@@ -487,8 +487,31 @@ def _definition(linkage: Linkage) -> MechanismDefinition:
         default_independent={n: linkage.start[n] for n in independent},
         default_independent_velocities={n: 0.0 for n in independent},
         default_guess={n: linkage.start[n] for n in names if n not in independent},
-        recursive=functools.partial(recursive_terms, tables, topology, frames, kept),  # (picklable: cached)
+        recursive=LinkageTerms(tables, topology, frames, kept),  # (picklable: cached)
     )
+
+
+@dataclass(eq=False)
+class LinkageTerms:
+    """The ``recursive`` hook of a linkage's :class:`MechanismDefinition`: called, the
+    link-by-link terms of its kept cut-joint equations (:func:`csim.linkage.recursive.recursive_terms`);
+    it also keeps those equations, so that the kind of each constraint row, and with it its
+    unit, can be read from the definition (:attr:`constraint_units`)."""
+
+    tables: Tables
+    topology: Topology
+    frames: Frames
+    kept: list[Equation]
+
+    def __call__(self):
+        return recursive_terms(self.tables, self.topology, self.frames, self.kept)
+
+    @property
+    def constraint_units(self) -> list[str]:
+        """The unit of each constraint row, in the definition's order: ``m`` for a position
+        (translation) equation, a component of r_jm - r_ik; ``1`` for an orientation equation,
+        a product of two unit axes (:attr:`csim.linkage.constraints.Equation.unit`)."""
+        return [e.unit for e in self.kept]
 
 
 def _partition(linkage: Linkage) -> tuple[list[str], list[str]]:

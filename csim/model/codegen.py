@@ -14,6 +14,7 @@ from __future__ import annotations
 from sympy.printing.pycode import PythonCodePrinter
 
 from csim.model.cache import FUNCTIONS
+from csim.model.printing import expression_printer
 
 
 class _Printer(PythonCodePrinter):
@@ -82,9 +83,7 @@ def generate_source(derived) -> str:
         "import numpy as np",
         "",
     ]
-    from csim.fast.codegen import _printer
-
-    doprint = _printer(derived, _Printer(), "python", str)
+    doprint = expression_printer(derived, _Printer(), "python", str)
     for name, (args, attr, kind) in FUNCTIONS.items():
         if kind == "points":
             kind = f"points{derived.point_dim}"

@@ -82,3 +82,19 @@ class QuickPrinter:
         if expr.func in self.functions and len(expr.args) == 1:
             return f"{self.prefix}{self.functions[expr.func]}({self._print(expr.args[0])})"
         return f"({self.fallback.doprint(expr)})"
+
+
+def expression_printer(derived, printer, language: str, symbol):
+    """The print function of one generated module, each distinct expression printed once: the
+    sympy ``printer``, or for a mechanism built link by link
+    (:class:`csim.model.printing.QuickPrinter`) a quick printer falling back to it."""
+    if derived.intermediates:
+        return QuickPrinter(printer, language, symbol).doprint
+    memo: dict = {}
+
+    def doprint(expr) -> str:
+        if expr not in memo:
+            memo[expr] = printer.doprint(expr)
+        return memo[expr]
+
+    return doprint

@@ -49,7 +49,7 @@ SQRT_EPS = 1.4901161193847656e-08
 #: the test of :func:`same_branch` a solution failed
 BRANCH_JUMP, BRANCH_TURN = 1, 2
 
-# ---- the failure details (Partition.detail), read by csim.physics.status.failure_message ----
+# ---- the failure details (Partition.detail), read by csim.solver.failures.failure_message ----
 #: [cause code, branch test (BRANCH_JUMP/BRANCH_TURN), coordinate, predicted, solved, measure, bound, max |Phi|],
 #: then u (n) at the failed solve, then the independent coordinates' indices (n)
 D_CODE, D_TEST, D_COORD, D_PRED, D_SOLVED, D_VALUE, D_BOUND, D_PHI = range(8)

@@ -17,7 +17,7 @@ from matplotlib.ticker import LogFormatter
 from csim.plot.errors import PlotError
 from csim.plot.run_figures import TIME_LABEL, log_axis
 from csim.plot.source import ComparisonData
-from csim.plot.style import label_with_unit, method_color, method_marker, new_figure, styled, title
+from csim.plot.style import label_with_unit, method_styles, new_figure, styled, title
 
 #: x axes of the work-precision charts: cost column -> axis label
 COSTS = {"wall_time": "wall time [s]", "nfev": "right-hand-side evaluations"}
@@ -68,14 +68,15 @@ def constraint_errors_figure(data: ComparisonData, methods: Sequence[str] | None
     fig, axes = new_figure(1, 1)
     ax = axes[0, 0]
     arrays, units = [], []
-    for k, m in enumerate(methods):
+    styles = method_styles(methods)
+    for m in methods:
         run = data.runs[m]
         r = run.result
         residual = r.phi_dot if velocity else r.phi
         y = np.max(np.abs(residual), axis=1) if residual.size else np.zeros(r.t.size)
         arrays.append(y)
         units += run.constraint_units
-        ax.plot(r.t, y, color=method_color(m, k), label=_run_label(m, r.ok, r.t.size),
+        ax.plot(r.t, y, color=styles[m][0], label=_run_label(m, r.ok, r.t.size),
                 linewidth=1.8 if _base(m) == "none" else 1.4, zorder=3 if _base(m) == "none" else 2)
     unit = units[0] if units and len(set(units)) == 1 else ""
     if velocity:
@@ -132,7 +133,8 @@ def motion_errors_figure(data: ComparisonData) -> Figure:
     fig, axes = new_figure(1, 1)
     ax = axes[0, 0]
     arrays, times, units = [], [], set()
-    for k, m in enumerate(data.runs):
+    styles = method_styles(list(data.runs))
+    for m in data.runs:
         err = motion_error(data, m)
         if err is None:
             continue
@@ -140,7 +142,7 @@ def motion_errors_figure(data: ComparisonData) -> Figure:
         arrays.append(err[1])
         units.update(data.runs[m].coordinate_units)
         r = data.runs[m].result
-        ax.plot(*err, color=method_color(m, k), label=_run_label(m, r.ok, r.t.size))
+        ax.plot(*err, color=styles[m][0], label=_run_label(m, r.ok, r.t.size))
     if not arrays:
         raise PlotError(f"{data.path}: no motion errors to plot (no successful reference run with the "
                         f"methods' output times)")
@@ -185,7 +187,8 @@ def work_precision_figure(data: ComparisonData, cost: str = "wall_time") -> Figu
     mixed = len({b for b in backend_col if b}) > 1  # marked: filled compiled, hollow Python
     tol_col = np.asarray(table["tolerance"], dtype=float)
     x_all, err_all, phi_all = [], [], []
-    for k, m in enumerate(order):
+    styles = method_styles(list(order))
+    for m in order:
         rows = np.flatnonzero(method_col == m)
         rows = rows[np.argsort(-np.asarray(table["tolerance"], dtype=float)[rows], kind="stable")]
         ok = np.asarray(table["status"], dtype=object)[rows] == "success"
@@ -197,16 +200,19 @@ def work_precision_figure(data: ComparisonData, cost: str = "wall_time") -> Figu
         backends = sorted({b for b in backend_col[rows] if b})
         label = m + (f" ({'/'.join(backends)})" if mixed else "") + (f" ({failed} failed, not shown)" if failed
                                                                    else "")
-        color = method_color(m, k)
-        style = dict(color=color, marker=method_marker(m, k), markersize=6, markeredgewidth=1.4,
+        color, marker = styles[m]
+        style = dict(color=color, marker=marker, markersize=7 if marker == "*" else 6, markeredgewidth=1.4,
                      markerfacecolor=color if mixed and backends == ["compiled"] else "none")
         axes[0, 0].plot(x, err, label=label, **style)
         axes[1, 0].plot(x, phi, **style)
-        for ax, y in ((axes[0, 0], err),):  # the top panel only: the residuals of stabilized runs coincide
-            for xi, yi, tol in zip(x, y, tol_col[rows]):
-                if np.isfinite(xi) and np.isfinite(yi) and xi > 0 and yi > 0:
-                    ax.annotate(f"{tol:g}", (xi, yi), xytext=(4, 3), textcoords="offset points", fontsize=7,
-                                color=color)
+        # the top panel only (the residuals of stabilized runs coincide), and of many series only
+        # the loosest and tightest points of each (all labelled, they overlap)
+        shown = range(len(rows)) if len(order) <= 3 else sorted({0, len(rows) - 1})
+        for i in shown if len(rows) else ():
+            xi, yi = x[i], err[i]
+            if np.isfinite(xi) and np.isfinite(yi) and xi > 0 and yi > 0:
+                axes[0, 0].annotate(f"{tol_col[rows][i]:g}", (xi, yi), xytext=(4, 3), textcoords="offset points",
+                                    fontsize=7, color=color)
         x_all.append(x)
         err_all.append(err)
         phi_all.append(phi)
@@ -229,7 +235,7 @@ def work_precision_figure(data: ComparisonData, cost: str = "wall_time") -> Figu
     axes[1, 0].set_xlabel(COSTS[cost])
     fig.align_ylabels(axes[:, 0])
     handles, labels = axes[0, 0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="outside lower center", ncols=min(len(order), 3))
+    fig.legend(handles, labels, loc="outside lower center", ncols=min(len(order), 2 if mixed else 3))
     a = data.file.attrs
     tols = ", ".join(f"{t:g}" for t in data.tolerances)
     kind = str(a.get("tolerance_kind", "rtol=atol")).replace("=", " = ")
@@ -239,7 +245,8 @@ def work_precision_figure(data: ComparisonData, cost: str = "wall_time") -> Figu
     if cost == "wall_time":
         how = f"median of {repeat} runs" if repeat > 1 else "one run each (csim compare --repeat N: median of N)"
         sub += f"\nwall time: {how}" + (f", {jobs} processes sharing the CPU" if jobs > 1 else "")
-    sub += "; top: points labelled with their tolerance"
+    sub += ("; top: points labelled with their tolerance" if len(order) <= 3 else
+            "; top: each line's loosest and tightest points labelled with their tolerance")
     if mixed:
         sub += "\nbackends differ: filled markers compiled, hollow Python"
     title(fig, f"Work-precision: errors against {COSTS[cost].split(' [')[0]}", sub)

@@ -7,11 +7,12 @@ from pathlib import Path
 
 from matplotlib.figure import Figure
 
-from csim.io.sweep_file import read_sweep
+from csim.io.atomic import atomic_path
 from csim.plot.errors import PlotError, check_dpi
 from csim.plot.registry import COMPARISON_FIGURES, SWEEP_FIGURES, run_figure_kinds, select
 from csim.plot.source import COMPARISON, SWEEP, file_kind, load_comparison, load_run
 from csim.plot.style import FORMATS, save
+from csim.study.sweep_file import read_sweep
 
 
 @dataclass
@@ -106,6 +107,10 @@ def plot_file(path: str | Path, out_dir: str | Path, fmt: str = "png", only: Seq
               group: str | None = None, dpi: float | None = None) -> PlotReport:
     """Write the figures of ``path`` into ``out_dir`` as ``NAME.FORMAT``.
 
+    Each figure goes through a temporary file beside it (:func:`csim.io.atomic.atomic_path`):
+    a failure leaves no partial figure, and a symbolic link at ``NAME.FORMAT`` is replaced by
+    the figure, never written through.
+
     Parameters
     ----------
     path : str or Path
@@ -131,7 +136,8 @@ def plot_file(path: str | Path, out_dir: str | Path, fmt: str = "png", only: Seq
     names, skipped, built = figures(path, only, group)
     out_dir = Path(out_dir)
     if out_dir.exists() and not out_dir.is_dir():
-        raise PlotError(f"--output {out_dir}: not a folder")
+        raise PlotError(f"--output {out_dir}: cannot write there, {out_dir} is a file, not a folder; expected "
+                        f"a folder for the figures")
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -140,7 +146,8 @@ def plot_file(path: str | Path, out_dir: str | Path, fmt: str = "png", only: Seq
     for name, fig in built:
         target = out_dir / f"{name}.{fmt}"
         try:
-            save(fig, target, dpi)
+            with atomic_path(target) as tmp:
+                save(fig, tmp, dpi)
         except OSError as exc:
             raise PlotError(f"cannot write {target}: {exc.strerror or exc}") from None
         report.written.append(target)

@@ -14,10 +14,11 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
+from csim.io.units import multiplier_unit
 from csim.model.definition import DeclaredFigure, Panel
 from csim.plot.drawing import MechanismArtists, geometry, setup_axes, snapshot_indices, symbol_size
 from csim.plot.errors import PlotError
-from csim.plot.series import multiplier_unit, resolve
+from csim.plot.series import resolve
 from csim.plot.source import RunData
 from csim.plot.style import SIZE, label_with_unit, new_figure, styled, title
 

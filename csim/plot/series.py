@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from csim.io.units import multiplier_unit
 from csim.plot.errors import PlotError
 from csim.plot.source import RunData
 
@@ -55,15 +56,12 @@ class Series:
 
 
 def _per_second(unit: str, power: int = 1) -> str:
+    """``unit`` per second (``power``: per s^power); an unknown unit (``""``) stays unknown."""
     if not unit:
+        return ""
+    if unit == "1":
         return "1/s" if power == 1 else f"1/s^{power}"
     return f"{unit}/s" if power == 1 else f"{unit}/s^{power}"
-
-
-def multiplier_unit(constraint_unit: str) -> str:
-    """Unit of a Lagrange multiplier whose constraint has the unit ``constraint_unit``."""
-    # Phi_q^T lambda is a generalized force: lambda_i * Phi_i has the unit of work (J)
-    return {"": "J", "m": "N"}.get(constraint_unit, f"J/{constraint_unit}")
 
 
 def series_names(run: RunData) -> list[str]:

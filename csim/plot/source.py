@@ -31,11 +31,11 @@ import yaml
 from csim.case import parse_yaml, validate_case
 from csim.errors import CsimError, ResultFileError
 from csim.io.hdf5 import COMPARISON_KIND, ComparisonFile, read_comparison, read_result
-from csim.io.sweep_file import SWEEP_KIND
 from csim.mechanisms import MECHANISMS, get_mechanism
 from csim.model.definition import MechanismDefinition
 from csim.model.light import full_definition
 from csim.result import Result
+from csim.study.sweep_file import SWEEP_KIND
 
 #: kinds of result file
 RUN, COMPARISON, SWEEP = "run", "comparison", "sweep"
@@ -199,9 +199,10 @@ def _coordinate_units(path: Path, group: str, m: int, definition: MechanismDefin
 def constraint_units(definition: MechanismDefinition, parameters: dict[str, float]) -> list[str]:
     """Unit of each constraint function, found by dimensional analysis.
 
-    Lengths (parameters and coordinates in m) are doubled at a generic configuration: a
-    constraint that doubles is in m, one that does not change is dimensionless, one that
-    grows by 2^k is in m^k. A constraint that scales otherwise gets ``""``.
+    For a file without the constraints' units (written before format version 2). Lengths
+    (parameters and coordinates in m) are doubled at a generic configuration: a constraint
+    that doubles is in m, one that does not change is dimensionless (``1``), one that grows
+    by 2^k is in m^k. A constraint that scales otherwise gets ``""`` (unknown).
 
     Returns
     -------
@@ -231,7 +232,7 @@ def constraint_units(definition: MechanismDefinition, parameters: dict[str, floa
             k = math.log2(ratio) if ratio > 0 else float("nan")
             if math.isfinite(k) and abs(k - round(k)) < 1e-9:
                 k = round(k)
-                unit = "" if k == 0 else "m" if k == 1 else f"m^{k}"
+                unit = "1" if k == 0 else "m" if k == 1 else f"m^{k}"
             break
         units.append(unit)
     return units
@@ -303,9 +304,11 @@ def run_data(result: Result, path: str | Path, group: str = "", rebuilds: Rebuil
     path = Path(path)
     definition, parameters, case, unavailable = _definition(result, rebuilds or Rebuilds())
     m, r = result.q.shape[1], result.phi.shape[1]
-    c_units = [""] * r
-    if definition is not None and len(definition.constraints) == r:
-        c_units = constraint_units(definition, parameters)
+    c_units = list(result.constraint_units)  # the file's (a link-coupling mechanism's from its equations)
+    if len(c_units) != r or not any(c_units):
+        c_units = [""] * r
+        if definition is not None and len(definition.constraints) == r:
+            c_units = constraint_units(definition, parameters)
     return RunData(result=result, path=path, group=group, definition=definition, parameters=parameters, case=case,
                    unavailable=unavailable, coordinate_units=_coordinate_units(path, group, m, definition),
                    constraint_units=c_units)

@@ -116,6 +116,29 @@ def method_marker(method: str, index: int = 0) -> str:
     return METHOD_MARKERS.get(method.split(":", 1)[0], _MARKER_CYCLE[index % len(_MARKER_CYCLE)])
 
 
+#: marker of a method's second series with another integrator (``projection:Vern7`` beside ``projection``)
+INTEGRATOR_MARKERS = {"DOP853": "D", "RK45": "h", "Tsit5": "p", "Vern7": "*", "RK4": "X", "Radau": "v", "BDF": "<",
+                      "LSODA": ">"}
+
+
+def method_styles(methods: list[str]) -> dict[str, tuple[str, str]]:
+    """(colour, marker) of each series of a chart, none alike: the first series of a method
+    takes the method's own (:data:`METHOD_COLORS`, :data:`METHOD_MARKERS`); another series
+    of the same method with another integrator (``projection`` and ``projection:Vern7``)
+    takes the next colour of the cycle and its integrator's marker."""
+    styles, seen, spare = {}, set(), 0
+    for k, m in enumerate(methods):
+        base, _, integrator = m.partition(":")
+        if base in METHOD_COLORS and base not in seen:
+            styles[m] = (method_color(m, k), method_marker(m, k))
+        else:
+            marker = INTEGRATOR_MARKERS.get(integrator) or method_marker(m, k)
+            styles[m] = (_CYCLE[spare % len(_CYCLE)], marker)
+            spare += 1
+        seen.add(base)
+    return styles
+
+
 def label_with_unit(name: str, unit: str) -> str:
     """``"crank angle [rad]"``, ``"relative error [-]"`` for a dimensionless one (unit ``1``);
     no brackets for an empty (unknown) unit."""

@@ -18,9 +18,9 @@ from matplotlib.colors import BoundaryNorm, ListedColormap, LogNorm, Normalize
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
-from csim.io.sweep_file import PENDING, SweepTable
 from csim.plot.errors import PlotError
 from csim.plot.style import label_with_unit, new_figure, styled, title
+from csim.study.sweep_file import PENDING, SweepTable
 
 #: outcome -> (colour, marker); reasons as csim.study.metrics names them
 OUTCOMES = {

@@ -15,7 +15,8 @@ from csim.errors import SimulationFailure
 from csim.physics.kkt import kkt_solve
 from csim.physics.linalg import as_core
 from csim.physics.partition import block_inverse, choose_partition
-from csim.physics.status import SINGULAR_KKT, failure
+from csim.physics.status import SINGULAR_KKT
+from csim.solver.failures import failure
 
 
 class Formulation:

@@ -32,7 +32,8 @@ from csim.physics.partition import (  # noqa: F401 (the constants' old home)
 )
 from csim.physics.partition import branch_tangent as _tangent_core
 from csim.physics.projection import at_round_off  # noqa: F401 (re-exported)
-from csim.physics.status import BRANCH_LEFT, DEPENDENT_NONFINITE, DEPENDENT_SINGULAR, OK, branch_test_text
+from csim.physics.status import BRANCH_LEFT, DEPENDENT_NONFINITE, DEPENDENT_SINGULAR, OK
+from csim.solver.failures import branch_test_text
 
 _REASONS = {DEPENDENT_NONFINITE: "non_finite", DEPENDENT_SINGULAR: "singular"}
 

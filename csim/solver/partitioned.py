@@ -26,7 +26,8 @@ import numpy as np
 from csim.errors import PartitionBreakdown, SimulationFailure
 from csim.physics import branch as core
 from csim.physics.partition import C_BRANCH_RESTARTS, C_REPARTITIONS, MAX_BRANCH_RESTARTS, block_inverse, new_partition
-from csim.physics.status import BRANCH_LEFT, OK, failure
+from csim.physics.status import BRANCH_LEFT, OK
+from csim.solver.failures import failure
 from csim.solver.newton import PythonModel
 from csim.solver.system import ConstrainedSystem
 

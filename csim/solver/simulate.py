@@ -27,6 +27,7 @@ from csim.errors import PartitionBreakdown, SimulationFailure
 from csim.physics import status as st
 from csim.physics.events import chattering_switches, check_chatter
 from csim.physics.steps import check_step
+from csim.solver import failures
 from csim.solver.integrators import INTEGRATORS, make_integrator
 from csim.solver.rk4 import RK4
 from csim.solver.settings import IntegrationSettings, Trajectory, output_times
@@ -60,7 +61,7 @@ class _Counter:
             if self.implicit:
                 self.non_finite_at = t
                 return f
-            raise st.failure(st.NONFINITE_RHS, t, np.max(np.abs(y)), None)
+            raise failures.failure(st.NONFINITE_RHS, t, np.max(np.abs(y)), None)
         return f
 
 
@@ -120,7 +121,7 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
                         msg = solver.step()
                         counters["nsteps"] += 1
                         if counters["nsteps"] > settings.max_steps:
-                            raise st.failure(st.MAX_STEPS, solver.t, 0.0, settings)
+                            raise failures.failure(st.MAX_STEPS, solver.t, 0.0, settings)
                         if solver.status == "failed":
                             if counter.non_finite_at is not None:
                                 msg += (f" (the right-hand side was non-finite at trial states, last at "
@@ -157,7 +158,7 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
                             events_sw.append(switched)
                             _check_chatter(events_t, events_sw, labels, settings)
                             if len(events_t) > settings.max_events:
-                                raise st.failure(st.MAX_EVENTS, t, 0.0, settings)
+                                raise failures.failure(st.MAX_EVENTS, t, 0.0, settings)
                             restarted = True
                             break
                         t, y = t_new, solver.y.copy()
@@ -215,7 +216,7 @@ def _check_step(system: ConstrainedSystem, solver, settings: IntegrationSettings
     code = check_step(y, max_phi, solver.t - solver.t_old, solver.t, solver.t_bound, adaptive, settings.max_phi,
                       settings.min_step, info)
     if code != st.OK:
-        raise st.failure(code, info[0], info[1], settings, system.stabilizer)
+        raise failures.failure(code, info[0], info[1], settings, system.stabilizer)
 
 
 def _check_chatter(events_t: list, events_sw: list, labels: list, settings: IntegrationSettings) -> None:
@@ -235,7 +236,7 @@ def _check_chatter(events_t: list, events_sw: list, labels: list, settings: Inte
     involved = np.zeros(len(labels), bool)
     chattering_switches(last_sw, n, n, involved)
     switches = [labels[j] for j in np.flatnonzero(involved)]
-    raise st.failure(st.CHATTER, info[0], info[1], settings, switches=switches)
+    raise failures.failure(st.CHATTER, info[0], info[1], settings, switches=switches)
 
 
 def _swap_state(solver, y) -> bool:

@@ -33,7 +33,6 @@ import numpy as np
 
 from csim.case import apply_overrides, validate_case
 from csim.errors import CaseError, CsimError
-from csim.io.sweep_file import PENDING
 from csim.parallel import (
     InterruptFlag,
     process_pool,
@@ -44,6 +43,7 @@ from csim.parallel import (
 )
 from csim.study.metrics import empty_row, failed_row, run_row
 from csim.study.plan import override
+from csim.study.sweep_file import PENDING
 
 #: (run index, row, signals or None)
 Done = tuple[int, dict, dict | None]

@@ -25,6 +25,7 @@ import numpy as np
 
 from csim.case import SETTABLE, Case, apply_overrides, validate_case
 from csim.errors import CaseError
+from csim.io.units import DIMENSIONLESS, UNKNOWN, per_time, phi_unit_text
 from csim.study.values import Variation
 
 SAMPLINGS = ("grid", "random", "lhs")
@@ -162,15 +163,58 @@ def _check_values(case: Case, data: dict, variations: list[Variation]) -> list[s
     return problems
 
 
+def key_unit(case, key: str, constraint_unit: str | list[str] = "") -> str:
+    """The unit of a case key's value (what ``csim sweep`` varies), parsable; ``1`` for a
+    dimensionless number or a name, ``""`` where csim does not know it.
+
+    Parameters
+    ----------
+    case : Case
+        The validated base case (its mechanism's parameters, coordinates and loads).
+    key : str
+        A dotted key, e.g. ``stabilization.w``, ``mechanism.parameters.l1``, ``initial.q.q1``,
+        ``loads.torque`` or ``loads.torque.magnitude``.
+    constraint_unit : str or list of str
+        The constraints' unit (:func:`csim.io.units.common_unit`), for the keys in the unit of Phi.
+    """
+    parts = key.split(".")
+    mech = case.mechanism
+    spec = SETTABLE.get(key)
+    if spec is not None:
+        if spec.type in ("string", "boolean"):
+            return DIMENSIONLESS
+        if spec.unit and spec.unit != "-":  # a number, or a gain that may be one per constraint
+            return phi_unit_text(spec.unit, constraint_unit)
+        return DIMENSIONLESS if spec.type in ("number", "integer") else ""
+    if parts[:2] == ["mechanism", "parameters"] and len(parts) == 3:
+        try:  # a link-coupling parameter declares no unit: unknown, not dimensionless
+            return mech.parameter(parts[2]).unit or UNKNOWN
+        except KeyError:
+            return ""
+    if parts[0] == "initial" and len(parts) == 3 and parts[2] in mech.coordinate_names:
+        unit = mech.coordinate_units[mech.coordinate_names.index(parts[2])]
+        return {"q": unit, "qd": per_time(unit), "guess": unit, "q_offset": unit,
+                "qd_offset": per_time(unit)}.get(parts[1], "")
+    if parts[0] == "loads" and len(parts) >= 2:
+        units = {ld.name: ld.unit for ld in mech.loads}
+        if len(parts) == 2 or parts[2] == "magnitude":
+            return units.get(parts[1], "")
+    return ""
+
+
 def unit_of(case: Case, key: str) -> str | None:
     """The unit a value of ``key`` written with a unit is converted to (a schema key's declared
     unit, which refuses units where it is ``""`` or the unit of Phi; a parameter's, a
-    coordinate's or a load's unit); None where csim does not know it, or for a text key."""
-    from csim.io.units import key_unit
+    coordinate's or a load's unit; SI base units for a link-coupling parameter, as in a case
+    file); None where csim does not know it, or for a text key."""
+    from csim.quantities import SI_BASE
 
     spec = SETTABLE.get(key)
     if spec is not None:
         return None if spec.type in ("string", "boolean") else spec.unit
+    parts = key.split(".")
+    if parts[:2] == ["mechanism", "parameters"] and len(parts) == 3 and case.linkage is not None:
+        return SI_BASE  # a link-coupling parameter: any unit, in SI base units (as in the case file)
     return key_unit(case, key) or None
 
 

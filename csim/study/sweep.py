@@ -19,12 +19,12 @@ import numpy as np
 
 from csim.case import apply_overrides, validate_case
 from csim.errors import CaseError, ResultFileError, SimulationFailure
-from csim.io.sweep_file import PENDING, SweepTable, read_sweep, write_sweep
-from csim.io.units import common_unit, key_unit, mechanism_units, per_time
+from csim.io.units import common_unit, mechanism_units, per_time
 from csim.result import Result
 from csim.study import execute
 from csim.study.metrics import COLUMNS, empty_row
-from csim.study.plan import SweepPlan
+from csim.study.plan import SweepPlan, key_unit
+from csim.study.sweep_file import PENDING, SweepTable, read_sweep, write_sweep
 
 #: keys a reference run may not change: the motion error compares samples at the same times
 REFERENCE_FIXED = ("output.dt", "simulation.t_end")

@@ -16,7 +16,8 @@ import dataclasses
 import numpy as np
 
 from csim.physics import projection as core
-from csim.physics.status import OK, SINGULAR_MASS, failure
+from csim.physics.status import OK, SINGULAR_MASS
+from csim.solver.failures import failure
 from csim.solver.methods.base import Method, option
 
 METRICS = ("minimum_norm", "mass")

@@ -57,7 +57,7 @@ class SweepTable:
     reference : tuple of ndarray or None
         (t, q) of the reference run.
     value_units : dict of str -> str
-        The unit of each varied key's value (:func:`csim.io.units.key_unit`).
+        The unit of each varied key's value (:func:`csim.study.plan.key_unit`).
     coordinate_units, constraint_units : list of str
         The units of the coordinates and of the constraint functions, for the signals.
     """

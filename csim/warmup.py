@@ -1,4 +1,4 @@
-"""Compile the kernels once for this installation: ``python -m csim.fast.warm`` (``make install``).
+"""Compile the kernels once for this installation: ``python -m csim.warmup`` (``make install``).
 
 Runs the default case for a few steps with the compiled backend, once with a method of the
 plain kernels and once with ``minimal`` (the partitioned copy), so that numba compiles both

@@ -1,0 +1,96 @@
+"""The package layout: no import cycle between csim's packages and top-level modules,
+counting the imports inside functions (a deferred import only hides a cycle)."""
+from __future__ import annotations
+
+import ast
+from collections import defaultdict
+from pathlib import Path
+
+CSIM = Path(__file__).resolve().parents[1] / "csim"
+
+
+def _unit(module: str) -> str | None:
+    """The layout unit of a module: its top-level package or module under csim (None outside csim)."""
+    parts = module.split(".")
+    if parts[0] != "csim" or len(parts) == 1:
+        return None
+    return parts[1]
+
+
+def import_graph() -> dict[str, dict[str, list[str]]]:
+    """unit -> imported unit -> the imports that make the edge (``module:line``), every import
+    statement of every file counted, at the top or inside a function."""
+    edges: dict[str, dict[str, list[str]]] = defaultdict(lambda: defaultdict(list))
+    for path in CSIM.rglob("*.py"):
+        parts = path.relative_to(CSIM.parent).with_suffix("").parts
+        module = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+        package = ".".join(parts[:-1])
+        source = _unit(module)
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                targets = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:  # relative: from the package, one level up per extra dot
+                    up = package.split(".")[:len(package.split(".")) - node.level + 1]
+                    base = ".".join([*up, *filter(None, [base])])
+                targets = [f"{base}.{alias.name}" for alias in node.names] if base == "csim" else [base]
+            else:
+                continue
+            for target in targets:
+                unit = _unit(target)
+                if source and unit and unit != source:
+                    edges[source][unit].append(f"{module}:{node.lineno}")
+    return edges
+
+
+def cycles(edges) -> list[list[str]]:
+    """The strongly connected components of more than one unit (Tarjan's algorithm)."""
+    index, low, stack, on_stack, found = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in edges.get(v, {}):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for v in sorted(set(edges) | {w for targets in edges.values() for w in targets}):
+        if v not in index:
+            visit(v)
+    return found
+
+
+def test_no_import_cycle_between_packages():
+    edges = import_graph()
+    found = cycles(edges)
+    detail = [f"{a} -> {b}: {edges[a][b][0]}" for comp in found for a in comp for b in edges[a] if b in comp]
+    assert not found, f"import cycles {found}:\n" + "\n".join(detail)
+
+
+def test_the_check_finds_a_cycle_hidden_in_a_function():
+    """The graph counts deferred imports: physics importing solver inside a function closes
+    the cycle solver -> physics -> solver."""
+    edges = import_graph()
+    assert "physics" in edges["solver"]
+    edges["physics"]["solver"].append("csim.physics.example:1")
+    assert ["physics", "solver"] in [sorted(set(c) & {"physics", "solver"}) for c in cycles(edges)]
+
+
+def test_the_core_imports_only_itself_and_the_leaves():
+    """csim.physics, the numba-able core both backends run, imports no other csim package."""
+    assert not set(import_graph()["physics"]) - {"errors"}, dict(import_graph()["physics"])
