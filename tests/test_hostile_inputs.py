@@ -177,7 +177,7 @@ def test_describe_of_a_30_link_chain_ends_within_the_bound_with_progress(tmp_pat
     proc = csim("describe", case, limit=10 + LIMIT_S)
     assert proc.returncode == 0, proc.stderr
     assert "31 links, 30 joints" in proc.stdout and "q30" in proc.stdout
-    if time.monotonic() - start > 2:  # a step over a second says so on stderr
+    if time.monotonic() - start > 5:  # the derivation took seconds (not only the process start): it says so
         assert "csim: deriving the kinematics of chain.yaml ..." in proc.stderr
 
 
