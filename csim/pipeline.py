@@ -12,6 +12,7 @@ import numpy as np
 from csim.case import Case
 from csim.errors import SimulationFailure
 from csim.fast import integrate_compiled, prepare_compiled, resolve_backend
+from csim.io.outputs import EVALUATED
 from csim.io.units import mechanism_units
 from csim.model.cache import definition_key
 from csim.model.numeric import NumericModel, build_numeric_model
@@ -270,10 +271,11 @@ def _sample_values(system: ConstrainedSystem, traj: Trajectory, backend: str,
     :meth:`ConstrainedSystem.evaluate`. A sample that cannot be evaluated (the last state of
     a blow-up) is NaN, but for its observables (geometry only).
     """
-    N, m, r, k = traj.t.size, system.m, system.r_recorded, system.k
-    arrays = {name: np.full(shape, np.nan) for name, shape in dict(
-        qdd=(N, m), lam=(N, r), phi=(N, r), phi_dot=(N, r), loads=(N, k), generalized_forces=(N, m),
-        kinetic=(N,), potential=(N,), observables=(N, o), observable_rates=(N, o)).items()}
+    N = traj.t.size
+    columns = {"coordinate": (system.m,), "constraint": (system.r_recorded,), "load": (system.k,), "": ()}
+    # the outputs one evaluation gives (csim.io.outputs), and the observables (geometry only)
+    arrays = {name: np.full((N, *columns[out.columns]), np.nan) for name, out in EVALUATED.items()}
+    arrays.update(observables=np.full((N, o), np.nan), observable_rates=np.full((N, o), np.nan))
     drive_forces = None
     if backend == "compiled" and N:
         from csim.fast.runner import evaluate_compiled
@@ -299,8 +301,6 @@ def _sample_values(system: ConstrainedSystem, traj: Trajectory, backend: str,
         except SimulationFailure as exc:
             failure = failure or exc
             continue
-        for name, value in (("qdd", ev.qdd), ("lam", ev.lam), ("phi", ev.phi), ("phi_dot", ev.phi_dot),
-                            ("loads", ev.u), ("generalized_forces", ev.Q), ("kinetic", ev.kinetic),
-                            ("potential", ev.potential)):
-            arrays[name][i] = value
+        for name, out in EVALUATED.items():
+            arrays[name][i] = getattr(ev, out.evaluation)
     return arrays, failure, drive_forces

@@ -1,7 +1,8 @@
 """The result of one run: time series, status, counters, and the figures of merit.
 
 Shapes: N output times, m coordinates, r constraints, k loads, o observables.
-Units: see :data:`csim.io.units.UNITS`.
+Units: see :data:`csim.io.outputs.OUTPUTS` (the per-sample quantities) and
+:data:`csim.io.units.UNITS`.
 """
 from __future__ import annotations
 

@@ -46,13 +46,12 @@ import numpy as np
 from csim import __version__
 from csim.errors import ResultFileError
 from csim.io.atomic import write_atomically
+from csim.io.outputs import OUTPUTS
 from csim.io.units import (
     DIMENSIONLESS,
     FIXED_UNITS,
-    FORCE_UNIT,
     UNITS,
     common_unit,
-    multiplier_unit,
     per_time,
 )
 from csim.result import JointReaction, Result
@@ -175,23 +174,11 @@ def write_result_group(group: h5py.Group, result: Result, coordinate_units: list
     coordinate = scale(group, "coordinate", _names(result.coordinate_names[:result.q.shape[1]]))
     constraint = scale(group, "constraint", np.arange(1, result.phi.shape[1] + 1, dtype=np.int64))
     load = scale(group, "load", _names(result.load_names[:result.loads.shape[1]]))
-    tq, tc, tl = (t, coordinate), (t, constraint), (t, load)
-    _dataset(group, "q", result.q, common_unit(u["coordinate"]), dims=tq)
-    _dataset(group, "qd", result.qd, common_unit([per_time(c) for c in u["coordinate"]]), dims=tq)
-    _dataset(group, "qdd", result.qdd, common_unit([per_time(c, 2) for c in u["coordinate"]]), dims=tq)
-    _dataset(group, "lambda", result.lam, common_unit([multiplier_unit(c) if c else "" for c in u["constraint"]]),
-             dims=tc)
-    _dataset(group, "phi", result.phi, common_unit(u["constraint"]), dims=tc)
-    _dataset(group, "phi_dot", result.phi_dot, common_unit([per_time(c) if c else "" for c in u["constraint"]]),
-             dims=tc)
-    energy = group.create_group("energy")
-    for name, data in (("kinetic", result.kinetic), ("potential", result.potential), ("work", result.work),
-                       ("balance_error", result.energy_error)):
-        _dataset(energy, name, data, FIXED_UNITS[f"energy/{name}"], UNITS[f"energy/{name}"], dims=tl)
-    forces = group.create_group("forces")
-    _dataset(forces, "loads", result.loads, common_unit(u["load"]), UNITS["forces/loads"], dims=tl)
-    _dataset(forces, "generalized", result.generalized_forces,
-             common_unit([FORCE_UNIT.get(c, "") for c in u["coordinate"]]), UNITS["forces/generalized"], dims=tq)
+    along = {"coordinate": (t, coordinate), "constraint": (t, constraint), "load": (t, load), "": (t,)}
+    for out in OUTPUTS:  # q, qd, qdd, lambda, phi, phi_dot, energy/..., forces/... (csim.io.outputs)
+        folder, _, name = out.dataset.rpartition("/")
+        where = group.require_group(folder) if folder else group
+        _dataset(where, name, getattr(result, out.name), out.unit(u), out.description, dims=along[out.columns])
     if result.drive_forces is not None:
         _write_drives(group, result, t)
     if result.reactions:

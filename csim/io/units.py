@@ -38,7 +38,8 @@ UNKNOWN = ""
 
 #: dataset path in a result file -> what it holds and in which unit (the ``description``
 #: attribute; ``per coordinate`` means: see the dataset's ``units``, one entry per column
-#: where the columns differ)
+#: where the columns differ), for the datasets that are not per-sample output quantities
+#: (those are records of :data:`csim.io.outputs.OUTPUTS`)
 UNITS: dict[str, str] = {
     "t": "s: output time",
     "coordinate": "names of the generalized coordinates (dimension scale of q, qd, qdd)",
@@ -46,20 +47,6 @@ UNITS: dict[str, str] = {
     "load": "names of the loads (dimension scale of forces/loads, energy/work)",
     "drive": "names of the driven joint variables (dimension scale of forces/drive, energy/drive_work)",
     "axis": "x, y, z (dimension scale of the joint reactions)",
-    "q": "generalized coordinates, per coordinate: rad or m",
-    "qd": "generalized velocities, per coordinate: rad/s or m/s",
-    "qdd": "generalized accelerations, per coordinate: rad/s^2 or m/s^2",
-    "lambda": "Lagrange multipliers, per constraint: N for a constraint in m (a position equation), N m for a "
-              "dimensionless one (an orientation equation), J divided by the constraint's unit in general "
-              "(Phi_q^T lambda is a generalized force)",
-    "phi": "constraint residuals Phi(q), per constraint: unit of the constraint function",
-    "phi_dot": "velocity-level residuals Phi_q qd, per constraint: unit of the constraint function per s",
-    "energy/kinetic": "kinetic energy T [J]",
-    "energy/potential": "potential energy V [J]",
-    "energy/work": "work of each load since t = 0 [J]",
-    "energy/balance_error": "T + V - (T0 + V0) - sum of load work [J]",
-    "forces/loads": "value u of each load: N or N m",
-    "forces/generalized": "generalized forces Q = B u, per coordinate: N m for angles, N for lengths",
     "forces/drive": "per drive: N m for a rotation, N for a translation; the torque or force the drive "
                     "applies along its joint variable (driven dynamics)",
     "energy/drive_work": "work of each drive since t = 0 [J]",
@@ -84,10 +71,6 @@ FIXED_UNITS: dict[str, str] = {
     "load": DIMENSIONLESS,
     "drive": DIMENSIONLESS,
     "axis": DIMENSIONLESS,
-    "energy/kinetic": "J",
-    "energy/potential": "J",
-    "energy/work": "J",
-    "energy/balance_error": "J",
     "energy/drive_work": "J",
     "reactions/force_global": "N",
     "reactions/force_joint": "N",
