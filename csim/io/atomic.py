@@ -30,18 +30,21 @@ def _new_file_mode(path: str) -> None:
 
 
 @contextmanager
-def atomic_path(path: str | Path) -> Iterator[Path]:
+def atomic_path(path: str | Path, keep_suffix: bool = True) -> Iterator[Path]:
     """A temporary path beside ``path`` for a writer to fill; renamed over ``path`` when the
     block ends without an exception, removed when it raises.
 
     The temporary file (``.STEM.XXXXXXXX.SUFFIX``) keeps the suffix of ``path``, for writers
-    that pick the format from it (matplotlib's ``savefig``). A symbolic link at ``path`` is
-    replaced by the file, never written through.
+    that pick the format from it (matplotlib's ``savefig``); with ``keep_suffix=False`` it is
+    ``.NAME.XXXXXXXX.tmp``. A symbolic link at ``path`` is replaced by the file, never
+    written through.
 
     Parameters
     ----------
     path : str or Path
         The target; its folder is created when missing.
+    keep_suffix : bool
+        Whether the temporary file ends with the suffix of ``path``.
 
     Yields
     ------
@@ -56,7 +59,8 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
+    prefix, suffix = (f".{path.stem}.", path.suffix) if keep_suffix else (f".{path.name}.", ".tmp")
+    fd, tmp = tempfile.mkstemp(prefix=prefix, suffix=suffix, dir=path.parent)
     os.close(fd)
     try:
         yield Path(tmp)
@@ -73,7 +77,8 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
 
 
 def write_atomically(path: str | Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file beside it, then rename it over ``path``.
+    """Write ``data`` to ``path`` through a temporary file beside it, then rename it over ``path``
+    (:func:`atomic_path`, the temporary file named ``.NAME.XXXXXXXX.tmp``).
 
     Parameters
     ----------
@@ -89,19 +94,11 @@ def write_atomically(path: str | Path, data: bytes) -> None:
         ``strerror`` say why, e.g. EFBIG "File too large", ENOSPC "No space left on
         device"); no temporary file is left and ``path`` is as it was.
     """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
+    with atomic_path(path, keep_suffix=False) as tmp:
+        fd = os.open(tmp, os.O_WRONLY)
         try:
             view = memoryview(data)
             while view:
                 view = view[os.write(fd, view[:CHUNK]):]
-            os.fsync(fd)  # durable before it becomes visible
         finally:
             os.close(fd)
-        _new_file_mode(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
