@@ -215,3 +215,17 @@ def test_labels_and_title_lie_inside_the_frame(qr_file):
             box = text.get_window_extent(renderer)
             assert frame.x0 - 1 <= box.x0 and box.x1 <= frame.x1 + 1, text.get_text()
             assert frame.y0 - 1 <= box.y0 and box.y1 <= frame.y1 + 1, text.get_text()
+
+
+@pytest.mark.parametrize("which", ["qr_file", "pendulum_file"])
+def test_frames_draw_without_matplotlib_warnings(which, request):
+    """A wide drawing (the quick-return) and a tall one (the pendulum): the equal aspect widens
+    the limits that may give way, without matplotlib's "Ignoring fixed ... limits"."""
+    import warnings
+
+    anim = MechanismAnimation(load_run(request.getfixturevalue(which)), fps=10)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        anim.update(1)
+        anim.figure.canvas.draw()
+    assert not [str(w.message) for w in caught], [str(w.message) for w in caught]

@@ -148,7 +148,8 @@ class MechanismAnimation:
             self.artists = MechanismArtists(ax, self.geometry, self.points[0], scale)
             setup_axes(ax, self.geometry, lo, hi)
             if self.geometry.dim == 2:  # the limits give way, not the box: the labels stay inside the frame
-                ax.set_ylim(auto=True)  # y gives way (x fixed): matplotlib warns when both are fixed
+                ax.set_xlim(auto=True)  # either may give way: matplotlib warns when the one it widens is fixed
+                ax.set_ylim(auto=True)
                 ax.set_aspect("equal", adjustable="datalim")
             place = ax.text2D if self.geometry.dim == 3 else ax.text
             self.clock = place(0.02, 0.97, "", transform=ax.transAxes, va="top", ha="left",
