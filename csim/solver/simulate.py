@@ -72,127 +72,161 @@ def integrate(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSe
     Never raises for a failure of the integration itself: a failed run comes back with
     ``status = "failed"``, a message naming the cause, and the output up to the failure.
     """
-    t_out = output_times(settings.t_end, settings.output_dt)
-    n_state = y0.size
-    ts, ys, modes = [], [], []
-    counters = dict(njev=0, nlu=0, nsteps=0)
-    events_t, events_label, events_sw = [], [], []  # events_sw: the switching functions of each event
-    labels = system.loads.switch_labels
-    locate = settings.events and system.loads.n_switches > 0
-
-    t, y = 0.0, np.array(y0, dtype=float)
+    run = _Run(system, settings, y0, progress)
     status, message, failure = "success", f"reached t_end = {settings.t_end:g} s", ""
-
-    adaptive = INTEGRATORS[settings.integrator].adaptive
-    mode = np.zeros(system.loads.n_switches, bool)
-
-    def record(t_i, y_i):
-        y_full = system.output_state(y_i)  # may raise: nothing is appended then
-        ts.append(t_i)
-        ys.append(y_full)
-        modes.append(mode.copy())
-
-    i_out = 1
-    all_nfev = 0
     # blow-ups are detected and reported below; numpy's overflow warnings would only add noise
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         try:
             # the system's own state: projected onto the manifold, reduced, or extended by multipliers
-            y = system.start(y)
-            mode[:] = system.mode_at(y)
-            record(t, y)
-            while t < settings.t_end and i_out <= len(t_out):
-                if locate:
-                    frozen = mode.copy()
-                    fun = lambda t_, y_, frozen=frozen: system.rhs(t_, y_, frozen)  # noqa: E731
-                else:
-                    fun = system.rhs_unlocated
-                implicit = INTEGRATORS[settings.integrator].implicit or system.dae_options() is not None
-                counter, solver = _Counter(fun, implicit), None
-                restarted = False
-                try:
-                    solver = make_integrator(
-                        settings.integrator, counter, t, y, settings.t_end,
-                        rtol=settings.rtol, atol=_atol(settings.atol, system, y),
-                        step=settings.step, max_step=settings.max_step, first_step=settings.first_step,
-                        dae=system.dae_options(), system=system, mode=frozen if locate else None,
-                    )
-                    while solver.status == "running":
-                        msg = solver.step()
-                        counters["nsteps"] += 1
-                        if counters["nsteps"] > settings.max_steps:
-                            raise failures.failure(st.MAX_STEPS, solver.t, 0.0, settings)
-                        if solver.status == "failed":
-                            if counter.non_finite_at is not None:
-                                msg += (f" (the right-hand side was non-finite at trial states, last at "
-                                        f"t = {counter.non_finite_at:.6g} s)")
-                            raise SimulationFailure(
-                                f"integrator {settings.integrator} failed at t = {solver.t:.6g} s: {msg}",
-                                st.KINDS[st.RK4_RESOLUTION if settings.integrator == "RK4" else st.STEP_TOO_SMALL])
-                        _check_step(system, solver, settings, adaptive)
-                        t_new = solver.t
-                        dense, t_stop, switched = None, t_new, []
-                        if locate:  # its dense output (built to look inside the step) serves the samples too
-                            dense, t_event, switched = _find_event(system, solver, mode, settings.event_samples)
-                            t_stop = t_new if t_event is None else t_event
-                        # sample output times in (t_old, t_stop]
-                        while i_out < len(t_out) and t_out[i_out] <= t_stop:
-                            if t_out[i_out] == t_new and t_stop == t_new:
-                                y_i = solver.y
-                            else:
-                                dense = dense or solver.dense_output()
-                                y_i = dense(t_out[i_out])
-                            record(t_out[i_out], y_i)
-                            i_out += 1
-                        if progress is not None:
-                            progress(t_stop)
-                        if switched:
-                            # restart from the event state with the switched conditions flipped
-                            y = dense(t_stop) if t_stop < t_new else solver.y.copy()
-                            t = t_stop
-                            for j in switched:
-                                mode[j] = not mode[j]
-                            y = system.restart(t, y, mode)
-                            events_t.append(t)
-                            events_label.append("; ".join(labels[j] for j in switched))
-                            events_sw.append(switched)
-                            _check_chatter(events_t, events_sw, labels, settings)
-                            if len(events_t) > settings.max_events:
-                                raise failures.failure(st.MAX_EVENTS, t, 0.0, settings)
-                            restarted = True
-                            break
-                        t, y = t_new, solver.y.copy()
-                        y, action = system.after_step(t, y)
-                        if action == "restart" or (action == "swap" and not _swap_state(solver, y)):
-                            restarted = True  # e.g. a new partition, or a state the solver cannot take
-                            break
-                except PartitionBreakdown as exc:
-                    # minimal coordinates: a stage left the region of the current partition
-                    y = system.repartition(y, exc)
-                    restarted = True
-                finally:  # count the work of every segment, the failed one included
-                    all_nfev += counter.n + getattr(solver, "n_residuals", 0)  # ALI3-P evaluates its own
-                    if solver is not None:
-                        counters["njev"] += solver.njev
-                        counters["nlu"] += solver.nlu
-                if not restarted:
-                    break
+            run.y = system.start(run.y)
+            run.mode[:] = system.mode_at(run.y)
+            run.record(run.t, run.y)
+            while run.t < settings.t_end and run.i_out <= len(run.t_out) and run.segment():
+                pass  # each segment ends at an event, a restart, the end or a failure
         except SimulationFailure as exc:
             status, message, failure = "failed", str(exc), exc.kind
         except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
             # a solve of the system raises LinAlgError; brentq (event location) and the integrators, ValueError
-            status, message = "failed", f"numerical error after t = {t:.6g} s: {type(exc).__name__}: {exc}"
+            status, message = "failed", f"numerical error after t = {run.t:.6g} s: {type(exc).__name__}: {exc}"
             failure = ("singular" if isinstance(exc, np.linalg.LinAlgError) else
                        "event location" if isinstance(exc, ValueError) else "other")
         except KeyboardInterrupt:
-            status, message = "failed", f"interrupted by the user after t = {t:.6g} s"
+            status, message = "failed", f"interrupted by the user after t = {run.t:.6g} s"
             failure = "interrupted"
-    return Trajectory(
-        t=np.array(ts), y=np.array(ys).reshape(len(ts), n_state),
-        mode=np.array(modes).reshape(len(ts), len(mode)),
-        status=status, message=message, failure=failure, nfev=all_nfev, **counters,
-        event_times=events_t, event_labels=events_label,
-    )
+    return run.trajectory(status, message, failure)
+
+
+class _Run:
+    """The state of one integration: the last accepted (t, y), the mode of the load
+    conditions, the samples, the events and the counters. :meth:`segment` runs the
+    integrator from (t, y) until the end, an event or a restart."""
+
+    def __init__(self, system: ConstrainedSystem, settings: IntegrationSettings, y0: np.ndarray,
+                 progress: Callable[[float], None] | None):
+        self.system, self.settings, self.progress = system, settings, progress
+        self.t_out = output_times(settings.t_end, settings.output_dt)
+        self.t, self.y = 0.0, np.array(y0, dtype=float)
+        self.n_state = self.y.size
+        self.mode = np.zeros(system.loads.n_switches, bool)
+        self.locate = settings.events and system.loads.n_switches > 0
+        self.adaptive = INTEGRATORS[settings.integrator].adaptive
+        self.ts, self.ys, self.modes = [], [], []
+        self.i_out = 1
+        self.counters = dict(njev=0, nlu=0, nsteps=0)
+        self.nfev = 0
+        self.events_t, self.events_label, self.events_sw = [], [], []  # events_sw: the functions that switched
+
+    def record(self, t_i: float, y_i: np.ndarray) -> None:
+        """One output sample (the system's full state at t_i)."""
+        y_full = self.system.output_state(y_i)  # may raise: nothing is appended then
+        self.ts.append(t_i)
+        self.ys.append(y_full)
+        self.modes.append(self.mode.copy())
+
+    def segment(self) -> bool:
+        """Run an integrator from (t, y) until t_end (False), or until an event, a new partition
+        or a state it cannot take over (True: start another segment)."""
+        system, settings = self.system, self.settings
+        frozen = self.mode.copy()
+        fun = (lambda t_, y_: system.rhs(t_, y_, frozen)) if self.locate else system.rhs_unlocated
+        implicit = INTEGRATORS[settings.integrator].implicit or system.dae_options() is not None
+        counter, solver = _Counter(fun, implicit), None
+        try:
+            solver = make_integrator(
+                settings.integrator, counter, self.t, self.y, settings.t_end,
+                rtol=settings.rtol, atol=_atol(settings.atol, system, self.y),
+                step=settings.step, max_step=settings.max_step, first_step=settings.first_step,
+                dae=system.dae_options(), system=system, mode=frozen if self.locate else None,
+            )
+            while solver.status == "running":
+                self._step(solver, counter)
+                restart = self._after_step(solver)
+                if restart:
+                    return True
+            return False
+        except PartitionBreakdown as exc:
+            # minimal coordinates: a stage left the region of the current partition
+            self.y = system.repartition(self.y, exc)
+            return True
+        finally:  # count the work of every segment, the failed one included
+            self.nfev += counter.n + getattr(solver, "n_residuals", 0)  # ALI3-P evaluates its own
+            if solver is not None:
+                self.counters["njev"] += solver.njev
+                self.counters["nlu"] += solver.nlu
+
+    def _step(self, solver, counter: _Counter) -> None:
+        """One accepted step of ``solver``, checked (:func:`_check_step`); a failed step raises."""
+        settings = self.settings
+        msg = solver.step()
+        self.counters["nsteps"] += 1
+        if self.counters["nsteps"] > settings.max_steps:
+            raise failures.failure(st.MAX_STEPS, solver.t, 0.0, settings)
+        if solver.status == "failed":
+            if counter.non_finite_at is not None:
+                msg += (f" (the right-hand side was non-finite at trial states, last at "
+                        f"t = {counter.non_finite_at:.6g} s)")
+            raise SimulationFailure(
+                f"integrator {settings.integrator} failed at t = {solver.t:.6g} s: {msg}",
+                st.KINDS[st.RK4_RESOLUTION if settings.integrator == "RK4" else st.STEP_TOO_SMALL])
+        _check_step(self.system, solver, settings, self.adaptive)
+
+    def _after_step(self, solver) -> bool:
+        """Locate an event in the step, sample the output up to it (or the step's end), and go
+        on: True where the integrator must start again (an event, a restart)."""
+        system = self.system
+        t_new = solver.t
+        dense, t_stop, switched = None, t_new, []
+        if self.locate:  # its dense output (built to look inside the step) serves the samples too
+            dense, t_event, switched = _find_event(system, solver, self.mode, self.settings.event_samples)
+            t_stop = t_new if t_event is None else t_event
+        dense = self._sample(solver, dense, t_stop)
+        if self.progress is not None:
+            self.progress(t_stop)
+        if switched:  # (the event was found on the dense output, which exists then)
+            self._event(dense(t_stop) if t_stop < t_new else solver.y.copy(), t_stop, switched)
+            return True
+        self.t, y = t_new, solver.y.copy()
+        self.y, action = system.after_step(self.t, y)
+        # e.g. a new partition, or a state the solver cannot take over
+        return action == "restart" or (action == "swap" and not _swap_state(solver, self.y))
+
+    def _sample(self, solver, dense, t_stop: float):
+        """The output times in (t_old, t_stop], from the step's end or its dense output (built
+        here where the step has none yet, and returned for the event that may follow)."""
+        t_out, t_new = self.t_out, solver.t
+        while self.i_out < len(t_out) and t_out[self.i_out] <= t_stop:
+            if t_out[self.i_out] == t_new and t_stop == t_new:
+                y_i = solver.y
+            else:
+                dense = dense or solver.dense_output()
+                y_i = dense(t_out[self.i_out])
+            self.record(t_out[self.i_out], y_i)
+            self.i_out += 1
+        return dense
+
+    def _event(self, y: np.ndarray, t: float, switched: list[int]) -> None:
+        """Restart from the event state (t, y) with the switched conditions flipped, checked
+        for chatter and for the most events."""
+        settings, labels = self.settings, self.system.loads.switch_labels
+        self.t = t
+        for j in switched:
+            self.mode[j] = not self.mode[j]
+        self.y = self.system.restart(t, y, self.mode)
+        self.events_t.append(t)
+        self.events_label.append("; ".join(labels[j] for j in switched))
+        self.events_sw.append(switched)
+        _check_chatter(self.events_t, self.events_sw, labels, settings)
+        if len(self.events_t) > settings.max_events:
+            raise failures.failure(st.MAX_EVENTS, t, 0.0, settings)
+
+    def trajectory(self, status: str, message: str, failure: str) -> Trajectory:
+        """What was recorded, with the run's status."""
+        return Trajectory(
+            t=np.array(self.ts), y=np.array(self.ys).reshape(len(self.ts), self.n_state),
+            mode=np.array(self.modes).reshape(len(self.ts), len(self.mode)),
+            status=status, message=message, failure=failure, nfev=self.nfev, **self.counters,
+            event_times=self.events_t, event_labels=self.events_label,
+        )
 
 
 def _atol(atol: float, system: ConstrainedSystem, y: np.ndarray) -> np.ndarray:
