@@ -592,6 +592,12 @@ def sweep(
         from csim.tables import emit
 
         emit(sweep_report(result, out))
+    _sweep_exit(result, out)
+
+
+def _sweep_exit(result, out: Path) -> None:
+    """Exit 130 after Ctrl-C and 1 when runs were lost with a worker, each saying which runs
+    are pending and that --resume runs them; return when every run ran."""
     if result.interrupted:
         stopped = sorted(result.stopped)
         under_way = (f"{len(stopped)} stopped while running (run{'s' if len(stopped) > 1 else ''} "

@@ -496,17 +496,7 @@ class RadauDAE(OdeSolver):
     # --- one step --------------------------------------------------------------------------
     def _step_impl(self):
         t, y, f = self.t, self.y, self.f
-        max_step = self.max_step
-
-        # smallest step: ten times the spacing of numbers at t (scipy's), and not below ten
-        # eps times the whole interval (where t = 0 the spacing alone would allow 1e-322)
-        min_step = 10 * max(np.abs(np.nextafter(t, self.direction * np.inf) - t), EPS * self.interval)
-        if self.h_abs > max_step:
-            h_abs, h_abs_old, error_norm_old = max_step, None, None
-        elif self.h_abs < min_step:
-            h_abs, h_abs_old, error_norm_old = min_step, None, None
-        else:
-            h_abs, h_abs_old, error_norm_old = self.h_abs, self.h_abs_old, self.error_norm_old
+        min_step, h_abs, h_abs_old, error_norm_old = self._step_bounds(t)
 
         J = self.J
         LU_real, LU_complex = self.LU_real, self.LU_complex
@@ -520,15 +510,7 @@ class RadauDAE(OdeSolver):
         n_singular = 0
         while True:
             if h_abs < min_step:
-                if newton_failure is not None:
-                    message = (f"Newton iteration did not converge at t = {t:.9g}; {newton_failure} "
-                               f"(step size {h_abs:.3g} is less than spacing between numbers).")
-                else:
-                    message = self.TOO_SMALL_STEP
-                if self.t_old is None and alg.any():  # failing on the first step: suspect y0
-                    message += (" Is the initial state consistent (the algebraic equations and the hidden "
-                                f"constraints)? max |F_alg(t0, y0)| = {np.max(np.abs(self.f[alg])):.3g}.")
-                return False, message
+                return False, self._too_small_message(t, h_abs, newton_failure)
 
             h = h_abs * self.direction
             t_new = t + h
@@ -574,18 +556,9 @@ class RadauDAE(OdeSolver):
                 LU_real = LU_complex = None
                 continue
 
-            # error estimate: err = (MU_REAL/h D - J)^-1 (F(t, y) + D Z^T E / h)
             y_new = y + Z[-1]
-            ZE = Z.T @ E / h
-            error = lu_solve(LU_real, f + self.d * ZE, check_finite=False)  # non-finite: rejected below
-            scale = self._scale(np.maximum(np.abs(y), np.abs(y_new)), h_abs)
-            error_norm = _rms(error / scale)
+            error_norm = self._error_norm(t, y, y_new, f, Z, h, LU_real, rejected)
             safety = 0.9 * (2 * NEWTON_MAXITER + 1) / (2 * NEWTON_MAXITER + n_iter)
-
-            if rejected and error_norm > 1:
-                # refined estimate after a rejection: (MU_REAL/h D - J)^-1 (F(t, y + err) + D ZE)
-                error = lu_solve(LU_real, self.fun(t, y + error) + self.d * ZE, check_finite=False)
-                error_norm = _rms(error / scale)
 
             if not np.isfinite(error_norm):
                 newton_failure = None
@@ -613,13 +586,55 @@ class RadauDAE(OdeSolver):
         f_new = f_end if f_end is not None else self.fun(t_new, y_new)
         if recompute_jac:
             J = self.jac(t_new, y_new, f_new)
-            current_jac = True
-        else:
-            current_jac = False
+        self._accept(t, y, t_new, y_new, f_new, Z, h_abs * factor, error_norm, J, recompute_jac, LU_real, LU_complex)
+        return True, None
 
+    def _step_bounds(self, t: float) -> tuple[float, float, float | None, float | None]:
+        """(smallest step, first step to try, previous step and error norm for the step-size
+        predictor; None where the step was clipped to the bounds).
+
+        The smallest step is ten times the spacing of numbers at t (scipy's), and not below ten
+        eps times the whole interval (where t = 0 the spacing alone would allow 1e-322)."""
+        min_step = 10 * max(np.abs(np.nextafter(t, self.direction * np.inf) - t), EPS * self.interval)
+        if self.h_abs > self.max_step:
+            return min_step, self.max_step, None, None
+        if self.h_abs < min_step:
+            return min_step, min_step, None, None
+        return min_step, self.h_abs, self.h_abs_old, self.error_norm_old
+
+    def _too_small_message(self, t: float, h_abs: float, newton_failure: str | None) -> str:
+        """Why the step fell below the smallest one: the last Newton failure, and on the first
+        step the question whether the initial state is consistent."""
+        if newton_failure is not None:
+            message = (f"Newton iteration did not converge at t = {t:.9g}; {newton_failure} "
+                       f"(step size {h_abs:.3g} is less than spacing between numbers).")
+        else:
+            message = self.TOO_SMALL_STEP
+        alg = self.algebraic
+        if self.t_old is None and alg.any():  # failing on the first step: suspect y0
+            message += (" Is the initial state consistent (the algebraic equations and the hidden "
+                        f"constraints)? max |F_alg(t0, y0)| = {np.max(np.abs(self.f[alg])):.3g}.")
+        return message
+
+    def _error_norm(self, t, y, y_new, f, Z, h, LU_real, rejected: bool) -> float:
+        """The scaled rms of the error estimate err = (MU_REAL/h D - J)^-1 (F(t, y) + D Z^T E / h),
+        refined after a rejection to (MU_REAL/h D - J)^-1 (F(t, y + err) + D Z^T E / h)
+        (non-finite: the step is rejected)."""
+        ZE = Z.T @ E / h
+        error = lu_solve(LU_real, f + self.d * ZE, check_finite=False)
+        scale = self._scale(np.maximum(np.abs(y), np.abs(y_new)), abs(h))
+        error_norm = _rms(error / scale)
+        if rejected and error_norm > 1:
+            error = lu_solve(LU_real, self.fun(t, y + error) + self.d * ZE, check_finite=False)
+            error_norm = _rms(error / scale)
+        return error_norm
+
+    def _accept(self, t, y, t_new, y_new, f_new, Z, h_abs_next, error_norm, J, current_jac, LU_real, LU_complex):
+        """Move to the accepted step: the state, the next step size, the Jacobian and LU factors
+        kept for reuse, and the collocation dense output."""
         self.h_abs_old = self.h_abs
         self.error_norm_old = error_norm
-        self.h_abs = h_abs * factor
+        self.h_abs = h_abs_next
         self.y_old = y
         self.t, self.y, self.f = t_new, y_new, f_new
         self.Z = Z
@@ -628,7 +643,6 @@ class RadauDAE(OdeSolver):
         self.J = J
         self.t_old = t
         self.sol = RadauDenseOutput(self.t_old, self.t, self.y_old, Z.T @ P)
-        return True, None
 
     def _dense_output_impl(self):
         return self.sol
