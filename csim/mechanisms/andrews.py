@@ -119,6 +119,15 @@ def _add(p, v):
     return (p[0] + v[0], p[1] + v[1])
 
 
+#: the mechanism's own figures (csim plot)
+FIGURES = (
+    DeclaredFigure("crank", "Crank angle and speed", reference="Hairer and Wanner, Fig. VII.7.2",
+                   panels=(Panel(("q:beta",), ylabel=r"crank angle $\beta$"),
+                           Panel(("qd:beta",), ylabel=r"crank speed $\dot\beta$"))),
+    DeclaredFigure("configurations", "The mechanism during the run", snapshots=6, cycle="beta"),
+)
+
+
 def definition() -> MechanismDefinition:
     """Build the symbolic Andrews squeezing mechanism."""
     names = list(Q0)
@@ -175,12 +184,6 @@ def definition() -> MechanismDefinition:
                ("D", "C")],
         ground=["O", "A", "B", "C"],
     )
-    figures = [
-        DeclaredFigure("crank", "Crank angle and speed", reference="Hairer and Wanner, Fig. VII.7.2",
-                       panels=(Panel(("q:beta",), ylabel=r"crank angle $\beta$"),
-                               Panel(("qd:beta",), ylabel=r"crank speed $\dot\beta$"))),
-        DeclaredFigure("configurations", "The mechanism during the run", snapshots=6, cycle="beta"),
-    ]
     # where force elements (mechanism.forces) may act: each body's frame as in its PlanarBody
     sites = Sites(
         bodies=[
@@ -220,6 +223,6 @@ def definition() -> MechanismDefinition:
         default_independent_velocities={"beta": 0.0},
         # the test set's assembly (its branch of each loop)
         default_guess={name: value for name, value in Q0.items() if name != "beta"},
-        figures=figures,
+        figures=list(FIGURES),
         sites=sites,
     )

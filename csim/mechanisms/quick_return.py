@@ -46,6 +46,63 @@ PARAMETERS = [
 ]
 
 
+#: the paper's figures H.2 to H.7 (docs/plots.md), in terms of the recorded series
+FIGURES = (
+    DeclaredFigure("crank_velocity", "Crank angular velocity", reference="paper fig. H.2",
+                   panels=(Panel(("qd:q1",), ylabel=r"crank angular velocity $\dot{q}_1$"),)),
+    DeclaredFigure("ram_displacement", "Ram displacement", reference="paper fig. H.3",
+                   panels=(Panel(("change:observable:ram_x",), ylabel=r"ram displacement $x_D - x_D(0)$"),)),
+    DeclaredFigure("ram_position_velocity", "Ram position and velocity", reference="paper fig. H.4",
+                   panels=(Panel(("observable:ram_x",), ylabel=r"ram position $x_D$"),
+                           Panel(("observable_rate:ram_x",), ylabel=r"ram velocity $v_D = \dot{x}_D$"))),
+    DeclaredFigure("rocker_rod_angles", "Rocker and connecting-rod angles", reference="paper fig. H.5",
+                   panels=(Panel(("q:q2", "q:q3"), labels=(r"rocker $q_2$", r"rod $q_3$"), ylabel="angle"),)),
+    DeclaredFigure("constraint_error", "Constraint error", reference="paper fig. H.6",
+                   panels=(Panel(("phi:1", "phi:2"), labels=(r"$|\Phi_1|$: A on the rocker line",
+                                                             r"$|\Phi_2|$: D on the ram guide"),
+                                 ylabel=r"constraint error $|\Phi_i|$", log=True),)),
+    DeclaredFigure("configurations", "The mechanism during one crank revolution", reference="paper fig. H.7",
+                   snapshots=6, cycle="q1"),
+)
+
+
+def _drawing(O, A, B, C, D, q2, l2, l3, h2) -> Drawing:
+    """The drawing: the links through the joints, the slider block, a small rectangle on the
+    rocker line at A, and the ram, a block sliding on its guide through D (both drawn only:
+    their size is not a parameter)."""
+    def unit(angle):
+        return sp.cos(angle), sp.sin(angle)
+
+    e2, n2 = unit(q2), (-sp.sin(q2), sp.cos(q2))
+    block_a, block_b = sp.Rational(1, 4), sp.Rational(3, 20)
+    ram_a, ram_b = sp.Rational(1, 2), sp.Rational(3, 20)
+
+    def block_corner(sa, sb):
+        return (A[0] + sa * block_a * e2[0] + sb * block_b * n2[0], A[1] + sa * block_a * e2[1] + sb * block_b * n2[1])
+
+    return Drawing(
+        points={
+            "O": O,
+            "A": A,
+            "B": B,
+            "C": C,
+            "D": D,
+            "block_1": block_corner(-1, -1),
+            "block_2": block_corner(1, -1),
+            "block_3": block_corner(1, 1),
+            "block_4": block_corner(-1, 1),
+            "ram_1": (D[0] - ram_a, h2 - ram_b),
+            "ram_2": (D[0] + ram_a, h2 - ram_b),
+            "ram_3": (D[0] + ram_a, h2 + ram_b),
+            "ram_4": (D[0] - ram_a, h2 + ram_b),
+        },
+        links=[("O", "A"), ("B", "C"), ("C", "D"), ("block_1", "block_2", "block_3", "block_4"),
+               ("ram_1", "ram_2", "ram_3", "ram_4")],
+        ground=["O", "B"],
+        guides=[((-l2 - l3, h2), (l2 + l3, h2))],
+    )
+
+
 def definition() -> MechanismDefinition:
     """Build the symbolic quick-return mechanism."""
     q1, q2, q3 = q = sp.symbols("q1 q2 q3", real=True)
@@ -92,54 +149,7 @@ def definition() -> MechanismDefinition:
     observables = [
         Observable("ram_x", D[0], "m", "m/s", "ram position x_D"),
     ]
-    # the slider block, a small rectangle on the rocker line at A, and the ram, a block
-    # sliding on its guide through D (both drawn only: their size is not a parameter)
-    e2, n2 = unit(q2), (-sp.sin(q2), sp.cos(q2))
-    block_a, block_b = sp.Rational(1, 4), sp.Rational(3, 20)
-    ram_a, ram_b = sp.Rational(1, 2), sp.Rational(3, 20)
-
-    def block_corner(sa, sb):
-        return (A[0] + sa * block_a * e2[0] + sb * block_b * n2[0], A[1] + sa * block_a * e2[1] + sb * block_b * n2[1])
-
-    drawing = Drawing(
-        points={
-            "O": O,
-            "A": A,
-            "B": B,
-            "C": C,
-            "D": D,
-            "block_1": block_corner(-1, -1),
-            "block_2": block_corner(1, -1),
-            "block_3": block_corner(1, 1),
-            "block_4": block_corner(-1, 1),
-            "ram_1": (D[0] - ram_a, h2 - ram_b),
-            "ram_2": (D[0] + ram_a, h2 - ram_b),
-            "ram_3": (D[0] + ram_a, h2 + ram_b),
-            "ram_4": (D[0] - ram_a, h2 + ram_b),
-        },
-        links=[("O", "A"), ("B", "C"), ("C", "D"), ("block_1", "block_2", "block_3", "block_4"),
-               ("ram_1", "ram_2", "ram_3", "ram_4")],
-        ground=["O", "B"],
-        guides=[((-l2 - l3, h2), (l2 + l3, h2))],
-    )
-    # the paper's figures H.2 to H.7 (docs/plots.md), in terms of the recorded series
-    figures = [
-        DeclaredFigure("crank_velocity", "Crank angular velocity", reference="paper fig. H.2",
-                       panels=(Panel(("qd:q1",), ylabel=r"crank angular velocity $\dot{q}_1$"),)),
-        DeclaredFigure("ram_displacement", "Ram displacement", reference="paper fig. H.3",
-                       panels=(Panel(("change:observable:ram_x",), ylabel=r"ram displacement $x_D - x_D(0)$"),)),
-        DeclaredFigure("ram_position_velocity", "Ram position and velocity", reference="paper fig. H.4",
-                       panels=(Panel(("observable:ram_x",), ylabel=r"ram position $x_D$"),
-                               Panel(("observable_rate:ram_x",), ylabel=r"ram velocity $v_D = \dot{x}_D$"))),
-        DeclaredFigure("rocker_rod_angles", "Rocker and connecting-rod angles", reference="paper fig. H.5",
-                       panels=(Panel(("q:q2", "q:q3"), labels=(r"rocker $q_2$", r"rod $q_3$"), ylabel="angle"),)),
-        DeclaredFigure("constraint_error", "Constraint error", reference="paper fig. H.6",
-                       panels=(Panel(("phi:1", "phi:2"), labels=(r"$|\Phi_1|$: A on the rocker line",
-                                                                 r"$|\Phi_2|$: D on the ram guide"),
-                                     ylabel=r"constraint error $|\Phi_i|$", log=True),)),
-        DeclaredFigure("configurations", "The mechanism during one crank revolution", reference="paper fig. H.7",
-                       snapshots=6, cycle="q1"),
-    ]
+    drawing = _drawing(O, A, B, C, D, q2, l2, l3, h2)
     # where force elements (mechanism.forces) may act: the bodies' points and the joints
     zero = sp.Integer(0)
     sites = Sites(
@@ -179,6 +189,6 @@ def definition() -> MechanismDefinition:
         default_independent_velocities={"q1": 6.2832},
         # the paper's branch: rocker leaning left of A's side, cos q3 < 0
         default_guess={"q2": 2.0, "q3": 2.8},
-        figures=figures,
+        figures=list(FIGURES),
         sites=sites,
     )
