@@ -204,3 +204,31 @@ def test_minimal_keeps_the_assembly_of_andrews_mechanism():
     balance = res.kinetic + res.potential - res.kinetic[0] - res.potential[0] - res.work[:, 0]
     assert np.max(np.abs(balance)) < 2e-6 * np.max(res.work[:, 0])  # measured 2.3e-7; 0.16 before
     assert res.max_phi < 1e-12
+
+
+def test_a_breakdown_after_a_step_repartitions_from_the_accepted_state(monkeypatch):
+    """When after_step raises a partition breakdown, the driver repartitions from the state the
+    integrator accepted at the time it reached (not from the state before the step)."""
+    from csim.errors import PartitionBreakdown
+    from csim.solver.partitioned import PartitionedSystem
+
+    case = qr_case("stabilization.method=minimal", "simulation.backend=python", "simulation.t_end=0.05")
+    system = build_system(case)
+    seen: dict = {}
+    after_step, repartition = PartitionedSystem.after_step, PartitionedSystem.repartition
+
+    def breaking(self, t, y):
+        seen["calls"] = seen.get("calls", 0) + 1
+        if seen["calls"] == 2:
+            seen["accepted"] = np.array(y)
+            raise PartitionBreakdown("a test breakdown", "singular")
+        return after_step(self, t, y)
+
+    def recording(self, y, exc):
+        seen["from"] = np.array(y)
+        return repartition(self, y, exc)
+
+    monkeypatch.setattr(PartitionedSystem, "after_step", breaking)
+    monkeypatch.setattr(PartitionedSystem, "repartition", recording)
+    integrate(system, initial_state(case, system), case.integration_settings())  # (no better partition exists)
+    np.testing.assert_array_equal(seen["from"], seen["accepted"])

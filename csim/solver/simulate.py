@@ -185,8 +185,9 @@ class _Run:
         if switched:  # (the event was found on the dense output, which exists then)
             self._event(dense(t_stop) if t_stop < t_new else solver.y.copy(), t_stop, switched)
             return True
-        self.t, y = t_new, solver.y.copy()
-        self.y, action = system.after_step(self.t, y)
+        # the accepted state first: a breakdown raised by after_step repartitions from it
+        self.t, self.y = t_new, solver.y.copy()
+        self.y, action = system.after_step(self.t, self.y)
         # e.g. a new partition, or a state the solver cannot take over
         return action == "restart" or (action == "swap" and not _swap_state(solver, self.y))
 
@@ -208,7 +209,7 @@ class _Run:
         """Restart from the event state (t, y) with the switched conditions flipped, checked
         for chatter and for the most events."""
         settings, labels = self.settings, self.system.loads.switch_labels
-        self.t = t
+        self.t, self.y = t, y  # the event state first: a breakdown raised by restart repartitions from it
         for j in switched:
             self.mode[j] = not self.mode[j]
         self.y = self.system.restart(t, y, self.mode)
