@@ -70,6 +70,15 @@ def test_the_tableau_is_consistent():
     assert np.max(np.abs(slope - np.eye(16)[10])) < 1e-11
 
 
+def test_the_kernels_buffers_hold_vern7s_stages_and_interpolant():
+    """The compiled loop sizes K and F for DOP853 (16 stages, 7 interpolant rows); Vern7's ten
+    stages, new point and five extra stages, and its 7 rows, must fit (numba checks no bounds)."""
+    from scipy.integrate._ivp import dop853_coefficients as dop
+
+    assert tableaus.VERN7_P.shape[0] == tableaus.VERN7_C.size + 1 + tableaus.VERN7_C_EXTRA.size <= dop.N_STAGES_EXTENDED
+    assert tableaus.VERN7_P.shape[1] <= dop.INTERPOLATOR_POWER
+
+
 def test_dense_output_costs_five_evaluations_only_when_asked():
     solver = Vern7(_fun, 0.0, _exact(0.0), 1.0, rtol=1e-8, atol=1e-8)
     solver.step()

@@ -50,8 +50,9 @@ MAX_EXPRESSION_CHARS = 1000
 #: the largest |exponent| of a power of a non-constant expression (of the parameters, the
 #: coordinates or t), whose expansion or derivatives would otherwise grow without bound
 MAX_EXPONENT = 64
-#: the most digits of the exact value of a power of constants (sympy computes 0.5^999999999 exactly)
-MAX_EXACT_DIGITS = 10_000
+#: the most digits of the exact value of a constant part (sympy computes 0.5^999999999 exactly; and
+#: Python prints no integer of more than 4,300 digits)
+MAX_EXACT_DIGITS = 4_000
 #: the deepest nesting of parentheses and calls
 MAX_NESTING = 50
 #: the largest |exponent| of a number written 1e-5 (floats reach 1e308; below 1e-324 they are 0)
@@ -90,71 +91,82 @@ def bound_problem(text: str) -> str | None:
         if abs(int(match.group(1))) > MAX_DECIMAL_EXPONENT:
             return (f"a number with the exponent {cut(match.group(1), 20)}; expected a number within the float "
                     f"range (an exponent of at most {MAX_DECIMAL_EXPONENT} in magnitude)")
+    source = text.replace("^", "**")
     try:
-        tree = ast.parse(text.replace("^", "**"), mode="eval")
+        tree = ast.parse(source, mode="eval")
     except (SyntaxError, ValueError, RecursionError, MemoryError):
         return None  # not an expression: sympy's parser reports it
     try:
-        _constant_value(tree.body)
+        _Constants(source).value(tree.body)
     except _TooLarge as exc:
         return str(exc)
     return None
 
 
-def _constant_value(node: ast.AST) -> float | None:
-    """The float value of a constant part of an expression, None for a part that is not
-    constant (or not a real number); raises :class:`_TooLarge` for a part out of bounds."""
-    if isinstance(node, ast.Constant):
+class _Constants:
+    """The float value of each constant part of an expression, with an estimate of the
+    digits of its exact value (sympy's: a written number is a fraction, 0.1 = 1/10, and
+    1e-300 has 301 digits); raises :class:`_TooLarge` for a part out of bounds."""
+
+    def __init__(self, source: str):
+        self.source = source
+
+    def value(self, node: ast.AST) -> float | None:
+        """The float value of ``node`` where it is constant (None otherwise)."""
+        return self._walk(node)[0]
+
+    def _walk(self, node: ast.AST) -> tuple[float | None, float]:
+        """(float value or None, digits of the exact value; 0 for a part that is not constant)."""
+        if isinstance(node, ast.Constant):
+            return self._literal(node)
+        if isinstance(node, ast.Name):
+            value = _FLOAT_CONSTANTS.get(node.id)
+            return value, (3.0 if value is not None else 0.0)  # pi, deg = pi/180
+        if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.UAdd)):
+            value, digits = self._walk(node.operand)
+            return (None if value is None else (-value if isinstance(node.op, ast.USub) else value)), digits
+        if isinstance(node, ast.BinOp) and type(node.op) in _BINARY:
+            return self._binary(node)
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name):
+            parts = [self._walk(a) for a in node.args]
+            function = _FLOAT_FUNCTIONS.get(node.func.id)
+            if function is None or any(v is None for v, _ in parts) or node.keywords:
+                return None, 0.0
+            return _checked(lambda: function(*(v for v, _ in parts))), sum(d for _, d in parts)
+        for child in ast.iter_child_nodes(node):  # anything else: its parts are still bounded
+            self._walk(child)
+        return None, 0.0
+
+    def _literal(self, node: ast.Constant) -> tuple[float | None, float]:
         if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
-            return None
+            return None, 0.0
         try:
             value = float(node.value)
         except OverflowError:
             value = math.inf
         if math.isinf(value):  # 1e999 reads as inf
             raise _TooLarge("a number beyond the float range (about 1.8e308); expected a finite number")
-        return value
-    if isinstance(node, ast.Name):
-        return _FLOAT_CONSTANTS.get(node.id)
-    if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.UAdd)):
-        value = _constant_value(node.operand)
-        return None if value is None else (-value if isinstance(node.op, ast.USub) else value)
-    if isinstance(node, ast.BinOp) and type(node.op) in _BINARY:
-        left, right = _constant_value(node.left), _constant_value(node.right)
-        if isinstance(node.op, ast.Pow) and left is None and right is not None and abs(right) > MAX_EXPONENT:
+        written = (ast.get_source_segment(self.source, node) or repr(node.value)).lower()
+        mantissa, _, exponent = written.partition("e")
+        return value, float(sum(c.isdigit() for c in mantissa) + abs(int(exponent or 0)))
+
+    def _binary(self, node: ast.BinOp) -> tuple[float | None, float]:
+        (left, d_left), (right, d_right) = self._walk(node.left), self._walk(node.right)
+        power = isinstance(node.op, ast.Pow)
+        if power and left is None and right is not None and abs(right) > MAX_EXPONENT:
             raise _TooLarge(f"a power ^{right:g} of an expression that is not constant; expected an exponent of at "
                             f"most {MAX_EXPONENT} in magnitude")
         if left is None or right is None:
-            return None
+            return None, 0.0
         value = _checked(lambda: _BINARY[type(node.op)](left, right))  # beyond the float range: refused here
-        if isinstance(node.op, ast.Pow):
-            _check_exact_power(left, right)
-        return value
-    if isinstance(node, ast.Call) and isinstance(node.func, ast.Name):
-        args = [_constant_value(a) for a in node.args]
-        function = _FLOAT_FUNCTIONS.get(node.func.id)
-        if function is None or None in args or node.keywords:
-            return None
-        return _checked(lambda: function(*args))
-    for child in ast.iter_child_nodes(node):  # anything else: its parts are still bounded
-        _constant_value(child)
-    return None
-
-
-def _check_exact_power(base: float, exponent: float) -> None:
-    """Raise :class:`_TooLarge` for a power of constants whose exact value (sympy's: a
-    written number is a fraction, 0.5 = 1/2, 1.0001 = 10001/10000) has more than
-    :data:`MAX_EXACT_DIGITS` digits, about |exponent| times the digits of the base, even where
-    its float value is ordinary (``0.5^999999999`` is 0.0, ``1.0001^100000`` is 2.2e4)."""
-    if base in (0.0, 1.0, -1.0):
-        return
-    text = repr(abs(base)).removesuffix(".0")  # 9.0 -> 9; 0.5 -> 0.5; 2.5e-3 -> 2.5e-3
-    mantissa, _, power = text.partition("e")
-    digits = abs(exponent) * (len(mantissa.replace(".", "").lstrip("0")) + abs(int(power or 0)))
-    if digits > MAX_EXACT_DIGITS:
-        raise _TooLarge(f"a power of constants ({base:g}^{exponent:g}) whose exact value has about {digits:.3g} "
-                        f"digits, which sympy would compute; expected at most {MAX_EXACT_DIGITS:,} (write the "
-                        f"value as a number)")
+        # the exact value's digits: a power multiplies the base's (0.5^999999999 is 1/2^999999999,
+        # a billion digits, though 0.0 as a float); a sum, product or quotient adds them at most
+        digits = d_left * max(1.0, abs(right)) + d_right if power else d_left + d_right
+        if digits > MAX_EXACT_DIGITS:
+            what = f"a power of constants ({left:g}^{right:g})" if power else "a constant"
+            raise _TooLarge(f"{what} whose exact value has about {digits:.3g} digits, which sympy would compute; "
+                            f"expected at most {MAX_EXACT_DIGITS:,} (write the value as a number)")
+        return value, digits
 
 
 def _checked(compute) -> float | None:

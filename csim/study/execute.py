@@ -247,14 +247,19 @@ def run_dask(work: Work, parts: list, client, deliver: Callable[[list[Done]], No
             deliver(done)
             lost = lost or why
     except KeyboardInterrupt:
-        with contextlib.suppress(Exception, KeyboardInterrupt):  # a second Ctrl-C skips the wait
+        with contextlib.suppress(Exception):  # a scheduler gone: nothing to wait for
             stop.set()
+        try:
             deadline = time.monotonic() + grace
             while pending and time.monotonic() < deadline:
                 for future in [f for f in pending if f.done()]:
                     pending.pop(future)
-                    deliver(_chunk_result(future)[0])
+                    done, why = _chunk_result(future)
+                    deliver(done)  # (a failure to store them is the sweep's error, raised)
+                    lost = lost or why
                 time.sleep(0.02)
+        except KeyboardInterrupt:  # a second Ctrl-C skips the wait
+            pass
         with contextlib.suppress(Exception):
             client.cancel(list(pending))
         return Outcome(interrupted=True, lost=lost)
