@@ -29,7 +29,7 @@ import yaml
 
 from csim.errors import CaseError
 from csim.io.units import per_time
-from csim.loads import VELOCITY_CONDITIONS, LoadLaw, LoadSet
+from csim.load_laws import VELOCITY_CONDITIONS, LoadLaw, LoadSet
 from csim.mechanisms import MECHANISMS, light_mechanism
 from csim.model.definition import MechanismDefinition
 from csim.quantities import JSON_QUANTITY, JSON_QUANTITY_DEFINITION, SI_BASE, convert, is_quantity

@@ -330,8 +330,8 @@ def run(
 def _print_summary(run, where: str, case: Path | None = None) -> None:
     """Print a run's summary (rich on a terminal, plain aligned ``key: value`` lines
     otherwise), after the case file and before where the result file went."""
+    from csim.report import Fields, Report, emit
     from csim.result import SUMMARY_WIDTH
-    from csim.tables import Fields, Report, emit
 
     items = ([("case", str(case))] if case is not None else []) + run.summary_items() + [("result", where)]
     emit(Report([Fields(items, width=SUMMARY_WIDTH)]))
@@ -482,7 +482,7 @@ def _finish_comparison(comparison, out: Path, default: bool, quiet: bool, strict
         typer.echo(f"csim: error: cannot write {target}: {exc}", err=True)
         raise typer.Exit(EXIT_INTERRUPTED if comparison.interrupted else EXIT_BAD_INPUT) from None
     if not quiet:
-        from csim.tables import Fields, Lines, emit
+        from csim.report import Fields, Lines, emit
 
         where = f"{target}" + (DEFAULT_NOTE if default else "")
         emit(comparison.report().add(Lines([""]), Fields([("result", where)])))
@@ -589,7 +589,7 @@ def sweep(
     except CsimError as exc:
         _fail_input(exc)
     if not quiet:
-        from csim.tables import emit
+        from csim.report import emit
 
         emit(sweep_report(result, out))
     _sweep_exit(result, out)
@@ -628,8 +628,8 @@ def _sweep_option_problems(jobs, scheduler, reference, resume: bool, out: Path) 
 
 
 def sweep_report(result, out: Path):
-    """What was varied, the runs by outcome, and where the file went (a :class:`csim.tables.Report`)."""
-    from csim.tables import Fields, Report
+    """What was varied, the runs by outcome, and where the file went (a :class:`csim.report.Report`)."""
+    from csim.report import Fields, Report
 
     counts = ", ".join(f"{n} {label}" for label, n in sorted(result.counts().items(), key=lambda kv: -kv[1]))
     keys = " x ".join(f"{v.key} ({len(set(map(str, result.plan.column(v.key))))})" for v in result.plan.variations)
@@ -730,7 +730,7 @@ def _finish_batch(result, junit: Path | None, output: Path | None, quiet: bool) 
         typer.echo(f"csim: error: cannot write the batch's files: {exc}", err=True)
         raise typer.Exit(EXIT_INTERRUPTED if result.interrupted else EXIT_BAD_INPUT) from None
     if not quiet:
-        from csim.tables import Fields, Lines, emit
+        from csim.report import Fields, Lines, emit
 
         files = [(label, str(path)) for label, path in (("results", output), ("junit", junit)) if path is not None]
         emit(result.report().add(*([Lines([""]), Fields(files, width=12)] if files else [])))

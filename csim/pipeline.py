@@ -139,7 +139,7 @@ def run_case(case: Case, progress: Callable[[float], None] | None = None) -> Res
         trajectory.message += f" (on the Python path: {why})"
     result = assemble_result(case, system, trajectory, time.perf_counter() - start, backend=backend)
     if case.linkage is not None:  # drive forces, cut-joint reactions
-        from csim.linkage.results import linkage_outputs
+        from csim.linkage.recording import linkage_outputs
 
         linkage_outputs(case, system, trajectory, result)
     record_integrity(case, system, result)

@@ -321,7 +321,7 @@ class Result:
 
     def summary(self) -> str:
         """A short, human-readable account of the run (the plain text of :meth:`summary_items`)."""
-        from csim.tables import Fields
+        from csim.report import Fields
 
         return "\n".join(Fields(self.summary_items(), width=SUMMARY_WIDTH).plain())
 

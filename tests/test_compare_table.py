@@ -12,7 +12,7 @@ from csim.compare.files import table_columns
 from csim.compare.plan import ReferenceSettings
 from csim.compare.runs import Run
 from csim.compare.table import run_table
-from csim.tables import Fields
+from csim.report import Fields
 
 NAN = math.nan
 

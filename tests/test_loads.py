@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from csim.loads import LoadLaw, LoadSet
+from csim.load_laws import LoadLaw, LoadSet
 
 
 def test_windowed_law_switching_functions_are_positive_where_conditions_hold():

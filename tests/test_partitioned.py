@@ -93,7 +93,7 @@ def fourbar_system():
     """A PartitionedSystem of the four-bar in the angles (q1, q2, q3) of crank, coupler and rocker."""
     import sympy as sp
 
-    from csim.loads import LoadSet
+    from csim.load_laws import LoadSet
     from csim.model import build_numeric_model
     from csim.model.definition import MechanismDefinition, PlanarBody
     from csim.solver.formulations import make_formulation

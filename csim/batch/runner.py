@@ -18,8 +18,8 @@ from csim.batch.expectations import Outcome
 from csim.batch.manifest import Entry, Manifest
 from csim.compare.pool import job_count, run_tasks
 from csim.compare.runs import INTERRUPTED, shorten
+from csim.report import Column, Fields, Lines, Report, Table
 from csim.result import Result
-from csim.tables import Column, Fields, Lines, Report, Table
 
 
 @dataclass
@@ -117,7 +117,7 @@ class Batch:
         return format_table(self)
 
     def report(self) -> Report:
-        """The same as a report (:mod:`csim.tables`): rich tables on a terminal."""
+        """The same as a report (:mod:`csim.report`): rich tables on a terminal."""
         return batch_report(self)
 
     def write_results(self, folder: str | Path) -> list[Path]:

@@ -18,7 +18,7 @@ from csim.compare.pool import Progress, job_count, run_tasks
 from csim.compare.runs import Run, run_setting
 from csim.compare.specs import tolerance_kind
 from csim.compare.table import comparison_report, format_table
-from csim.tables import Report
+from csim.report import Report
 
 
 @dataclass
@@ -119,7 +119,7 @@ class Comparison:
         return format_table(self)
 
     def report(self) -> Report:
-        """The comparison as a report (:mod:`csim.tables`): what ``csim compare`` prints,
+        """The comparison as a report (:mod:`csim.report`): what ``csim compare`` prints,
         as rich tables on a terminal and as :meth:`table` otherwise."""
         return comparison_report(self)
 

@@ -1,4 +1,4 @@
-"""The comparison as a report (:mod:`csim.tables`), as ``csim compare`` prints it.
+"""The comparison as a report (:mod:`csim.report`), as ``csim compare`` prints it.
 
 :func:`comparison_report` holds, top to bottom: the settings (case, reference, what the
 errors and timings mean, backend, skipped methods), a table with one row per method, one
@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 from csim.compare.runs import Run, run_setting, shorten
 from csim.compare.specs import TOLERANCE_LABELS, tol_text
-from csim.tables import Column, Fields, Lines, Report, Table
+from csim.report import Column, Fields, Lines, Report, Table
 
 if TYPE_CHECKING:
     from csim.compare.comparison import Comparison

@@ -1341,20 +1341,33 @@ def _erk_error(E, K, y, y_new, tolv, rtol, hstep):
         s += v * v
     return math.sqrt(s / n)
 
+@inlined
+def _extra_stages(A, C, first, t_old, h, y_old, mode, locate, par, pf, pi, w, piv, K, ytmp, info):
+    """The stages an interpolant adds after a step (DOP853's three, Vern7's five) into
+    K[first:]: K_s = f(t_old + c_s h, y_old + h sum_j a_sj K_j), j over every stage before s
+    (the step's own, its new point and the extra stages before s). Returns the status."""
+    n = y_old.size
+    for e in range(C.size):
+        s = first + e
+        for i in range(n):
+            acc = 0.0
+            for jj in range(s):
+                acc += K[jj, i] * A[e, jj]
+            ytmp[i] = y_old[i] + acc * h
+        code = feval(t_old + C[e] * h, ytmp, mode, locate, par, pf, pi, w, piv, K[s], info)
+        if code != OK:
+            return code
+    return OK
+
+
 @hot
 def _dop_dense(t_old, h, y_old, y, f, mode, locate, par, pf, pi, w, piv, K, F, ytmp, info):
     """scipy's DOP853._dense_output_impl: three extra stages, then the interpolant F (7, n)."""
     n = y_old.size
-    for e in range(DOP_NX - DOP_NS - 1):
-        s = DOP_NS + 1 + e
-        for i in range(n):
-            acc = 0.0
-            for jj in range(s):
-                acc += K[jj, i] * DOP_A_EXTRA[e, jj]
-            ytmp[i] = y_old[i] + acc * h
-        code = feval(t_old + DOP_C_EXTRA[e] * h, ytmp, mode, locate, par, pf, pi, w, piv, K[s], info)
-        if code != OK:
-            return code
+    code = _extra_stages(DOP_A_EXTRA, DOP_C_EXTRA, DOP_NS + 1, t_old, h, y_old, mode, locate, par, pf, pi, w, piv, K,
+                         ytmp, info)
+    if code != OK:
+        return code
     for i in range(n):
         dy = y[i] - y_old[i]
         F[0, i] = dy
@@ -1372,17 +1385,10 @@ def _dop_dense(t_old, h, y_old, y, f, mode, locate, par, pf, pi, w, piv, K, F, y
 def _vern7_dense(t_old, h, y_old, mode, locate, par, pf, pi, w, piv, K, F, ytmp, info):
     """Vern7's dense output (csim.solver.vern7): five extra stages after the ten and the new
     point in K[:11], then Q = K^T P into F[:7]."""
-    n = y_old.size
-    for e in range(V7_C_EXTRA.size):
-        s = V7_NS + 1 + e
-        for i in range(n):  # y_old + h sum_j a_sj K_j, j over every stage before s
-            acc = 0.0
-            for jj in range(s):
-                acc += K[jj, i] * V7_A_EXTRA[e, jj]
-            ytmp[i] = y_old[i] + acc * h
-        code = feval(t_old + V7_C_EXTRA[e] * h, ytmp, mode, locate, par, pf, pi, w, piv, K[s], info)
-        if code != OK:
-            return code
+    code = _extra_stages(V7_A_EXTRA, V7_C_EXTRA, V7_NS + 1, t_old, h, y_old, mode, locate, par, pf, pi, w, piv, K,
+                         ytmp, info)
+    if code != OK:
+        return code
     _dense_weights(K[:V7_P.shape[0]], V7_P, F)
     return OK
 

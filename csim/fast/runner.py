@@ -34,7 +34,7 @@ def pack_problem(system: ConstrainedSystem) -> tuple[np.ndarray, np.ndarray, np.
     pi = [mk, n_sw, at(ipar), I, at(fpar), F, at(gains), G * r, m, r, k, o, gamma* address, system kind, d,
     at(driven), model function addresses, workspace offsets, sw_load (n_sw), sw_kind (n_sw), ipar (I), driven (d)]
     (:mod:`csim.fast.layout`), where mk is the method's dispatch code and ``at(x)`` where x
-    starts in pi or pf. The load laws are :class:`csim.loads.LoadSet`'s packing, the method's
+    starts in pi or pf. The load laws are :class:`csim.load_laws.LoadSet`'s packing, the method's
     settings :meth:`csim.solver.methods.base.Method.pack`'s. A driven system's (:class:`DrivenSystem`)
     model has its d drives as its last constraint rows (r counts them), and its state the
     drives' work after the loads'. Builds the model functions on the first call for a

@@ -38,7 +38,7 @@ from csim.linkage.joints import JOINT_TYPES, CutGeometry
 from csim.linkage.tables import Coupling, Tables
 from csim.linkage.topology import Topology
 from csim.linkage.transforms import simplify_entry
-from csim.loads import VELOCITY_CONDITIONS
+from csim.load_laws import VELOCITY_CONDITIONS
 from csim.model.definition import Load, Observable, time_symbol
 from csim.quantities import convert, is_quantity
 from csim.schema import describe

@@ -62,7 +62,7 @@ class Load:
         u_k = magnitude_k * active_k * f_k(q, qd, t)
 
     with the magnitude and the switching law (``active_k``: conditions on s_k and ds_k/dt)
-    from the case (:mod:`csim.loads`), and the law f_k of the mechanism (1 when ``law`` is
+    from the case (:mod:`csim.load_laws`), and the law f_k of the mechanism (1 when ``law`` is
     None: a switched constant).
 
     Parameters
@@ -87,7 +87,7 @@ class Load:
     magnitude : float
         Default magnitude when the case's ``loads`` section does not name the load.
     window : (float, float)
-        Default window of s_k (see :class:`csim.loads.LoadLaw`).
+        Default window of s_k (see :class:`csim.load_laws.LoadLaw`).
     velocity : {"any", "positive", "negative"}
         Default sign condition on ds_k/dt.
     """

@@ -1,6 +1,6 @@
-"""Switched load laws (:mod:`csim.loads`) as arrays: switching functions, mode, load values.
+"""Switched load laws (:mod:`csim.load_laws`) as arrays: switching functions, mode, load values.
 
-A load set with n_sw switching functions is packed (by :class:`csim.loads.LoadSet`) into
+A load set with n_sw switching functions is packed (by :class:`csim.load_laws.LoadSet`) into
 
 ``sw_load`` (n_sw,) int
     the load each function belongs to;

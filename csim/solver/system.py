@@ -8,7 +8,7 @@ T + V - (T0 + V0) = sum W_k can be checked to the integrator's accuracy).
     dqd/dt = qdd  from  M qdd + Phi_q^T lambda = B u - C qd - h,  Phi_q qdd = gamma*
     dW_k/dt = u_k (B^T qd)_k       (the power of load k; B^T qd = ds/dt unless it has a direction)
 
-with u = magnitude * active * f(q, qd, t) (:meth:`csim.loads.LoadSet.values`).
+with u = magnitude * active * f(q, qd, t) (:meth:`csim.load_laws.LoadSet.values`).
 """
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from csim.loads import LoadSet
+from csim.load_laws import LoadSet
 from csim.model.numeric import NumericModel
 from csim.physics.kkt import constraint_rates, generalized_forces
 from csim.physics.linalg import as_core
@@ -48,7 +48,7 @@ class ConstrainedSystem:
     The driver (:mod:`csim.solver.simulate`) integrates the system's own state y and
     records the full state [q, qd, W] from :meth:`output_state`. Here the two are the
     same; :class:`csim.solver.partitioned.PartitionedSystem` integrates fewer states and
-    :class:`csim.solver.ggl.GGLSystem` more (a DAE, with ``differential`` set).
+    :class:`csim.solver.ggl_system.GGLSystem` more (a DAE, with ``differential`` set).
 
     Parameters
     ----------

@@ -3,7 +3,7 @@
     q' = v - Phi_q^T mu,   M v' = p - Phi_q^T lambda,   0 = Phi(q),   0 = Phi_q v
 
 Both the position and the velocity constraints are equations of the DAE, solved at every
-stage of the implicit Radau IIA integrator (:class:`csim.solver.ggl.GGLSystem`): no drift
+stage of the implicit Radau IIA integrator (:class:`csim.solver.ggl_system.GGLSystem`): no drift
 and no post-step correction. mu vanishes on the exact solution.
 """
 from __future__ import annotations
@@ -40,6 +40,6 @@ class GGL(Method):
 
     @classmethod
     def system_class(cls):
-        from csim.solver.ggl import GGLSystem
+        from csim.solver.ggl_system import GGLSystem
 
         return GGLSystem

@@ -1,4 +1,4 @@
-"""``csim.tables``: a report's plain text (aligned, greppable) and its rich drawing hold the same cells."""
+"""``csim.report``: a report's plain text (aligned, greppable) and its rich drawing hold the same cells."""
 from __future__ import annotations
 
 import io
@@ -7,7 +7,7 @@ import sys
 
 from rich.console import Console
 
-from csim.tables import Column, Fields, Lines, Report, Table, emit
+from csim.report import Column, Fields, Lines, Report, Table, emit
 
 
 def table() -> Table:
