@@ -29,7 +29,7 @@ import yaml
 
 from csim.errors import CaseError
 from csim.io.units import per_time
-from csim.load_laws import VELOCITY_CONDITIONS, LoadLaw, LoadSet
+from csim.load_laws import REPORTED, VELOCITY_CONDITIONS, LoadLaw, LoadSet, window_bound
 from csim.mechanisms import MECHANISMS, light_mechanism
 from csim.model.definition import MechanismDefinition
 from csim.quantities import JSON_QUANTITY, JSON_QUANTITY_DEFINITION, SI_BASE, convert, is_quantity
@@ -774,9 +774,9 @@ def _validate_loads(out, mech, problems):
             law = validate_section(path, spec, _load_schema(unit), problems)
             window = law.get("window")
             if window is not None:
-                bounds = [_window_bound(f"{path}.window[{n}]", w, load.coordinate_unit, problems)
+                bounds = [window_bound(f"{path}.window[{n}]", w, load.coordinate_unit, problems)
                           for n, w in enumerate(window)]
-                if any(b is _REPORTED for b in bounds):
+                if any(b is REPORTED for b in bounds):
                     continue
                 if len(bounds) != 2 or None in bounds or not bounds[0] < bounds[1]:
                     problems.append(f"{path}.window: got {describe(window)}; expected [lo, hi] with lo < hi, "
@@ -798,25 +798,6 @@ def _validate_loads(out, mech, problems):
 def _load_schema(unit: str) -> Section:
     """:data:`LOAD_SCHEMA` with the magnitude in ``unit`` (the load's: N or N m)."""
     return Section({**LOAD_SCHEMA.fields, "magnitude": dataclasses.replace(LOAD_SCHEMA.fields["magnitude"], unit=unit)})
-
-
-#: a window bound whose unit was wrong (reported)
-_REPORTED = object()
-
-
-def _window_bound(path: str, value, unit: str, problems: list[str]):
-    """A load window's bound as a float (+-.inf allowed: an open end; ``30 deg`` converted to
-    ``unit``, the load coordinate's); None for anything else (not a number, .nan, an integer
-    beyond the float range); :data:`_REPORTED` for a value whose unit cannot be converted."""
-    if isinstance(value, float) and math.isinf(value):
-        return value
-    if is_quantity(value):
-        number, problem = convert(value, unit)
-        if problem is not None:
-            problems.append(f"{path}: got {describe(value)}; {problem}")
-            return _REPORTED
-        value = number
-    return float(value) if finite_number(value) else None
 
 
 #: Most output samples, and most fixed steps, a run may ask for.

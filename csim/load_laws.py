@@ -17,13 +17,36 @@ right-hand side it integrates is smooth.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from csim.physics import loads as core
+from csim.quantities import convert, is_quantity
+from csim.schema import describe, finite_number
 
 VELOCITY_CONDITIONS = ("any", "positive", "negative")
+
+#: a window bound whose unit could not be converted (the problem is reported)
+REPORTED = object()
+
+
+def window_bound(path: str, value, unit: str, problems: list[str]):
+    """One bound of a load window (``loads.NAME.window``, a force element's ``window``) as a
+    float: +-.inf allowed (an open end), ``30 deg`` converted to ``unit`` (the unit of the
+    coordinate the load switches on); None for anything else (not a number, .nan, an integer
+    beyond the float range); :data:`REPORTED` for a value whose unit cannot be converted
+    (``path``, the bound's key, and why are appended to ``problems``)."""
+    if isinstance(value, float) and math.isinf(value):
+        return value
+    if is_quantity(value):
+        number, problem = convert(value, unit)
+        if problem is not None:
+            problems.append(f"{path}: got {describe(value)}; {problem}")
+            return REPORTED
+        value = number
+    return float(value) if finite_number(value) else None
 
 
 @dataclass(frozen=True)

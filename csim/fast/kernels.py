@@ -242,7 +242,6 @@ ERK_B = np.ascontiguousarray(np.stack((RK45_B, TSIT5_B)))
 ERK_C = np.ascontiguousarray(np.stack((RK45_C, TSIT5_C)))
 ERK_E = np.ascontiguousarray(np.stack((RK45_E, TSIT5_E)))
 ERK_P = np.ascontiguousarray(np.stack((RK45_P, TSIT5_P)))
-ERK_EXPONENT = -1 / (ERROR_ESTIMATOR_ORDER + 1)
 # Verner's 7(6) pair: ten stages, the new point, five extra stages for its interpolant
 V7_NS = VERN7_C.size
 V7_A = np.ascontiguousarray(VERN7_A)
@@ -252,7 +251,6 @@ V7_E = np.ascontiguousarray(VERN7_E)
 V7_A_EXTRA = np.ascontiguousarray(VERN7_A_EXTRA)
 V7_C_EXTRA = np.ascontiguousarray(VERN7_C_EXTRA)
 V7_P = np.ascontiguousarray(VERN7_P)
-V7_EXPONENT = -1 / (VERN7_ERROR_ESTIMATOR_ORDER + 1)
 
 # integrators (csim.fast.runner.INTEGRATOR_CODES), and the dense output of an empty step
 DOP853 = 0
@@ -925,6 +923,20 @@ def _rk_stages(A, B, C, ns, t, hstep, y, f, K, ytmp, y_new, f_new, par, pf, pi, 
     return OK
 
 
+@inlined
+def _error_order(method):
+    """The order of an adaptive integrator's error estimator (scipy's ``error_estimator_order``):
+    DOP853 7, Vern7 6, the 5(4) pairs 4, Radau 3. It sets the first step and the step factor
+    err^(-1 / (order + 1))."""
+    if method == DOP853:
+        return 7
+    if method == VERN7:
+        return VERN7_ERROR_ESTIMATOR_ORDER
+    if method == RADAU:
+        return 3
+    return ERROR_ESTIMATOR_ORDER
+
+
 @hot
 def _explicit_step(method, ts_, t_end, rtol, tolv, max_step, y, f, K, F, ytmp, y_new, f_new, par, pf, pi, rmode, locate,
                    w, piv, cs, info):
@@ -936,8 +948,7 @@ def _explicit_step(method, ts_, t_end, rtol, tolv, max_step, y, f, K, F, ytmp, y
     built when first needed: _ensure_dense).
     """
     k = method - RK45  # a 5(4) pair's row of the ERK_* tables
-    # -1 / (the error estimator's order + 1)
-    exponent = -1 / 8 if method == DOP853 else (V7_EXPONENT if method == VERN7 else ERK_EXPONENT)
+    exponent = -1 / (_error_order(method) + 1)
     t = ts_[T]
     min_step = 10 * spacing(t)
     h_abs = ts_[H_ABS]
@@ -1341,6 +1352,7 @@ def _erk_error(E, K, y, y_new, tolv, rtol, hstep):
         s += v * v
     return math.sqrt(s / n)
 
+
 @inlined
 def _extra_stages(A, C, first, t_old, h, y_old, mode, locate, par, pf, pi, w, piv, K, ytmp, info):
     """The stages an interpolant adds after a step (DOP853's three, Vern7's five) into
@@ -1408,7 +1420,7 @@ def _ensure_dense(dense_ready, dense_kind, t_old, h, y_old, y, f, mode, locate, 
         return _vern7_dense(t_old, h, y_old, mode, locate, par, pf, pi, w, piv, K, F, ytmp, info)
     if dense_kind != DOP853:
         return OK
-    cs[NFEV] += 3
+    cs[NFEV] += DOP_C_EXTRA.size
     return _dop_dense(t_old, h, y_old, y, f, mode, locate, par, pf, pi, w, piv, K, F, ytmp, info)
 
 
@@ -1650,12 +1662,9 @@ def _start_segment(method, ts_, y, f, t_end, rtol, atol, max_step, first_step, t
     ts_[H_ABS] = 0.0
     ts_[SEG_START] = ts_[T]
     cs[SEG_STEPS] = 0
-    if method != RK4:  # the error estimator's order: DOP853 7, Vern7 6, Radau 3, the 5(4) pairs 4
-        order = 7 if method == DOP853 else (3 if method == RADAU else ERROR_ESTIMATOR_ORDER)
-        if method == VERN7:
-            order = VERN7_ERROR_ESTIMATOR_ORDER
+    if method != RK4:
         status, h = _initial_step(ts_[T], y, f, t_end, rtol, tolv, max_step, first_step, par, pf, pi, rmode, locate, w,
-                                  piv, ytmp, f1, scl, cs, info, order)
+                                  piv, ytmp, f1, scl, cs, info, _error_order(method))
         ts_[H_ABS] = h
     if status == OK and method == RADAU:
         status = _radau_start(ts_, y, f, tolv, rtol, RM, RJ, par, pf, pi, rmode, locate, w, piv, cs, info)

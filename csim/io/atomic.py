@@ -2,11 +2,11 @@
 
 Every file csim writes (results, comparisons, sweeps, JUnit reports, the JSON schema, the
 example cases) goes through :func:`write_atomically`, or, for a writer that wants a path of
-its own (figures, exported tables), :func:`atomic_path`; animations do the same in
-:meth:`csim.plot.animate.MechanismAnimation.save`. A failure while writing (a full disk,
-``ulimit -f``, a vanished folder) is an ``OSError`` naming the cause, the temporary file is
-removed, and the target is left as it was. The rename replaces a symbolic link at the target by the
-file; it never writes through the link into the file it points at. A new file gets the
+its own (figures, exported tables, animations), :func:`atomic_path`. A failure while
+writing (a full disk, ``ulimit -f``, a vanished folder) is an ``OSError`` naming the cause,
+the temporary file is removed, and the target is left as it was. The rename replaces a
+symbolic link at the target by the file; it never writes through the link into the file it
+points at. A new file gets the
 mode any new file gets (0666 less the umask, 0644 under the usual umask 022), not
 ``mkstemp``'s 0600.
 """

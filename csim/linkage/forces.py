@@ -38,9 +38,8 @@ from csim.linkage.joints import JOINT_TYPES, CutGeometry
 from csim.linkage.tables import Coupling, Tables
 from csim.linkage.topology import Topology
 from csim.linkage.transforms import simplify_entry
-from csim.load_laws import VELOCITY_CONDITIONS
+from csim.load_laws import REPORTED, VELOCITY_CONDITIONS, window_bound
 from csim.model.definition import Load, Observable, time_symbol
-from csim.quantities import convert, is_quantity
 from csim.schema import describe
 
 
@@ -543,18 +542,10 @@ def _window(path: str, raw: Any, unit: str, problems: list[str]) -> tuple[float,
     if not isinstance(raw, list) or len(raw) != 2:
         problems.append(f"{path}: got {describe(raw)}; {expected}")
         return None
-    bounds = []
-    for n, value in enumerate(raw):
-        if is_quantity(value):
-            value, problem = convert(value, unit)
-            if problem is not None:
-                problems.append(f"{path}[{n}]: got {describe(raw[n])}; {problem}")
-                return None
-        if not isinstance(value, (int, float)) or isinstance(value, bool) or math.isnan(value):
-            problems.append(f"{path}: got {describe(raw)}; {expected}")
-            return None
-        bounds.append(float(value))
-    if not bounds[0] < bounds[1]:
+    bounds = [window_bound(f"{path}[{n}]", value, unit, problems) for n, value in enumerate(raw)]
+    if any(b is REPORTED for b in bounds):
+        return None
+    if None in bounds or not bounds[0] < bounds[1]:
         problems.append(f"{path}: got {describe(raw)}; {expected}")
         return None
     return bounds[0], bounds[1]

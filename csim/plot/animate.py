@@ -7,8 +7,6 @@ are output samples of the run, spaced evenly in time; the time is shown on each 
 from __future__ import annotations
 
 import math
-import os
-import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -17,6 +15,7 @@ import numpy as np
 from matplotlib.animation import FFMpegWriter, writers
 from PIL import Image
 
+from csim.io.atomic import atomic_path
 from csim.plot.drawing import MechanismArtists, geometry, setup_axes, symbol_size
 from csim.plot.errors import PlotError, check_dpi
 from csim.plot.source import COMPARISON, RunData, file_kind, load_run
@@ -233,26 +232,15 @@ class MechanismAnimation:
                             f"write a GIF instead (-o {path.with_suffix('.gif')})")
         if path.is_dir():
             raise PlotError(f"--output {path}: cannot write, it is a directory")
+        started = False  # (an error before the writer ran: the folder or the temporary file)
         try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=suffix, dir=path.parent)
-            os.close(fd)
+            with atomic_path(path) as tmp:  # written whole or not at all, a symbolic link replaced
+                started = True
+                (self._write_gif if suffix == ".gif" else self._write_mp4)(str(tmp), dpi)
         except OSError as exc:
-            raise PlotError(f"--output {path}: cannot write there ({exc.strerror or exc})") from None
-        try:
-            if suffix == ".gif":
-                self._write_gif(tmp, dpi)
-            else:
-                self._write_mp4(tmp, dpi)
-            umask = os.umask(0)
-            os.umask(umask)
-            os.chmod(tmp, 0o666 & ~umask)
-            os.replace(tmp, path)
-        except OSError as exc:
+            if not started:
+                raise PlotError(f"--output {path}: cannot write there ({exc.strerror or exc})") from None
             raise PlotError(f"cannot write {path}: {exc.strerror or exc}") from None
-        finally:
-            if os.path.exists(tmp):
-                os.remove(tmp)
         return path
 
     def _write_gif(self, path: str, dpi: float) -> None:

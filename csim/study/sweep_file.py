@@ -29,8 +29,10 @@ import numpy as np
 
 from csim import __version__
 from csim.errors import ResultFileError
-from csim.io.hdf5 import FORMAT_VERSION, _dataset, atomic_h5, check_expansion, damage, scale, unit_text
-from csim.io.units import DIMENSIONLESS, common_unit, per_time
+from csim.io.hdf5 import FORMAT_VERSION, _dataset, _names, atomic_h5, check_expansion, damage, scale, unit_text
+from csim.io.outputs import OUTPUTS
+from csim.io.units import DIMENSIONLESS
+from csim.study.metrics import COLUMNS
 
 SWEEP_KIND = "sweep"
 _STR = h5py.string_dtype()
@@ -131,8 +133,6 @@ def write_sweep(path: str | Path, table: SweepTable, signals: dict[int, dict[str
         runs = fh.create_group("runs")
         for name in ("status", "reason", "message"):
             _dataset(runs, name, _names(getattr(table, name)), DIMENSIONLESS, RUN_TEXT[name], dims=(run,))
-        from csim.study.metrics import COLUMNS  # not at the top: csim.study imports this module
-
         docs = {c.name: c.doc for c in COLUMNS}
         for name, data in table.columns.items():
             _dataset(runs, name, data, table.units.get(name, ""), docs.get(name, ""), dims=(run,))
@@ -150,17 +150,12 @@ RUN_TEXT = {"status": "success | failed | pending (not run yet: an interrupted s
             "message": "the run's message"}
 
 
-def _names(values) -> np.ndarray:
-    return np.array([str(v) for v in values], dtype=_STR)
-
-
 def _signal_units(table: SweepTable, m: int) -> dict[str, str | list[str]]:
     """The units of the kept signals (:data:`csim.study.execute.SIGNALS`)."""
-    coords = table.coordinate_units if len(table.coordinate_units) == m else [""] * m
-    cons = table.constraint_units
-    return {"t": "s", "q": common_unit(coords), "qd": common_unit([per_time(u) if u else "" for u in coords]),
-            "phi": common_unit(cons), "phi_dot": common_unit([per_time(u) if u else "" for u in cons]),
-            "energy_error": "J"}
+    columns = {"coordinate": table.coordinate_units if len(table.coordinate_units) == m else [""] * m,
+               "constraint": table.constraint_units}
+    # each signal's unit by the rule of the per-sample output it is (csim.io.outputs)
+    return {"t": "s", **{out.name: out.unit(columns) for out in OUTPUTS if out.name in SIGNAL_TEXT}}
 
 
 #: what each kept signal holds
