@@ -227,6 +227,8 @@ def test_quick_return_as_tables_agrees_with_the_registered_mechanism():
       "window": ["10 deg", "1 m"]},
      "mechanism.forces[0] (f).window[0]: got '10 deg' (string); 'deg' is the unit of a pure number or an angle, "
      "not of a length"),
+    ({"type": "force", "link": "block", "point": "G", "direction": [1, 0, 0], "value": 1, "window": [0, 10**400]},
+     "mechanism.forces[0] (f).window: got [0, 1000"),
     ({"type": "force", "link": "block", "point": "G", "direction": [1, 0, 0], "value": 1, "window": [1, 0]},
      "mechanism.forces[0] (f).window: got [1, 0] (list); expected [lo, hi] with lo < hi, numbers in m or written "
      "with their unit"),
