@@ -148,3 +148,17 @@ def test_either_copy_of_the_kernels_is_importable_by_name(monkeypatch):
     imported = importlib.import_module(name)
     assert imported.__file__.endswith(module.kernels_path(True).name)
     assert imported.WITH_PARTITION is True
+
+
+def test_the_kernels_key_is_fixed_for_the_process(monkeypatch, tmp_path):
+    # both copies a process writes carry one key, even if a source file changes under the
+    # process: numba's cache of one copy refers to the other one's functions by module name
+    from csim.fast import module
+
+    key = module.kernels_key()
+    edited = tmp_path / "kernels.py"
+    edited.write_text(module.KERNELS.read_text() + "\n# edited while a process runs\n")
+    monkeypatch.setattr(module, "KERNELS", edited)
+    assert module.kernels_key.__wrapped__() != key  # the edit is a new key for a new process
+    assert module.kernels_key() == key
+    assert {module.kernels_path(p).stem.rsplit("_", 1)[1] for p in (False, True)} == {key}

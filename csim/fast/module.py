@@ -33,6 +33,7 @@ Where the cache cannot be written, the files go to a temporary folder of this pr
 from __future__ import annotations
 
 import ctypes
+import functools
 import hashlib
 import importlib.util
 import os
@@ -87,8 +88,16 @@ def _hash(parts) -> str:
 # ---------------------------------------------------------------------------------------
 # the kernels: one module per installation
 # ---------------------------------------------------------------------------------------
+@functools.cache
 def kernels_key() -> str:
-    """Hash of everything the kernels' machine code depends on."""
+    """Hash of everything the kernels' machine code depends on, computed once per process.
+
+    Once: the two copies a process compiles refer to each other's functions in numba's cache
+    (:class:`_KernelsFinder`), so they must carry one key. A key computed again after a source
+    file changed under a running process named the second copy with a new key while its
+    machine code referred to the first one's, which no later process could import: every
+    ``minimal`` run fell back to the Python path until the cache was cleared.
+    """
     sources = [KERNELS, HERE / "layout.py", *sorted(PHYSICS.glob("*.py")), *sorted(METHODS.glob("*.py"))]
     return _hash([FAST_VERSION, *(p.read_text() for p in sources), _versions()])
 

@@ -184,16 +184,12 @@ def subtree(topology, child: int) -> set[int]:
     return below
 
 
-def _skew_num(w: np.ndarray) -> np.ndarray:
-    return np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
-
-
 def _kinematics(linkage, definition):
-    """(q, qd, qdd, par) -> ({link: (m, I (3, 3), r_C (3,), a_C (3,), A (3, 3), omega (3,),
-    alpha (3,))}, g (3,)) for every link with mass: its mass [kg] and inertia about the centre
-    of mass in its axes [kg m^2], the centre of mass and its acceleration in global axes [m,
-    m/s^2], the link's axes, its angular velocity and acceleration in its own axes [rad/s,
-    rad/s^2]; and gravity [m/s^2].
+    """(links, kinematics): the L links with mass, and (q, qd, qdd, par) -> ((m (L,), I (L, 3, 3),
+    r_C (L, 3), a_C (L, 3), A (L, 3, 3), omega (L, 3), alpha (L, 3)), g (3,)): each link's mass
+    [kg] and inertia about the centre of mass in its axes [kg m^2], the centre of mass and its
+    acceleration in global axes [m, m/s^2], the link's axes, its angular velocity and
+    acceleration in its own axes [rad/s, rad/s^2]; and gravity [m/s^2].
     a_C = J qdd + d(J qd)/dq qd and alpha = d(omega)/dqd qdd + d(omega)/dq qd, by sympy."""
     cached = getattr(linkage, "_reaction_kinematics", None)
     if cached is not None:
@@ -223,13 +219,14 @@ def _kinematics(linkage, definition):
     shapes = [(), (3, 3), (3,), (3,), (3, 3), (3,), (3,)]
 
     def kinematics(qv, qdv, qddv, par):
-        values = [np.asarray(v, dtype=float) for v in f(list(qv), list(qdv), list(qddv), list(par))]
-        links_at = {n: tuple(values[7 * i + k].reshape(shape) for k, shape in enumerate(shapes))
-                    for i, n in enumerate(links)}
-        return links_at, values[-1].ravel()
+        values = f(list(qv), list(qdv), list(qddv), list(par))
+        L = len(links)
+        stacked = tuple(np.array([values[7 * i + k] for i in range(L)], dtype=float).reshape(L, *shape)
+                        for k, shape in enumerate(shapes))
+        return stacked, np.asarray(values[-1], dtype=float).ravel()
 
-    linkage._reaction_kinematics = kinematics
-    return kinematics
+    linkage._reaction_kinematics = links, kinematics
+    return links, kinematics
 
 
 #: the six virtual motions of a released subtree: translations along, rotations about global x, y, z
@@ -378,37 +375,22 @@ def _tree_frames(linkage, definition):
     return frames
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a x b of two 3-vectors (numpy's cross costs some 30 us a call, for its axis handling)."""
-    a0, a1, a2 = a
-    b0, b1, b2 = b
-    return np.array((a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0))
+def _inertial_wrenches(at, g: np.ndarray) -> np.ndarray:
+    """[m (a_C - g); r_C x m (a_C - g) + A (I alpha + omega x I omega)] (L, 6) of each link
+    with mass, about the global origin [N, N m, global axes] (``at`` from :func:`_kinematics`)."""
+    m, inertia, r_c, a_c, A, w, alpha = at
+    f = m[:, None] * (a_c - g)
+    i_w = np.einsum("lij,lj->li", inertia, w)
+    spin = np.einsum("lij,lj->li", A, np.einsum("lij,lj->li", inertia, alpha) + np.cross(w, i_w))
+    return np.concatenate((f, np.cross(r_c, f) + spin), axis=1)
 
 
-def _inertial_wrench(at: dict, g: np.ndarray, below: set[int], r_J: np.ndarray) -> np.ndarray:
-    """[sum m (a_C - g); sum (r_C - r_J) x m (a_C - g) + A (I alpha + omega x I omega)] (6,)
-    over the links of ``below`` with mass [N, N m about r_J, global axes]."""
-    out = np.zeros(6)
-    for n, (m, inertia, r_c, a_c, A, w, alpha) in at.items():
-        if n in below:
-            f = m * (a_c - g)
-            out[:3] += f
-            out[3:] += _cross(r_c - r_J, f) + A @ (inertia @ alpha + _cross(w, inertia @ w))
-    return out
-
-
-def _cut_wrench(cut_reactions, cut_frames, cuts, below: set[int], r_J: np.ndarray, s: int) -> np.ndarray:
-    """The wrench the cut joints with one side in ``below`` exert on it (6,) [N, N m about r_J]."""
-    out = np.zeros(6)
-    for c, reaction in zip(cuts, cut_reactions):
-        if (c.j in below) == (c.i in below):
-            continue
-        sign = 1.0 if c.j in below else -1.0  # i on j, or (j on i) = -(i on j)
-        F, M = reaction.force_global[s], reaction.torque_global[s]
-        r_jm = cut_frames[c.number][1][:3, 3]
-        out[:3] += sign * F
-        out[3:] += sign * (M + _cross(r_jm - r_J, F))
-    return out
+def _cut_wrenches(forces: np.ndarray, torques: np.ndarray, cut_at, cuts) -> np.ndarray:
+    """The wrench each cut joint's link i exerts on its link j (C, 6), about the global origin
+    [N, N m]: [F; M + r_jm x F], from its force F and moment M about r_jm (C, 3 each) and the
+    cut joints' frames ``cut_at`` at the same sample."""
+    r_jm = np.array([cut_at[c.number][1][:3, 3] for c in cuts])
+    return np.concatenate((forces, torques + np.cross(r_jm, forces)), axis=1)
 
 
 #: what a planar model does not carry at a tree joint (out-of-plane components, reported as 0)
@@ -447,56 +429,61 @@ def tree_reactions(linkage, definition, raw_forces, par, run, cut_reactions) -> 
     list of JointReaction, one per tree joint in table order
     """
     topology = linkage.topology
-    kinematics = _kinematics(linkage, definition)
+    links, kinematics = _kinematics(linkage, definition)
     frames = _tree_frames(linkage, definition)
     cut_frames = _frame_functions(linkage, definition) if topology.cut_joints else (lambda q, p: {})
     normal = _plane_normal(linkage, definition, par, run["q"])
     q, qd, qdd, u = run["q"], run["qd"], run["qdd"], run["loads"]
     tau = run.get("drive_forces")
-    joints = []
-    for c in topology.tree_joints:
+    cuts, tree = topology.cut_joints, topology.tree_joints
+    # which links (columns) each tree joint's subtree holds, and the sign with which each cut
+    # joint's wrench (i on j) acts on it: +1 with j beyond the joint, -1 with i, 0 both or neither
+    beyond = np.zeros((len(tree), len(links)))
+    on_subtree = np.zeros((len(tree), len(cuts)))
+    outward = np.ones(len(tree))  # W = W_S with link j in S, -W_S otherwise
+    terms = []
+    for a, c in enumerate(tree):
         below = subtree(topology, next(n for n, e in topology.edges.items() if e.coupling is c))
-        joints.append((c, below, _element_terms(linkage, definition, raw_forces, c, below)))
+        beyond[a] = [n in below for n in links]
+        on_subtree[a] = [(cut.j in below) - (cut.i in below) for cut in cuts]
+        outward[a] = 1.0 if c.j in below else -1.0
+        terms.append(_element_terms(linkage, definition, raw_forces, c, below))
+    if cuts:  # the cut joints' reactions, (N, C, 3) each
+        cut_F = np.stack([reaction.force_global for reaction in cut_reactions], axis=1)
+        cut_M = np.stack([reaction.torque_global for reaction in cut_reactions], axis=1)
     N = q.shape[0]
-    values = {c.number: np.full((4, N, 3), np.nan) for c in topology.tree_joints}  # F, M global; in frame ik
+    values = np.full((len(tree), 4, N, 3), np.nan)  # per joint: F, M global; in frame ik
     for s in range(N):
         if not (np.all(np.isfinite(q[s])) and np.all(np.isfinite(qdd[s]))):
             continue
         at, g = kinematics(q[s], qd[s], qdd[s], par)
-        tree_at, cut_at = frames(q[s], par), cut_frames(q[s], par)
-        for c, below, terms in joints:
-            T_jm, T_ik = tree_at[c.number]
-            values[c.number][:, s] = _tree_wrench(c, below, terms, T_jm, T_ik, at, g, normal,
-                                                  (cut_reactions, cut_at, topology.cut_joints, s),
-                                                  (q[s], qd[s], par, u[s], None if tau is None else tau[s]))
+        # W_S about the origin: the subtree's inertial wrench less the cut joints' on it
+        W = beyond @ _inertial_wrenches(at, g)
+        if cuts:
+            W -= on_subtree @ _cut_wrenches(cut_F[s], cut_M[s], cut_frames(q[s], par), cuts)
+        tree_at = frames(q[s], par)
+        r_J = np.array([tree_at[c.number][0][:3, 3] for c in tree])
+        W[:, 3:] -= np.cross(r_J, W[:, :3])  # the moment about each joint's point r_J
+        for a, fn in enumerate(terms):
+            if fn is not None:
+                dV, B, D, columns = fn(q[s], qd[s], par)
+                W[a] += dV - B @ u[s]
+                if columns:
+                    W[a] -= D @ tau[s][columns]
+        W *= outward[:, None]
+        F, M = W[:, :3], W[:, 3:]
+        if normal is not None:  # the planar model's components only
+            F, M = F - np.outer(F @ normal, normal), np.outer(M @ normal, normal)
+        A = np.array([tree_at[c.number][1][:3, :3] for c in tree])
+        values[:, :, s] = np.stack((F, M, np.einsum("aji,aj->ai", A, F), np.einsum("aji,aj->ai", A, M)), axis=1)
     out = []
-    for c in topology.tree_joints:
+    for a, c in enumerate(tree):
         name = str(c.name or c.number)
         label = (f"joint {name} ({c.type}, {linkage.tables.link_label(c.i)} on {linkage.tables.link_label(c.j)}; "
                  f"tree joint: Newton-Euler of the links beyond it)")
-        out.append(JointReaction(name, label, *values[c.number],
+        out.append(JointReaction(name, label, *values[a],
                                  list(PLANAR_UNDETERMINED) if normal is not None else []))
     return out
-
-
-def _tree_wrench(c, below, terms, T_jm, T_ik, at, g, normal, cut, state) -> tuple:
-    """(F, M, A_ik^T F, A_ik^T M) of one tree joint at one sample (see :func:`tree_reactions`)."""
-    cut_reactions, cut_at, cuts, s = cut
-    q, qd, par, u, tau = state
-    r_J = T_jm[:3, 3]
-    W = _inertial_wrench(at, g, below, r_J) - _cut_wrench(cut_reactions, cut_at, cuts, below, r_J, s)
-    if terms is not None:
-        dV, B, D, columns = terms(q, qd, par)
-        W += dV - B @ u
-        if columns:
-            W -= D @ tau[columns]
-    if c.j not in below:
-        W = -W
-    F, M = W[:3], W[3:]
-    if normal is not None:  # the planar model's components only
-        F, M = F - (F @ normal) * normal, (M @ normal) * normal
-    A = T_ik[:3, :3]
-    return F, M, A.T @ F, A.T @ M
 
 
 def _plane_normal(linkage, definition, par, q) -> np.ndarray | None:

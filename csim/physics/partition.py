@@ -45,6 +45,8 @@ MAX_PIECE_MOVE = 0.5
 MAX_BRANCH_RESTARTS = 2
 #: above this many candidate partitions, choose by pivoted QR instead of trying them all
 MAX_ENUMERATED_PARTITIONS = 500
+#: ... or above this much work for their inversions, C(m, r) r^3 (about 10 ms): QR costs O(m r^2)
+MAX_ENUMERATION_WORK = 1e7
 SQRT_EPS = 1.4901161193847656e-08
 #: the test of :func:`same_branch` a solution failed
 BRANCH_JUMP, BRANCH_TURN = 1, 2
@@ -66,7 +68,7 @@ Partition = namedtuple("Partition", (
     "q", "phi", "J", "lu", "dv", "col", "cinv",  # Newton: iterate (m), Phi (r), Phi_q (r m), LU (r r), scratch
     "pred", "du", "dvl", "dirn", "gam", "u0", "tgt", "uu",  # the prediction and the pieces of the way
     "ym", "yf", "ff", "lost",  # model-call state, full state, its rate (2 m + k each); lost-at state (2 n + k)
-    "basis", "resid",  # QR partition choice: orthonormal basis (r r), a column's residual (r)
+    "basis", "resid",  # QR partition choice: orthonormal basis (r r), the columns' residuals (m r)
     "detail", "cause",  # failure details, and those of the breakdown being answered (D_HEAD + 2 n each)
     "ind", "dep", "piv", "cand", "best", "old", "count",  # integers
 ))
@@ -76,7 +78,7 @@ Partition = namedtuple("Partition", (
 def partition_sizes(m, r, k):
     """(floats, integers) that :func:`partition_state` lays out for m coordinates, r constraints, k loads."""
     n, s = m - r, 2 * m + k
-    floats = 6 * m + 3 * r * n + r * m + 6 * r * r + 6 * r + 10 * n + 3 * s + k + 2 * D_HEAD
+    floats = 6 * m + 3 * r * n + 2 * r * m + 6 * r * r + 5 * r + 10 * n + 3 * s + k + 2 * D_HEAD
     return floats, 2 * n + 4 * r + N_COUNT
 
 
@@ -123,7 +125,7 @@ def partition_state(fw, iw, m, r, k):
     ff, a = _take(fw, a, s)
     lost, a = _take(fw, a, 2 * n + k)
     basis, a = _take(fw, a, r * r)
-    resid, a = _take(fw, a, r)
+    resid, a = _take(fw, a, m * r)
     detail, a = _take(fw, a, D_HEAD + 2 * n)
     cause, a = _take(fw, a, D_HEAD + 2 * n)
     ind, b = _take(iw, 0, n)
@@ -194,11 +196,20 @@ def complement(dep, r, m, ind):
 def n_partitions(m, r):
     """C(m, r), the number of candidate dependent blocks, capped just above MAX_ENUMERATED_PARTITIONS."""
     c = 1
-    for i in range(r):
+    for i in range(min(r, m - r)):  # C(m, r) = C(m, m - r): the shorter product's partial values stay below it
         c = c * (m - i) // (i + 1)
         if c > MAX_ENUMERATED_PARTITIONS:
             return MAX_ENUMERATED_PARTITIONS + 1
     return c
+
+
+@kernel
+def enumerates(m, r):
+    """Whether :func:`choose_partition` tries every dependent block: at most
+    :data:`MAX_ENUMERATED_PARTITIONS` of them, and at most :data:`MAX_ENUMERATION_WORK` for
+    their inversions (C(m, r) r^3)."""
+    c = n_partitions(m, r)
+    return c <= MAX_ENUMERATED_PARTITIONS and c * float(r) ** 3 <= MAX_ENUMERATION_WORK
 
 
 @kernel
@@ -207,11 +218,12 @@ def choose_partition(J, r, m, ind, dep, cand, best, lu, piv, col, inv, basis, re
 
     The dependent block Phi_v is the one with the smallest :func:`block_condition`, found by
     trying every choice of r of the m columns in lexicographic order (the first of equal ones)
-    when there are at most :data:`MAX_ENUMERATED_PARTITIONS`. Beyond that, QR with column
-    pivoting (which orders the columns by how much each adds to the rank) picks its first r
-    pivots, a good block though not always the best.
+    when that is cheap (:func:`enumerates`). Beyond that, QR with column pivoting (which
+    orders the columns by how much each adds to the rank) picks its first r pivots, a good
+    block though not always the best. ``basis`` (r * r) and ``resid`` (m * r) are the QR's
+    scratch; ``cand``, ``best``, ``lu``, ``piv``, ``col`` and ``inv`` the enumeration's.
     """
-    if n_partitions(m, r) > MAX_ENUMERATED_PARTITIONS:
+    if not enumerates(m, r):
         _pivoted_qr_columns(J, r, m, dep, basis, resid)
     else:
         for i in range(r):
@@ -243,25 +255,40 @@ def choose_partition(J, r, m, ind, dep, cand, best, lu, piv, col, inv, basis, re
 @kernel
 def _pivoted_qr_columns(J, r, m, dep, basis, resid):
     """dep = the first r pivots of QR with column pivoting of J (r * m), sorted (Businger-Golub:
-    each the column with the largest part orthogonal to those chosen, the first of equal ones)."""
+    each the column with the largest part orthogonal to those chosen, the first of equal ones).
+
+    resid (m * r) holds each column's part orthogonal to the basis so far, row j for column j:
+    R_j = J_j - sum_b (q_b . J_j) q_b (classical Gram-Schmidt against the original column),
+    brought up to date by one term per chosen column, so that the whole choice costs
+    O(m r^2) instead of recomputing every projection for every candidate (O(m r^4)).
+    """
+    for j in range(m):
+        for a in range(r):
+            resid[j * r + a] = J[a * m + j]
     for c in range(r):
         big = -1.0
         pick = 0
         for j in range(m):
-            taken = False
-            for i in range(c):
-                if dep[i] == j:
-                    taken = True
-            if taken:
+            if _taken(dep, c, j):
                 continue
-            norm = _orthogonal_part(J, r, m, j, basis, c, resid)
+            norm = 0.0
+            for a in range(r):
+                norm += resid[j * r + a] * resid[j * r + a]
             if norm > big:
                 big = norm
                 pick = j
         dep[c] = pick
-        norm = np.sqrt(_orthogonal_part(J, r, m, pick, basis, c, resid))
-        for a in range(r):
-            basis[c * r + a] = resid[a] / norm if norm > 0 else 0.0
+        norm = np.sqrt(big)
+        for a in range(r):  # q_c, the chosen column's orthogonal part normalized
+            basis[c * r + a] = resid[pick * r + a] / norm if norm > 0 else 0.0
+        for j in range(m):  # R_j -= (q_c . J_j) q_c for the columns still candidates
+            if _taken(dep, c + 1, j):
+                continue
+            dot = 0.0
+            for e in range(r):
+                dot += basis[c * r + e] * J[e * m + j]
+            for a in range(r):
+                resid[j * r + a] -= dot * basis[c * r + a]
     for i in range(1, r):  # insertion sort: few entries
         v = dep[i]
         j = i - 1
@@ -272,19 +299,12 @@ def _pivoted_qr_columns(J, r, m, dep, basis, resid):
 
 
 @kernel
-def _orthogonal_part(J, r, m, j, basis, c, resid):
-    """resid (r,) = column j of J minus its projections on the first c basis vectors; returns |resid|^2."""
-    norm = 0.0
-    for a in range(r):
-        v = J[a * m + j]
-        for b in range(c):
-            dot = 0.0
-            for e in range(r):
-                dot += basis[b * r + e] * J[e * m + j]
-            v -= dot * basis[b * r + a]
-        resid[a] = v
-        norm += v * v
-    return norm
+def _taken(dep, c, j):
+    """Whether column j is among the first c entries of dep."""
+    for i in range(c):  # noqa: SIM110 (a loop, not a generator, in the compiled subset)
+        if dep[i] == j:
+            return True
+    return False
 
 
 @kernel

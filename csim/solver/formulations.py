@@ -70,14 +70,14 @@ def choose_independent(phi_q: np.ndarray) -> np.ndarray:
 
     The dependent block Phi_v is the one with the smallest condition
     :func:`dependent_block_inverse`, found by trying every choice of r of the m columns
-    when there are at most :data:`csim.physics.partition.MAX_ENUMERATED_PARTITIONS` of them,
+    when that is cheap (:func:`csim.physics.partition.enumerates`),
     else by QR with column pivoting (:func:`csim.physics.partition.choose_partition`, the
     choice the minimal-coordinate method makes too).
     """
     r, m = phi_q.shape
     ind, dep = np.empty(m - r, np.int64), np.empty(r, np.int64)
     choose_partition(as_core(phi_q), r, m, ind, dep, np.empty(r, np.int64), np.empty(r, np.int64), np.empty(r * r),
-                     np.empty(r, np.int64), np.empty(r), np.empty(r * r), np.empty(r * r), np.empty(r))
+                     np.empty(r, np.int64), np.empty(r), np.empty(r * r), np.empty(r * r), np.empty(m * r))
     return ind
 
 

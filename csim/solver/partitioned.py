@@ -12,7 +12,9 @@ acceleration-level constraint (the case's formulation, gamma* = gamma); u'' is t
 independent part. The constraints therefore hold to the Newton tolerance at every instant,
 with no drift to stabilize. When the dependent block Phi_v turns ill-conditioned (the
 mechanism nears a configuration where v is no longer a function of u) the partition is
-chosen again by pivoted QR and the integration restarts from the same state.
+chosen again (:func:`csim.physics.partition.choose_partition`: the best-conditioned block, by
+trying every one where that is cheap, else by pivoted QR) and the integration restarts from
+the same state.
 
 The numerics, written once for both backends, are :mod:`csim.physics.branch` (the solves on
 the branch, the partition's choice and repartitioning, with the rules they follow) and
