@@ -59,6 +59,18 @@ def test_a02_forty_four_bars_with_the_augmented_lagrangian_method():
     assert np.max(np.hypot(np.cos(theta) - p[:, 0], np.sin(theta) - p[:, 1])) < 1e-3
 
 
+@pytest.mark.slow
+def test_a02_forty_four_bars_with_the_shipped_minimal_coordinates():
+    # 80 dependent coordinates: the partition is chosen again after every step (cond(Phi_v) stays
+    # above minimal_max_condition), by pivoted QR (81 blocks of 80 x 80 are too many to invert)
+    result = run_case(load_case(IFTOMM / "a02_n_four_bar_40.yaml", ["simulation.t_end=1.5"]))
+    assert result.status == "success", result.message
+    assert result.singular_times.size >= 2  # t = 0.72 s and 1.24 s
+    p, _ = a02_b0(result.t, 40)
+    theta = result.q[:, 0]
+    assert np.max(np.hypot(np.cos(theta) - p[:, 0], np.sin(theta) - p[:, 1])) < 1e-4
+
+
 def test_a04_bricard_energy_and_a_second_formulation():
     """No closed form: projection on every equation (rows chosen as it moves) and the augmented
     Lagrangian method conserve energy and agree with the shipped minimal coordinates (a

@@ -1220,6 +1220,64 @@ def _radau_start(ts_, y, f, tolv, rtol, RM, RJ, par, pf, pi, rmode, locate, w, p
 
 
 @hot
+def _radau_solve(t, y, f, h, scale, tolv, newton_tol, RM, RJ, RLR, RLC, rpiv, rcv, par, pf, pi, rmode, locate, w, piv,
+                 cs, info):
+    """Newton on the collocation system at step h, with a new Jacobian (and LU factors) once if
+    it does not converge with the current ones. Returns (status, converged, n_iter, rate)."""
+    n = y.size
+    converged, n_iter, rate = False, 0, np.nan
+    while not converged:
+        lu_ok = True
+        if cs[R_LU_OK] == 0:
+            lu_ok = _radau_lu(h, RJ, RLR, RLC, rpiv, n, cs)
+            cs[R_LU_OK] = 1 if lu_ok else 0
+        if lu_ok:
+            status, converged, n_iter, rate = _radau_newton(t, y, h, scale, newton_tol, RM, RLR, RLC, rpiv, rcv, par,
+                                                            pf, pi, rmode, locate, w, piv, cs, info)
+            if status != OK:
+                return status, False, n_iter, rate
+        if not converged:
+            if cs[R_CURRENT_JAC] == 1:
+                break
+            status = _radau_jacobian(t, y, f, tolv, RJ, RM, par, pf, pi, rmode, locate, w, piv, cs, info)
+            if status != OK:
+                return status, False, n_iter, rate
+            cs[R_CURRENT_JAC] = 1
+            cs[R_LU_OK] = 0
+    return OK, converged, n_iter, rate
+
+
+@hot
+def _radau_error(t, h, y, f, y_new, tolv, rtol, rejected, RM, RLR, rpiv, par, pf, pi, rmode, locate, w, piv, cs, info):
+    """y_new = y + Z_3 and the error estimate's norm: (E^T Z / h + f) solved with the real factor,
+    once more from f at y + error after a rejected step (scipy's Radau). Returns (status, err_norm)."""
+    n = y.size
+    scale, err, ze = RM[R_SCALE], RM[R_ERR], RM[R_ZE]
+    for i in range(n):
+        y_new[i] = y[i] + RM[R_Z + 2, i]
+        acc = 0.0
+        for a in range(3):
+            acc += RM[R_Z + a, i] * RAD_E[a]
+        ze[i] = acc / h
+        err[i] = f[i] + ze[i]
+        scale[i] = tolv[i] + max(abs(y[i]), abs(y_new[i])) * rtol
+    lu_solve(RLR, n, rpiv[:n], err)
+    err_norm = _radau_rms(RM, R_ERR, 1, scale)
+    if rejected and err_norm > 1:
+        for i in range(n):
+            RM[R_YT, i] = y[i] + err[i]
+        cs[NFEV] += 1
+        status = feval(t, RM[R_YT], rmode, locate, par, pf, pi, w, piv, err, info)
+        if status != OK and status != NONFINITE_RHS:
+            return status, err_norm
+        for i in range(n):
+            err[i] += ze[i]
+        lu_solve(RLR, n, rpiv[:n], err)
+        err_norm = _radau_rms(RM, R_ERR, 1, scale)
+    return OK, err_norm
+
+
+@hot
 def _radau_step(ts_, t_end, rtol, tolv, max_step, y, f, F, y_old, y_new, f_new, RM, RJ, RLR, RLC, rpiv, rcv, par, pf,
                 pi, rmode, locate, w, piv, cs, info):
     """One accepted Radau step from ts_[T] (scipy's Radau._step_impl). Returns (status, t_new, step_ok).
@@ -1236,7 +1294,7 @@ def _radau_step(ts_, t_end, rtol, tolv, max_step, y, f, F, y_old, y_new, f_new, 
         h_abs, h_abs_old, err_old = min_step, np.nan, np.nan
     else:
         h_abs, h_abs_old, err_old = ts_[H_ABS], ts_[R_H_OLD], ts_[R_ERR_OLD]
-    scale, err, ze = RM[R_SCALE], RM[R_ERR], RM[R_ZE]
+    scale = RM[R_SCALE]
     rejected = False
     converged = False
     n_iter, rate, err_norm, safety, t_new = 0, np.nan, 0.0, 0.0, t
@@ -1255,52 +1313,19 @@ def _radau_step(ts_, t_end, rtol, tolv, max_step, y, f, F, y_old, y_new, f_new, 
                 RM[R_Z0 + a, i] = RM[R_Z0 + a, i] - y[i] if cs[R_SOL] == 1 else 0.0
         for i in range(n):
             scale[i] = tolv[i] + abs(y[i]) * rtol
-        converged = False
-        while not converged:
-            lu_ok = True
-            if cs[R_LU_OK] == 0:
-                lu_ok = _radau_lu(h, RJ, RLR, RLC, rpiv, n, cs)
-                cs[R_LU_OK] = 1 if lu_ok else 0
-            if lu_ok:
-                status, converged, n_iter, rate = _radau_newton(t, y, h, scale, ts_[R_NEWTON_TOL], RM, RLR, RLC, rpiv,
-                                                                rcv, par, pf, pi, rmode, locate, w, piv, cs, info)
-                if status != OK:
-                    return status, t, True
-            if not converged:
-                if cs[R_CURRENT_JAC] == 1:
-                    break
-                status = _radau_jacobian(t, y, f, tolv, RJ, RM, par, pf, pi, rmode, locate, w, piv, cs, info)
-                if status != OK:
-                    return status, t, True
-                cs[R_CURRENT_JAC] = 1
-                cs[R_LU_OK] = 0
+        status, converged, n_iter, rate = _radau_solve(t, y, f, h, scale, tolv, ts_[R_NEWTON_TOL], RM, RJ, RLR,
+                                                       RLC, rpiv, rcv, par, pf, pi, rmode, locate, w, piv, cs, info)
+        if status != OK:
+            return status, t, True
         if not converged:
             h_abs *= 0.5
             cs[R_LU_OK] = 0
             continue
-        # y_new = y + Z_3; the error estimate (E^T Z / h + f) solved with the real factor
-        for i in range(n):
-            y_new[i] = y[i] + RM[R_Z + 2, i]
-            acc = 0.0
-            for a in range(3):
-                acc += RM[R_Z + a, i] * RAD_E[a]
-            ze[i] = acc / h
-            err[i] = f[i] + ze[i]
-            scale[i] = tolv[i] + max(abs(y[i]), abs(y_new[i])) * rtol
-        lu_solve(RLR, n, rpiv[:n], err)
-        err_norm = _radau_rms(RM, R_ERR, 1, scale)
+        status, err_norm = _radau_error(t, h, y, f, y_new, tolv, rtol, rejected, RM, RLR, rpiv, par, pf, pi, rmode,
+                                        locate, w, piv, cs, info)
+        if status != OK:
+            return status, t, True
         safety = 0.9 * (2 * NEWTON_MAXITER + 1) / (2 * NEWTON_MAXITER + n_iter)
-        if rejected and err_norm > 1:  # once more, from f at y + error
-            for i in range(n):
-                RM[R_YT, i] = y[i] + err[i]
-            cs[NFEV] += 1
-            status = feval(t, RM[R_YT], rmode, locate, par, pf, pi, w, piv, err, info)
-            if status != OK and status != NONFINITE_RHS:
-                return status, t, True
-            for i in range(n):
-                err[i] += ze[i]
-            lu_solve(RLR, n, rpiv[:n], err)
-            err_norm = _radau_rms(RM, R_ERR, 1, scale)
         if err_norm > 1:
             h_abs *= max(MIN_FACTOR, safety * _radau_predict(h_abs, h_abs_old, err_norm, err_old))
             cs[R_LU_OK] = 0
@@ -1779,6 +1804,48 @@ def _accept(ts_, y, ya):
 POLL_STEPS = 256
 
 
+@njit(cache=True, error_model="numpy")  # _record_event may grow the records: numba's allocator
+def _event_restart(t_a, ts_, dense_kind, y_old, y, ya, F, Fh, projects, mode, roots, has_root, ev_t, ev_sw, n_chatter,
+                   max_events, min_step, par, pf, pi, w, piv, ytmp, yp, cs, info):
+    """Move to the located event's state, accept it, record the event and check the events'
+    count and chattering. Returns (status, t_a, ev_t, ev_sw): the accepted time (t_a as given
+    where the event's state failed) and the event records (grown where full)."""
+    status = _event_state(ts_, dense_kind, y_old, y, F, Fh, projects, par, pf, pi, w, piv, ytmp, yp, info)
+    if status != OK:
+        return status, t_a, ev_t, ev_sw
+    t_a = _accept(ts_, y, ya)
+    ev_t, ev_sw = _record_event(ts_[T], mode, roots, has_root, ev_t, ev_sw, cs[N_EV])
+    status = _after_event(ts_, y, ev_t, ev_sw, n_chatter, max_events, min_step, par, pf, pi, w, piv, cs, info)
+    return status, t_a, ev_t, ev_sw
+
+
+@hot
+def _poll(control, ts_, cs, info):
+    """Every POLL_STEPS steps: the time reached to control[1] (every sample up to it is
+    recorded), and INTERRUPTED where control[0] asks to stop; else OK."""
+    if cs[NSTEPS] % POLL_STEPS == 0:
+        control[1] = ts_[T]
+        if control[0] != 0.0:
+            info[0] = ts_[T]
+            return INTERRUPTED
+    return OK
+
+
+@hot
+def _count_step(method, ok, t_new, max_steps, ts_, cs, info):
+    """Count a step taken; MAX_STEPS beyond max_steps, or why the step could not be taken
+    (``ok`` False: RK4's step below the time's resolution, else the step size below the
+    smallest allowed); else OK."""
+    cs[NSTEPS] += 1
+    if cs[NSTEPS] > max_steps:
+        info[0] = t_new if ok else ts_[T]
+        return MAX_STEPS
+    if not ok:
+        info[0] = ts_[T]
+        return RK4_RESOLUTION if method == RK4 else STEP_TOO_SMALL
+    return OK
+
+
 @njit(cache=True, error_model="numpy", nogil=True)
 def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset, control):
     """Integrate from t = 0, state y0 (n,), sampling at t_out (csim.solver.simulate.integrate).
@@ -1828,26 +1895,17 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset, control):
         status = _start_segment(method, ts_, y, f, t_end, rtol, atol, max_step, first_step, tolv, par, pf, pi, rmode,
                                 locate, w, piv, ytmp, f_new, scl, RM, RJ, cs, info)
         while status == OK:
-            if cs[NSTEPS] % POLL_STEPS == 0:  # every sample up to ts_[T] is recorded here
-                control[1] = ts_[T]
-                if control[0] != 0.0:
-                    status = INTERRUPTED
-                    info[0] = ts_[T]
-                    break
+            status = _poll(control, ts_, cs, info)
+            if status != OK:
+                break
             ts_[T_OLD] = ts_[T]
             status, t_new, ok, dense_kind = _take_step(method, ts_, t_end, rtol, tolv, fixed_h, max_step, y, f, K, F,
                                                        y_old, ytmp, y_new, f_new, RM, RJ, RLR, RLC, rpiv, rcv, par, pf,
                                                        pi, rmode, locate, w, piv, cs, info)
             if status != OK:
                 break
-            cs[NSTEPS] += 1
-            if cs[NSTEPS] > max_steps:
-                status = MAX_STEPS
-                info[0] = t_new if ok else ts_[T]
-                break
-            if not ok:
-                status = RK4_RESOLUTION if method == RK4 else STEP_TOO_SMALL
-                info[0] = ts_[T]
+            status = _count_step(method, ok, t_new, max_steps, ts_, cs, info)
+            if status != OK:
                 break
             status = _accept_step(ts_, t_new, dense_kind, y, y_old, y_new, f, f_new, Fh, dense, t_end,
                                   method != RK4, max_phi, min_step, par, pf, pi, w, piv, info)
@@ -1866,14 +1924,9 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset, control):
             if status != OK:
                 break
             if event:  # restart from the event state with the switched conditions flipped
-                status = _event_state(ts_, dense_kind, y_old, y, F, Fh, projects, par, pf, pi, w, piv, ytmp, yp,
-                                      info)
-                if status != OK:
-                    break
-                t_a = _accept(ts_, y, ya)
-                ev_t, ev_sw = _record_event(ts_[T], mode, roots, has_root, ev_t, ev_sw, cs[N_EV])
-                status = _after_event(ts_, y, ev_t, ev_sw, n_chatter, max_events, min_step, par, pf, pi, w, piv, cs,
-                                      info)
+                status, t_a, ev_t, ev_sw = _event_restart(t_a, ts_, dense_kind, y_old, y, ya, F, Fh, projects, mode,
+                                                          roots, has_root, ev_t, ev_sw, n_chatter, max_events,
+                                                          min_step, par, pf, pi, w, piv, ytmp, yp, cs, info)
                 restarted = status == OK
                 break
             status, restart = _after_step(ts_, y, f, f_new, yp, projects, par, pf, pi, rmode, locate, w, piv, cs, info)
