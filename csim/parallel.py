@@ -2,7 +2,10 @@
 
 What every pool of runs needs, once: worker processes started by "spawn" (no fork of a
 threaded process; the same on every OS) with one BLAS thread each and Ctrl-C blocked (the
-parent stops them), a record of Ctrl-C in the parent, and the stop of every worker after it.
+parent stops them), a record of Ctrl-C in the parent, and the stop of every worker after it;
+and the one loop that hands work to them and takes the results back, :func:`run_in_workers`
+(a comparison's or a batch's runs, :mod:`csim.compare.pool`; a sweep's chunks of runs,
+:mod:`csim.study.execute`).
 """
 from __future__ import annotations
 
@@ -13,6 +16,7 @@ import signal
 import sys
 import threading
 import time
+from collections.abc import Callable, Sequence
 from contextlib import contextmanager, suppress
 
 #: environment variables that set the thread count of numpy's linear algebra
@@ -40,6 +44,53 @@ def stop_processes(executor: cf.ProcessPoolExecutor, processes: list | None = No
         process.terminate()
     for process in processes:
         process.join(5)
+
+
+def run_in_workers(function: Callable, tasks: Sequence[tuple], jobs: int,
+                   done: Callable[[int, object, BaseException | None], None]) -> bool:
+    """``function(*task)`` for every task in ``jobs`` worker processes (:func:`process_pool`).
+
+    Parameters
+    ----------
+    function : callable
+        A module-level function (the workers import it by name).
+    tasks : sequence of tuple
+        Its arguments, one tuple a call, submitted in this order.
+    jobs : int
+        Worker processes.
+    done : callable
+        ``done(index, value, error)`` in this process as each call comes back, with ``index``
+        the task's position and either its return value (error None) or the exception that
+        kept it from coming back (value None): the worker died, or the value could not be
+        sent.
+
+    Returns
+    -------
+    bool
+        Whether Ctrl-C stopped the work. The workers are then asked to end their calls
+        (:func:`stop_workers`: a run ends with its samples so far); the calls that come back
+        within :data:`STOP_GRACE` go to ``done`` too, the others never do.
+    """
+    executor = process_pool(jobs)
+    futures: dict[cf.Future, int] = {}
+    try:
+        with worker_environment():  # the workers start while the first tasks are submitted
+            futures = {executor.submit(function, *task): index for index, task in enumerate(tasks)}
+        for future in cf.as_completed(list(futures)):
+            index = futures.pop(future)
+            try:
+                value = future.result()
+            except Exception as exc:
+                done(index, None, exc)
+            else:
+                done(index, value, None)
+    except KeyboardInterrupt:
+        for future in stop_workers(executor, list(futures)):
+            done(futures[future], future.result(), None)
+        return True
+    finally:
+        executor.shutdown(wait=True, cancel_futures=True)
+    return False
 
 
 class InterruptFlag:

@@ -12,9 +12,9 @@ becomes that run's failure, not an exception of the comparison.
 """
 from __future__ import annotations
 
-import concurrent.futures as cf
 import contextlib
 import copy
+import itertools
 import os
 import sys
 from collections.abc import Callable, Sequence
@@ -23,14 +23,7 @@ import numpy as np
 
 from csim.case import Case, validate_case
 from csim.compare.runs import INTERRUPTED, Run
-from csim.parallel import (
-    InterruptFlag,
-    process_pool,
-    stop_requested,
-    stop_workers,
-    stoppable_run,
-    worker_environment,
-)
+from csim.parallel import InterruptFlag, run_in_workers, stop_requested, stoppable_run
 from csim.pipeline import numeric_model
 from csim.result import Result
 
@@ -115,51 +108,27 @@ def _run_serial(tasks: Sequence[Task], n_jobs: int, progress: Progress | None, f
 
 def _run_parallel(tasks: Sequence[Task], n_jobs: int, progress: Progress | None, flag: InterruptFlag,
                   repeat: int = 1) -> bool:
-    """Run the tasks in ``n_jobs`` worker processes; stop them all at Ctrl-C (returns True)."""
+    """Run the tasks in ``n_jobs`` worker processes (:func:`csim.parallel.run_in_workers`);
+    stop them all at Ctrl-C (returns True: the runs that did not come back say INTERRUPTED)."""
     # derive (and cache on disk) each mechanism's model once, not in every worker at the same
     # time (a batch has several mechanisms); should that fail, each worker reports the
     # failure as its run's
     for _, case in tasks:
         with contextlib.suppress(Exception):
             numeric_model(case)
-    executor = process_pool(n_jobs)
-    futures: dict[cf.Future, Run] = {}
-    try:
-        with worker_environment():  # the workers start while the first runs are submitted
-            for run, case in tasks:  # the reference first: it is the longest
-                futures[executor.submit(_execute, case.data, case.source, repeat)] = run
-        _collect(futures, progress)
-    except KeyboardInterrupt:
-        _stop(executor, futures)
-        return True
-    finally:
-        executor.shutdown(wait=True, cancel_futures=True)
-    return False
+    runs, count = [run for run, _ in tasks], itertools.count(1)
 
-
-def _collect(futures: dict[cf.Future, Run], progress: Progress | None) -> None:
-    """Set each run's result as its worker finishes."""
-    total = len(futures)
-    for done, future in enumerate(cf.as_completed(futures), start=1):
-        run = futures[future]
-        try:
-            result, message = future.result()
-        except Exception as exc:  # the worker died, or its result could not come back
-            result, message = None, f"worker process failed: {type(exc).__name__}: {exc}"
-        run.set_result(result, message)
+    def done(index: int, value, error: BaseException | None) -> None:
+        run = runs[index]
+        if error is not None:  # the worker died, or its result could not come back
+            value = None, f"worker process failed: {type(error).__name__}: {error}"
+        run.set_result(*value)
         if progress is not None:
-            progress(run, done, total)
+            progress(run, next(count), len(runs))
 
-
-def _stop(executor: cf.ProcessPoolExecutor, futures: dict[cf.Future, Run]) -> None:
-    """After Ctrl-C: ask the workers to end their runs, keep every result that comes back
-    within :data:`csim.parallel.STOP_GRACE` (the interrupted runs with their samples so far), end the
-    workers, mark the rest interrupted."""
-    # runs that finished, or stopped with their samples, keep them
-    for future in stop_workers(executor, [f for f, run in futures.items() if run.result is None]):
-        futures[future].set_result(*future.result())
-    for run in futures.values():  # not started, or not back within the grace
+    # the reference first: it is the longest
+    interrupted = run_in_workers(_execute, [(case.data, case.source, repeat) for _, case in tasks], n_jobs, done)
+    for run in runs if interrupted else ():  # not started, or not back within the grace
         if run.result is None:
             run.set_result(None, INTERRUPTED)
-
-
+    return interrupted

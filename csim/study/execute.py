@@ -18,7 +18,6 @@ sweep file says which runs were stopped, and ``--resume`` runs them again.
 """
 from __future__ import annotations
 
-import concurrent.futures as cf
 import contextlib
 import copy
 import dataclasses
@@ -33,14 +32,7 @@ import numpy as np
 
 from csim.case import apply_overrides, validate_case
 from csim.errors import CaseError, CsimError
-from csim.parallel import (
-    InterruptFlag,
-    process_pool,
-    stop_requested,
-    stop_workers,
-    stoppable_run,
-    worker_environment,
-)
+from csim.parallel import InterruptFlag, run_in_workers, stop_requested, stoppable_run
 from csim.study.metrics import empty_row, failed_row, run_row
 from csim.study.plan import override
 from csim.study.sweep_file import PENDING
@@ -173,28 +165,19 @@ def run_serial(work: Work, todo: list[tuple[int, tuple]], deliver: Callable[[lis
 
 
 def run_local(work: Work, parts: list, jobs: int, deliver: Callable[[list[Done]], None]) -> Outcome:
-    """The chunks in ``jobs`` worker processes ("spawn", one BLAS thread each)."""
+    """The chunks in ``jobs`` worker processes (:func:`csim.parallel.run_in_workers`: "spawn",
+    one BLAS thread each; at Ctrl-C the chunks under way come back with the runs they finished)."""
     if jobs == 1:
         return run_serial(work, [run for part in parts for run in part], deliver)
-    executor = process_pool(jobs)
-    pending: dict[cf.Future, list] = {}
-    lost = ""
-    try:
-        with worker_environment():
-            pending = {executor.submit(run_chunk, work, part): part for part in parts}
-        for future in cf.as_completed(list(pending)):
-            pending.pop(future)
-            done, why = _chunk_result(future)
-            deliver(done)
-            lost = lost or why
-    except KeyboardInterrupt:
-        # the chunks under way end their runs and come back with the runs they finished
-        for future in stop_workers(executor, list(pending)):
-            deliver(future.result())
-        return Outcome(interrupted=True, lost=lost)
-    finally:
-        executor.shutdown(wait=True, cancel_futures=True)
-    return Outcome(lost=lost)
+    lost = []
+
+    def done(index: int, rows, error: BaseException | None) -> None:
+        if error is not None:
+            lost.append(f"a worker failed ({type(error).__name__}: {error})")
+        deliver(rows or [])
+
+    interrupted = run_in_workers(run_chunk, [(work, part) for part in parts], jobs, done)
+    return Outcome(interrupted=interrupted, lost=lost[0] if lost else "")
 
 
 def _chunk_result(future) -> tuple[list[Done], str]:
