@@ -131,13 +131,18 @@ def _divergence(code: int, a: float, b: float, settings, method) -> str:
     elif code == NONFINITE_STATE:
         text = f"blow-up: non-finite state at t = {a:.6g} s"
     else:
+        from csim.solver.integrators import INTEGRATORS
+
+        info = INTEGRATORS.get(getattr(settings, "integrator", ""))
+        remedy = "tighten the tolerances" if info is None or info.adaptive else "lower simulation.step"
+        if getattr(method, "projects", False):  # checked on the step's end, before it is projected
+            return (f"constraint violation: max |Phi| = {a:.3g} at t = {b:.6g} s, at the end of a step before its "
+                    f"projection, exceeds simulation.max_phi = {settings.max_phi:g}: the integrator drifts that "
+                    f"far in one step, and projecting back from there may reach another assembly; {remedy} "
+                    f"(the recorded samples are projected, so their max |Phi| is smaller)")
         text = (f"constraint violation: max |Phi| = {a:.3g} at t = {b:.6g} s exceeds simulation.max_phi = "
                 f"{settings.max_phi:g}; the joints have drifted apart")
         if unstable is None:
-            from csim.solver.integrators import INTEGRATORS
-
-            info = INTEGRATORS.get(getattr(settings, "integrator", ""))
-            remedy = "tighten the tolerances" if info is None or info.adaptive else "lower simulation.step"
             return text + f" (stabilize, or {remedy})"
     if unstable is None:
         return text
