@@ -155,10 +155,11 @@ def test_the_kernels_key_is_fixed_for_the_process(monkeypatch, tmp_path):
     # process: numba's cache of one copy refers to the other one's functions by module name
     from csim.fast import module
 
-    key = module.kernels_key()
+    key, text = module.kernels_key(), module.kernels_source(partitioned=True)
     edited = tmp_path / "kernels.py"
     edited.write_text(module.KERNELS.read_text() + "\n# edited while a process runs\n")
     monkeypatch.setattr(module, "KERNELS", edited)
-    assert module.kernels_key.__wrapped__() != key  # the edit is a new key for a new process
+    assert module._kernels_snapshot.__wrapped__()[0] != key  # the edit is a new key for a new process
     assert module.kernels_key() == key
     assert {module.kernels_path(p).stem.rsplit("_", 1)[1] for p in (False, True)} == {key}
+    assert module.kernels_source(partitioned=True) == text  # and the copies hold the text the key hashed

@@ -292,3 +292,16 @@ def test_tree_joints_of_the_tabled_quick_return_carry_nothing_along_their_free_d
     assert scale > 1e5  # the cutting force and the crank torque's reactions, N
     for r in reactions:
         assert np.max(np.abs(r.torque_joint[:, 2])) < 1e-11 * scale, r.name  # measured 1.5e-9 N m at O
+
+
+def test_a_subtree_sum_leaves_out_the_links_outside_the_subtree():
+    # a non-finite wrench outside a subtree (a cut joint's reaction not evaluated at a sample)
+    # must not blank the joints whose subtrees do not hold it, as 0 * NaN in a matrix product would
+    from csim.linkage.reactions import _subtree_sums
+
+    wrenches = np.arange(18.0).reshape(3, 6)
+    wrenches[2] = np.nan
+    weights = np.array([[1.0, 1.0, 0.0], [0.0, -1.0, 0.0], [1.0, 0.0, 1.0]])
+    sums = _subtree_sums(weights, wrenches)
+    assert np.array_equal(sums[:2], [wrenches[0] + wrenches[1], -wrenches[1]])
+    assert np.isnan(sums[2]).all()

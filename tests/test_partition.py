@@ -36,7 +36,8 @@ def test_the_count_of_blocks_is_the_binomial_coefficient_capped(m, r):
 
 
 def test_every_block_is_tried_only_where_their_inversions_are_cheap():
-    assert enumerates(9, 6) and enumerates(33, 32)
+    assert enumerates(9, 6) and enumerates(33, 32)  # 33 blocks of 32 x 32: about 1e6 flops
+    assert not enumerates(41, 40)  # 41 of 40 x 40: 2.6e6
     assert math.comb(81, 80) <= MAX_ENUMERATED_PARTITIONS and MAX_ENUMERATION_WORK < 81 * 80.0**3
     assert not enumerates(81, 80)  # 81 inversions of 80 x 80: pivoted QR instead
     assert not enumerates(20, 10)  # 184,756 blocks

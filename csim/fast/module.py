@@ -89,17 +89,25 @@ def _hash(parts) -> str:
 # the kernels: one module per installation
 # ---------------------------------------------------------------------------------------
 @functools.cache
-def kernels_key() -> str:
-    """Hash of everything the kernels' machine code depends on, computed once per process.
+def _kernels_snapshot() -> tuple[str, str]:
+    """(key, text): the hash of everything the kernels' machine code depends on and the
+    kernels' source it hashed, read once per process.
 
     Once: the two copies a process compiles refer to each other's functions in numba's cache
-    (:class:`_KernelsFinder`), so they must carry one key. A key computed again after a source
-    file changed under a running process named the second copy with a new key while its
-    machine code referred to the first one's, which no later process could import: every
-    ``minimal`` run fell back to the Python path until the cache was cleared.
+    (:class:`_KernelsFinder`), so they must carry one key, and each copy must hold the text
+    that key hashed. A key computed again after a source file changed under a running
+    process named the second copy with a new key while its machine code referred to the
+    first one's, which no later process could import: every ``minimal`` run fell back to the
+    Python path until the cache was cleared.
     """
-    sources = [KERNELS, HERE / "layout.py", *sorted(PHYSICS.glob("*.py")), *sorted(METHODS.glob("*.py"))]
-    return _hash([FAST_VERSION, *(p.read_text() for p in sources), _versions()])
+    text = KERNELS.read_text()
+    sources = [HERE / "layout.py", *sorted(PHYSICS.glob("*.py")), *sorted(METHODS.glob("*.py"))]
+    return _hash([FAST_VERSION, text, *(p.read_text() for p in sources), _versions()]), text
+
+
+def kernels_key() -> str:
+    """Hash of everything the kernels' machine code depends on (fixed for the process: :func:`_kernels_snapshot`)."""
+    return _kernels_snapshot()[0]
 
 
 def kernels_path(partitioned: bool = False) -> Path:
@@ -110,7 +118,7 @@ def kernels_path(partitioned: bool = False) -> Path:
 def kernels_source(partitioned: bool = False) -> str:
     """The kernels' source for a variant: as written for the partitioned system (``minimal``), and
     with ``WITH_PARTITION = False`` for every other method (numba then prunes those branches)."""
-    text = KERNELS.read_text()
+    text = _kernels_snapshot()[1]
     if text.count(_VARIANT_LINE) != 1:
         raise RuntimeError(f"{KERNELS} must set WITH_PARTITION = True on one line of its own")
     return text if partitioned else text.replace(_VARIANT_LINE, "WITH_PARTITION = False\n")

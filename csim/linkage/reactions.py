@@ -375,22 +375,29 @@ def _tree_frames(linkage, definition):
     return frames
 
 
-def _inertial_wrenches(at, g: np.ndarray) -> np.ndarray:
-    """[m (a_C - g); r_C x m (a_C - g) + A (I alpha + omega x I omega)] (L, 6) of each link
-    with mass, about the global origin [N, N m, global axes] (``at`` from :func:`_kinematics`)."""
+def _inertial_wrenches(at, g: np.ndarray, r_0: np.ndarray) -> np.ndarray:
+    """[m (a_C - g); (r_C - r_0) x m (a_C - g) + A (I alpha + omega x I omega)] (L, 6) of each
+    link with mass, about the point r_0 [N, N m, global axes] (``at`` from :func:`_kinematics`)."""
     m, inertia, r_c, a_c, A, w, alpha = at
     f = m[:, None] * (a_c - g)
     i_w = np.einsum("lij,lj->li", inertia, w)
     spin = np.einsum("lij,lj->li", A, np.einsum("lij,lj->li", inertia, alpha) + np.cross(w, i_w))
-    return np.concatenate((f, np.cross(r_c, f) + spin), axis=1)
+    return np.concatenate((f, np.cross(r_c - r_0, f) + spin), axis=1)
 
 
-def _cut_wrenches(forces: np.ndarray, torques: np.ndarray, cut_at, cuts) -> np.ndarray:
-    """The wrench each cut joint's link i exerts on its link j (C, 6), about the global origin
-    [N, N m]: [F; M + r_jm x F], from its force F and moment M about r_jm (C, 3 each) and the
-    cut joints' frames ``cut_at`` at the same sample."""
+def _cut_wrenches(forces: np.ndarray, torques: np.ndarray, cut_at, cuts, r_0: np.ndarray) -> np.ndarray:
+    """The wrench each cut joint's link i exerts on its link j (C, 6), about the point r_0
+    [N, N m]: [F; M + (r_jm - r_0) x F], from its force F and moment M about r_jm (C, 3 each)
+    and the cut joints' frames ``cut_at`` at the same sample."""
     r_jm = np.array([cut_at[c.number][1][:3, 3] for c in cuts])
-    return np.concatenate((forces, torques + np.cross(r_jm, forces)), axis=1)
+    return np.concatenate((forces, torques + np.cross(r_jm - r_0, forces)), axis=1)
+
+
+def _subtree_sums(weights: np.ndarray, wrenches: np.ndarray) -> np.ndarray:
+    """weights (T, L) @ wrenches (L, 6), with the terms of zero weight left out rather than
+    multiplied by 0 (a non-finite wrench of a link or cut joint outside a subtree leaves that
+    subtree's sum finite, as a sum over its own members would)."""
+    return np.where(weights[:, :, None] != 0, weights[:, :, None] * wrenches[None], 0.0).sum(axis=1)
 
 
 #: what a planar model does not carry at a tree joint (out-of-plane components, reported as 0)
@@ -429,6 +436,8 @@ def tree_reactions(linkage, definition, raw_forces, par, run, cut_reactions) -> 
     list of JointReaction, one per tree joint in table order
     """
     topology = linkage.topology
+    if not topology.tree_joints:
+        return []
     links, kinematics = _kinematics(linkage, definition)
     frames = _tree_frames(linkage, definition)
     cut_frames = _frame_functions(linkage, definition) if topology.cut_joints else (lambda q, p: {})
@@ -457,13 +466,14 @@ def tree_reactions(linkage, definition, raw_forces, par, run, cut_reactions) -> 
         if not (np.all(np.isfinite(q[s])) and np.all(np.isfinite(qdd[s]))):
             continue
         at, g = kinematics(q[s], qd[s], qdd[s], par)
-        # W_S about the origin: the subtree's inertial wrench less the cut joints' on it
-        W = beyond @ _inertial_wrenches(at, g)
-        if cuts:
-            W -= on_subtree @ _cut_wrenches(cut_F[s], cut_M[s], cut_frames(q[s], par), cuts)
         tree_at = frames(q[s], par)
         r_J = np.array([tree_at[c.number][0][:3, 3] for c in tree])
-        W[:, 3:] -= np.cross(r_J, W[:, :3])  # the moment about each joint's point r_J
+        r_0 = r_J.mean(axis=0)  # moments about a point of the mechanism: no round-off of far coordinates
+        # W_S about r_0: the subtree's inertial wrench less the cut joints' on it
+        W = _subtree_sums(beyond, _inertial_wrenches(at, g, r_0))
+        if cuts:
+            W -= _subtree_sums(on_subtree, _cut_wrenches(cut_F[s], cut_M[s], cut_frames(q[s], par), cuts, r_0))
+        W[:, 3:] -= np.cross(r_J - r_0, W[:, :3])  # the moment about each joint's point r_J
         for a, fn in enumerate(terms):
             if fn is not None:
                 dV, B, D, columns = fn(q[s], qd[s], par)

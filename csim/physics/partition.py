@@ -45,8 +45,9 @@ MAX_PIECE_MOVE = 0.5
 MAX_BRANCH_RESTARTS = 2
 #: above this many candidate partitions, choose by pivoted QR instead of trying them all
 MAX_ENUMERATED_PARTITIONS = 500
-#: ... or above this much work for their inversions, C(m, r) r^3 (about 10 ms): QR costs O(m r^2)
-MAX_ENUMERATION_WORK = 1e7
+#: ... or above this much work for their inversions, C(m, r) r^3 (a few milliseconds, for a choice
+#: that a mechanism near a singular configuration makes after every step): QR costs O(m r^2)
+MAX_ENUMERATION_WORK = 2e6
 SQRT_EPS = 1.4901161193847656e-08
 #: the test of :func:`same_branch` a solution failed
 BRANCH_JUMP, BRANCH_TURN = 1, 2
@@ -278,7 +279,7 @@ def _pivoted_qr_columns(J, r, m, dep, basis, resid):
                 big = norm
                 pick = j
         dep[c] = pick
-        norm = np.sqrt(big)
+        norm = np.sqrt(big) if big > 0 else 0.0  # (no NaN: every norm NaN leaves big at -1)
         for a in range(r):  # q_c, the chosen column's orthogonal part normalized
             basis[c * r + a] = resid[pick * r + a] / norm if norm > 0 else 0.0
         for j in range(m):  # R_j -= (q_c . J_j) q_c for the columns still candidates
