@@ -10,6 +10,7 @@ numba or the compiled backend is not available (csim then runs on the Python pat
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -33,11 +34,26 @@ def compile_for(method: str) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
-    if argv[:1] == ["--method"]:  # one copy, in a process of its own (below)
-        problem = compile_for(argv[1])
-        if problem:
-            print(f"csim: {problem}", file=sys.stderr)
-        return 1 if problem else 0
+    try:
+        return _method(argv[1]) if argv[:1] == ["--method"] else _all()
+    except KeyboardInterrupt:
+        print("csim: warm-up interrupted; the kernels compile on the first run that needs them", file=sys.stderr)
+        return 130
+
+
+def _method(method: str) -> int:
+    """One copy, in a process of its own (:func:`_all`), which leaves Ctrl-C to its parent: a
+    KeyboardInterrupt raised inside numba's compiler can land in a ctypes callback, where
+    Python prints it and compiling goes on; the parent ends this process instead."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    problem = compile_for(method)
+    if problem:
+        print(f"csim: {problem}", file=sys.stderr)
+    return 1 if problem else 0
+
+
+def _all() -> int:
+    """Both copies: in two processes at once where there are two CPUs, else one after the other."""
     from csim.fast.support import numba_available
     from csim.model.cache import kernels_dir
 
@@ -49,7 +65,13 @@ def main(argv: list[str] | None = None) -> int:
           flush=True)
     if (os.cpu_count() or 1) >= 2:
         processes = [subprocess.Popen([sys.executable, "-m", "csim.warmup", "--method", method]) for method in METHODS]
-        failed = sum(process.wait() != 0 for process in processes)
+        try:
+            failed = sum(process.wait() != 0 for process in processes)
+        finally:  # after Ctrl-C (which the children ignore): none is left compiling
+            for process in processes:
+                if process.poll() is None:
+                    process.terminate()
+                    process.wait()
     else:
         problems = [problem for problem in map(compile_for, METHODS) if problem]
         for problem in problems:

@@ -1,0 +1,42 @@
+"""The installation's warm-up (csim.warmup): both copies of the kernels compiled, and Ctrl-C."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from csim import warmup
+from csim.fast.module import kernels_compiled, load_kernels
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_the_warm_up_leaves_both_copies_compiled(capsys):
+    assert warmup.main([]) == 0  # (in this session's cache: compiled here, or loaded)
+    assert "kernels ready" in capsys.readouterr().out
+    assert kernels_compiled(load_kernels(partitioned=False)) and kernels_compiled(load_kernels(partitioned=True))
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_ctrl_c_ends_the_warm_up_and_its_compiling_children_without_a_traceback(tmp_path):
+    # Ctrl-C at a terminal reaches the whole process group: the children compiling each copy
+    # end quietly, the parent says what it means and exits 130, and no compiler is left running
+    env = dict(os.environ, CSIM_CACHE_DIR=str(tmp_path), PYTHONPATH=str(ROOT))
+    process = subprocess.Popen([sys.executable, "-m", "csim.warmup"], env=env, cwd=tmp_path, start_new_session=True,
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(8)  # the children are compiling (a cold cache takes minutes)
+    children = [int(pid) for pid in subprocess.run(["pgrep", "-P", str(process.pid)], capture_output=True,
+                                                   text=True).stdout.split()]
+    assert len(children) == 2  # one per copy of the kernels
+    os.killpg(process.pid, signal.SIGINT)
+    out, err = process.communicate(timeout=60)
+    assert process.returncode == 130, (out, err)
+    assert "warm-up interrupted" in err and "Traceback" not in err
+    for pid in children:  # ended and reaped by the parent
+        assert not Path(f"/proc/{pid}").exists()
