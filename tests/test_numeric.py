@@ -24,3 +24,25 @@ def test_the_guard_keeps_values_and_shapes():
     assert g(np.array([4.0]), np.zeros(0))[0, 0] == 2.0
     out = g(np.array([-1.0]), np.zeros(0))
     assert out.shape == (2, 2) and np.isnan(out).all()
+
+
+def test_the_models_bytecode_is_read_back_and_a_damaged_file_compiled_again(tmp_path, monkeypatch):
+    import pytest
+
+    from csim.mechanisms import get_mechanism
+    from csim.model import cache
+    from csim.model.numeric import build_numeric_model
+
+    monkeypatch.setenv("CSIM_CACHE_DIR", str(tmp_path))
+    definition = get_mechanism("pendulum")
+    q, par = np.array([0.3, -0.9]), np.array([p.default for p in definition.parameters])
+    first = build_numeric_model(definition)
+    [code] = tmp_path.glob("*.code")
+    with monkeypatch.context() as patch:  # read back, not compiled
+        patch.setattr(cache, "compile", lambda *args: pytest.fail("compiled again"), raising=False)
+        again = build_numeric_model(definition)
+    code.write_bytes(b"\x00 not marshal data")
+    mended = build_numeric_model(definition)
+    for model in (again, mended):
+        assert np.array_equal(model.mass(q, par), first.mass(q, par))
+    assert cache.marshal.loads(code.read_bytes()).co_filename == f"<csim model {definition.name}>"

@@ -6,11 +6,16 @@ its functions from this cache.
 """
 from __future__ import annotations
 
+import contextlib
 import hashlib
+import marshal
 import os
+import sys
 import tempfile
 from pathlib import Path
+from types import CodeType
 
+from csim.io.atomic import write_atomically
 from csim.model.definition import MechanismDefinition
 from csim.model.light import LightDefinition
 
@@ -105,9 +110,14 @@ def kernels_dir() -> Path:
     return Path(root) if root else cache_dir() / "fast"
 
 
+def source_path(definition: MechanismDefinition) -> Path:
+    """The cached source of ``definition``'s numeric model (:func:`cached_source`)."""
+    return cache_dir() / f"{definition.name}-{definition_key(definition)}.py"
+
+
 def cached_source(definition: MechanismDefinition, use_cache: bool = True) -> str:
     """Generated source for ``definition``, derived anew only when not cached."""
-    path = cache_dir() / f"{definition.name}-{definition_key(definition)}.py"
+    path = source_path(definition)
     if use_cache and path.is_file():
         return path.read_text()
     from csim.model.codegen import generate_source  # sympy: only to generate
@@ -126,3 +136,25 @@ def cached_source(definition: MechanismDefinition, use_cache: bool = True) -> st
         except OSError:
             pass
     return source
+
+
+def cached_code(definition: MechanismDefinition, source: str, use_cache: bool = True) -> CodeType:
+    """``compile(source)`` for ``definition``'s numeric model, its bytecode kept beside the
+    cached source (the 81 links of A02 with N = 40: 0.75 s to compile, 4 ms to read back).
+
+    The file is named after the source's hash and the interpreter (``sys.implementation.cache_tag``),
+    so that a changed source or another Python never reads it; a damaged one is compiled again.
+    """
+    name = f"<csim model {definition.name}>"
+    if not use_cache:
+        return compile(source, name, "exec")
+    digest = hashlib.sha256(source.encode()).hexdigest()[:24]
+    path = source_path(definition).with_suffix(f".{digest}.{sys.implementation.cache_tag}.code")
+    with contextlib.suppress(OSError, ValueError, EOFError, TypeError):
+        code = marshal.loads(path.read_bytes())
+        if isinstance(code, CodeType):
+            return code
+    code = compile(source, name, "exec")
+    with contextlib.suppress(OSError):  # a cache that cannot be written costs the next run the compile
+        write_atomically(path, marshal.dumps(code))
+    return code

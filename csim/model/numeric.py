@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from csim.model.cache import FUNCTIONS, cached_source
+from csim.model.cache import FUNCTIONS, cached_code, cached_source
 from csim.model.definition import MechanismDefinition
 
 
@@ -66,7 +66,7 @@ def build_numeric_model(definition: MechanismDefinition, use_cache: bool = True)
     """Derive (or load from the cache) and compile the model functions of ``definition``."""
     source = cached_source(definition, use_cache=use_cache)
     namespace: dict = {}
-    exec(compile(source, f"<csim model {definition.name}>", "exec"), namespace)
+    exec(cached_code(definition, source, use_cache=use_cache), namespace)
     functions = {name: _nan_outside_domain(namespace[name]) for name in FUNCTIONS}
     return NumericModel(definition=definition, source=source, **functions)
 
