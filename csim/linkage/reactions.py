@@ -74,12 +74,20 @@ def wrench_jacobian(joint_type: str):
     for eq in JOINT_TYPES[joint_type].cut_equations:
         rate = sp.expand(sp.diff(eq.expression(moved), eps).subs(eps, 0))  # linear in dr, dth
         columns.append([rate.coeff(s) for s in (*dr, *dth)])
-    J = sp.Matrix(columns).T if columns else sp.zeros(6, 0)
-    f = sp.lambdify([list(r_ik), list(A_ik), list(r_jm), list(A_jm)], J, "numpy")
+    entries = [columns[e][k] for k in range(6) for e in range(len(columns))]  # (6, n_eq) row-major
+    f = sp.lambdify([list(r_ik), list(A_ik), list(r_jm), list(A_jm)], entries, "numpy")
     n = len(columns)
 
     def jacobian(ri, Ai, rj, Aj):
-        return np.asarray(f(list(ri), list(np.ravel(Ai)), list(rj), list(np.ravel(Aj))), dtype=float).reshape(6, n)
+        """At N poses: ri, rj (N, 3), Ai, Aj (N, 3, 3) -> (N, 6, n_eq); or at one pose (6, n_eq)."""
+        ri, rj = np.asarray(ri, dtype=float), np.asarray(rj, dtype=float)
+        one = ri.ndim == 1
+        ri, rj = np.atleast_2d(ri), np.atleast_2d(rj)
+        Ai, Aj = np.reshape(Ai, (-1, 9)), np.reshape(Aj, (-1, 9))
+        values = f(list(ri.T), list(Ai.T), list(rj.T), list(Aj.T))  # constant entries come back as scalars
+        out = np.stack([np.broadcast_to(np.asarray(v, dtype=float), ri.shape[:1]) for v in values], axis=1)
+        out = out.reshape(ri.shape[0], 6, n)
+        return out[0] if one else out
 
     return jacobian
 
@@ -152,23 +160,31 @@ def joint_reactions(linkage, definition, par: np.ndarray, q: np.ndarray, lam: np
                  for c in cuts}
     N = q.shape[0]
     values = {c.number: np.full((4, N, 3), np.nan) for c in cuts}  # F, M global; F, M in frame ik
-    for s in range(N):
-        if not np.all(np.isfinite(q[s])):
-            continue
-        at = frames(q[s], par)
-        for c in cuts:
-            T_ik, T_jm = at[c.number]
-            lam_eq = np.array([lam[s, column[id(eq)]] if id(eq) in column else 0.0 for eq in equations[c.number]])
-            wrench = -wrench_jacobian(c.type)(T_ik[:3, 3], T_ik[:3, :3], T_jm[:3, 3], T_jm[:3, :3]) @ lam_eq
-            A = T_ik[:3, :3]
-            values[c.number][:, s] = wrench[:3], wrench[3:], A.T @ wrench[:3], A.T @ wrench[3:]
-    out = []
-    for c in cuts:
-        name = str(c.name or c.number)
-        label = f"joint {name} ({c.type}, {linkage.tables.link_label(c.i)} on {linkage.tables.link_label(c.j)})"
+    rows = np.flatnonzero(np.all(np.isfinite(q), axis=1))
+    if not cuts or not rows.size:
+        return [_cut_reaction(linkage, c, values[c.number], equations[c.number]) for c in cuts]
+    # the cut joints' frames at the evaluated samples: (n, C, 4, 4) each
+    at = [frames(q[s], par) for s in rows]
+    T_ik = np.array([[a[c.number][0] for c in cuts] for a in at], dtype=float)
+    T_jm = np.array([[a[c.number][1] for c in cuts] for a in at], dtype=float)
+    for n, c in enumerate(cuts):
+        # the multipliers of the joint's equations (0 for a removed one): (n, n_eq)
+        lam_eq = np.column_stack([lam[rows, column[id(eq)]] if id(eq) in column else np.zeros(rows.size)
+                                  for eq in equations[c.number]] or [np.zeros((rows.size, 0))])
+        ri, Ai, rj, Aj = T_ik[:, n, :3, 3], T_ik[:, n, :3, :3], T_jm[:, n, :3, 3], T_jm[:, n, :3, :3]
+        wrench = -np.einsum("ske,se->sk", wrench_jacobian(c.type)(ri, Ai, rj, Aj), lam_eq)  # (n, 6)
+        F, M = wrench[:, :3], wrench[:, 3:]
         v = values[c.number]
-        out.append(JointReaction(name, label, v[0], v[1], v[2], v[3], _removed(equations[c.number])))
-    return out
+        v[0, rows], v[1, rows] = F, M
+        v[2, rows], v[3, rows] = np.einsum("sji,sj->si", Ai, F), np.einsum("sji,sj->si", Ai, M)  # A_ik^T F, A_ik^T M
+    return [_cut_reaction(linkage, c, values[c.number], equations[c.number]) for c in cuts]
+
+
+def _cut_reaction(linkage, c, v: np.ndarray, equations) -> JointReaction:
+    """The JointReaction of cut joint c from its values (4, N, 3): F, M global; F, M in frame ik."""
+    name = str(c.name or c.number)
+    label = f"joint {name} ({c.type}, {linkage.tables.link_label(c.i)} on {linkage.tables.link_label(c.j)})"
+    return JointReaction(name, label, v[0], v[1], v[2], v[3], _removed(equations))
 
 
 # ---------------------------------------------------------------------------------------
