@@ -46,6 +46,11 @@ def _method(method: str) -> int:
     KeyboardInterrupt raised inside numba's compiler can land in a ctypes callback, where
     Python prints it and compiling goes on; the parent ends this process instead."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    return _compile_and_report(method)
+
+
+def _compile_and_report(method: str) -> int:
+    """:func:`compile_for` ``method``, saying why on stderr where it did not run compiled; 0 or 1."""
     problem = compile_for(method)
     if problem:
         print(f"csim: {problem}", file=sys.stderr)
@@ -73,10 +78,7 @@ def _all() -> int:
                     process.terminate()
                     process.wait()
     else:
-        problems = [problem for problem in map(compile_for, METHODS) if problem]
-        for problem in problems:
-            print(f"csim: {problem}", file=sys.stderr)
-        failed = len(problems)
+        failed = sum(_compile_and_report(method) for method in METHODS)
     if failed:
         return 1
     print(f"csim: kernels ready ({time.perf_counter() - start:.0f} s)")

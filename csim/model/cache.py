@@ -11,7 +11,6 @@ import hashlib
 import marshal
 import os
 import sys
-import tempfile
 from pathlib import Path
 from types import CodeType
 
@@ -127,14 +126,8 @@ def cached_source(definition: MechanismDefinition, use_cache: bool = True) -> st
     with status(f"deriving the equations of motion of {definition.name!r} (sympy; first run of this mechanism)"):
         source = generate_source(derive(definition))
     if use_cache:
-        try:  # write atomically; a cache that cannot be written is not an error
-            path.parent.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-            with os.fdopen(fd, "w") as fh:
-                fh.write(source)
-            os.replace(tmp, path)
-        except OSError:
-            pass
+        with contextlib.suppress(OSError):  # a cache that cannot be written is not an error
+            write_atomically(path, source.encode())
     return source
 
 

@@ -10,16 +10,16 @@ constraints, drawing, ...) builds the full :class:`MechanismDefinition` on first
 """
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import importlib.util
 import json
-import os
-import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+from csim.io.atomic import write_atomically
 from csim.model.definition import MechanismDefinition, Parameter
 
 #: bump when the snapshot's content changes
@@ -182,12 +182,6 @@ def light_definition(name: str, module: str, factory: Callable[[], MechanismDefi
     data = snapshot(full)
     if _sources_changed_since_loaded(module):
         return LightDefinition(data, factory, full)
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-        with os.fdopen(fd, "w") as fh:
-            json.dump(data, fh, indent=1)
-        os.replace(tmp, path)
-    except OSError:
-        pass
+    with contextlib.suppress(OSError):  # a cache that cannot be written is not an error
+        write_atomically(path, json.dumps(data, indent=1).encode())
     return LightDefinition(data, factory, full)

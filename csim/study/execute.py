@@ -173,7 +173,7 @@ def run_local(work: Work, parts: list, jobs: int, deliver: Callable[[list[Done]]
 
     def done(index: int, rows, error: BaseException | None) -> None:
         if error is not None:
-            lost.append(f"a worker failed ({type(error).__name__}: {error})")
+            lost.append(_worker_failed(error))
         deliver(rows or [])
 
     interrupted = run_in_workers(run_chunk, [(work, part) for part in parts], jobs, done)
@@ -185,7 +185,12 @@ def _chunk_result(future) -> tuple[list[Done], str]:
     try:
         return future.result(), ""
     except Exception as exc:
-        return [], f"a worker failed ({type(exc).__name__}: {exc})"
+        return [], _worker_failed(exc)
+
+
+def _worker_failed(exc: BaseException) -> str:
+    """Why a chunk's runs came back from no worker (:attr:`Outcome.lost`)."""
+    return f"a worker failed ({type(exc).__name__}: {exc})"
 
 
 def connect(address: str):
