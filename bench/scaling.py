@@ -10,7 +10,7 @@ joints, uniform bars under gravity, released at rest):
   variables, 2 constraints, N - 3 DOF.
 
 For each size, every step in a fresh process with a fresh ``CSIM_CACHE_DIR`` into which the
-compiled generic kernels (``<cache>/fast/kernels_<key>.py`` and numba's machine code next to
+compiled generic kernels (``<cache>/fast/kernels_<key>/`` and numba's machine code next to
 it, csim.fast.module) are copied from the installation's cache, so that only the
 per-mechanism cost is measured:
 
@@ -144,12 +144,11 @@ def installation_cache() -> Path:
 
 
 def kernel_files(cache: Path) -> list[Path]:
-    """The compiled kernels in ``cache``: the module copy and numba's files of it."""
+    """The compiled kernels in ``cache``: the package's copy and numba's files of it."""
     from csim.fast.module import kernels_key
 
-    stem = f"kernels_{kernels_key()}"
-    fast = cache / "fast"
-    return [p for p in [fast / f"{stem}.py", *sorted((fast / "__pycache__").glob(f"{stem}.*"))] if p.is_file()]
+    copy = cache / "fast" / f"kernels_{kernels_key()}"
+    return [p for p in [*sorted(copy.glob("*.py")), *sorted((copy / "__pycache__").glob("*.nb[ic]"))] if p.is_file()]
 
 
 def warm_installation(cache: Path, tmp: Path, limit: float) -> None:

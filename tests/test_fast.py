@@ -346,8 +346,9 @@ def test_the_common_kernels_leave_the_partitioned_path_to_minimals_copy():
     from csim.fast import module
     from csim.fast.runner import _arguments
 
-    assert "WITH_PARTITION = False\n" in module.kernels_source()
-    assert "WITH_PARTITION = True\n" in module.kernels_source(partitioned=True)
+    plain, partitioned = module.kernels_source(), module.kernels_source(partitioned=True)
+    assert "WITH_PARTITION = False\n" in plain["variant.py"] and "WITH_PARTITION = True\n" in partitioned["variant.py"]
+    assert {name for name in plain if plain[name] != partitioned[name]} == {"variant.py"}
     assert module.kernels_path() != module.kernels_path(partitioned=True)
     common = module.load_kernels()
     assert common.WITH_PARTITION is False and module.load_kernels(partitioned=True).WITH_PARTITION is True

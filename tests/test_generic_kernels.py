@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -58,7 +59,7 @@ def test_a_second_mechanism_in_a_fresh_process_loads_the_kernels_from_the_cache(
     # a cache kept across test sessions (CSIM_TEST_CACHE_DIR) may also hold copies of earlier sources
     from csim.fast.module import kernels_key
 
-    plain = [name for name in probe["models"] if name.startswith("kernels_") and name.endswith(".py")
+    plain = [name for name in probe["models"] if name.startswith("kernels_")
              and not name.startswith("kernels_partitioned_") and kernels_key() in name]
     assert len(plain) == 1, plain
     if any(name.startswith("pendulum_") and name.endswith(".so") for name in probe["models"]):
@@ -143,11 +144,13 @@ def test_either_copy_of_the_kernels_is_importable_by_name(monkeypatch):
     from csim.fast import module
 
     module.load_kernels(False)
-    name = f"csim_fast_{module.kernels_path(True).stem}"
-    monkeypatch.delitem(sys.modules, name, raising=False)
+    name = f"csim_fast_{module.kernels_path(True).name}"
+    for loaded in [m for m in sys.modules if m == name or m.startswith(name + ".")]:
+        monkeypatch.delitem(sys.modules, loaded)
     imported = importlib.import_module(name)
-    assert imported.__file__.endswith(module.kernels_path(True).name)
+    assert Path(imported.__file__).parent == module.kernels_path(True)
     assert imported.WITH_PARTITION is True
+    assert importlib.import_module(f"{name}.driver").WITH_PARTITION is True  # its files, from the copy
 
 
 def test_the_kernels_key_is_fixed_for_the_process(monkeypatch, tmp_path):
@@ -156,10 +159,11 @@ def test_the_kernels_key_is_fixed_for_the_process(monkeypatch, tmp_path):
     from csim.fast import module
 
     key, text = module.kernels_key(), module.kernels_source(partitioned=True)
-    edited = tmp_path / "kernels.py"
-    edited.write_text(module.KERNELS.read_text() + "\n# edited while a process runs\n")
+    edited = tmp_path / "kernels"
+    shutil.copytree(module.KERNELS, edited, ignore=shutil.ignore_patterns("__pycache__"))
+    (edited / "driver.py").write_text((edited / "driver.py").read_text() + "\n# edited while a process runs\n")
     monkeypatch.setattr(module, "KERNELS", edited)
     assert module._kernels_snapshot.__wrapped__()[0] != key  # the edit is a new key for a new process
     assert module.kernels_key() == key
-    assert {module.kernels_path(p).stem.rsplit("_", 1)[1] for p in (False, True)} == {key}
+    assert {module.kernels_path(p).name.rsplit("_", 1)[1] for p in (False, True)} == {key}
     assert module.kernels_source(partitioned=True) == text  # and the copies hold the text the key hashed

@@ -1,17 +1,17 @@
 """Load the compiled kernels (once per installation) and a mechanism's model functions.
 
-The kernels (:mod:`csim.fast.kernels`) are the same for every mechanism. They are imported
-from a copy, ``<kernels>/kernels_<key>.py``, where ``<kernels>`` is
+The kernels (the package :mod:`csim.fast.kernels`) are the same for every mechanism. They are
+imported from a copy of the package, ``<kernels>/kernels_<key>/``, where ``<kernels>`` is
 :func:`csim.model.cache.kernels_dir` (``$CSIM_KERNELS_DIR``, default ``fast/`` in csim's
 cache, ``$CSIM_CACHE_DIR`` or ``~/.cache/csim``) and ``<key>`` hashes everything their
-machine code depends on: the kernels, the layout, the core (:mod:`csim.physics`), the
+machine code depends on: the kernels' files, the layout, the core (:mod:`csim.physics`), the
 built-in methods' files, and the numba, numpy, scipy and Python versions. numba compiles
 them on first use and keeps the machine code next to the copy (``__pycache__``); every
 later process, for any mechanism, loads it from there. (numba's own cache check looks at
 one file's time stamp only; the key in the name makes an edit of any dependency a new
-module instead of stale machine code.) There are two copies, two variants of one source:
-``kernels_partitioned_<key>.py`` for the partitioned system of ``minimal``, and
-``kernels_<key>.py``, written with ``WITH_PARTITION = False``, for every other method: that
+package instead of stale machine code.) There are two copies, two variants of one source:
+``kernels_partitioned_<key>/`` for the partitioned system of ``minimal``, and
+``kernels_<key>/``, whose ``variant.py`` says ``WITH_PARTITION = False``, for every other method: that
 one neither compiles the partitioned path nor carries it through the loop. Each compiles on
 the first run that needs it.
 
@@ -56,7 +56,9 @@ from csim.solver.methods import STABILIZERS
 FAST_VERSION = "4"
 
 HERE = Path(__file__).parent
-KERNELS = HERE / "kernels.py"
+#: the kernels' package, copied whole into the cache
+KERNELS = HERE / "kernels"
+VARIANT_FILE = "variant.py"
 PHYSICS = HERE.parent / "physics"
 METHODS = HERE.parent / "solver" / "methods"
 #: model backends (CSIM_MODEL_BACKEND)
@@ -64,7 +66,7 @@ MODEL_BACKENDS = ("auto", "c", "numba")
 
 #: the loaded kernels, by variant (True: with the partitioned system)
 _KERNELS: dict[bool, ModuleType] = {}
-#: the line of the kernels' source that a variant sets (csim.fast.kernels.WITH_PARTITION)
+#: the line of the kernels' variant.py that a variant sets (csim.fast.kernels.variant.WITH_PARTITION)
 _VARIANT_LINE = "WITH_PARTITION = True\n"
 #: (id(definition), drives) -> (definition, model): hashing a definition takes milliseconds
 _BY_DEFINITION: dict[tuple, tuple[MechanismDefinition, CompiledModel]] = {}
@@ -89,9 +91,9 @@ def _hash(parts) -> str:
 # the kernels: one module per installation
 # ---------------------------------------------------------------------------------------
 @functools.cache
-def _kernels_snapshot() -> tuple[str, str]:
-    """(key, text): the hash of everything the kernels' machine code depends on and the
-    kernels' source it hashed, read once per process.
+def _kernels_snapshot() -> tuple[str, dict[str, str]]:
+    """(key, sources): the hash of everything the kernels' machine code depends on, and the
+    kernels' files it hashed (file name -> text), read once per process.
 
     Once: the two copies a process compiles refer to each other's functions in numba's cache
     (:class:`_KernelsFinder`), so they must carry one key, and each copy must hold the text
@@ -100,9 +102,10 @@ def _kernels_snapshot() -> tuple[str, str]:
     first one's, which no later process could import: every ``minimal`` run fell back to the
     Python path until the cache was cleared.
     """
-    text = KERNELS.read_text()
-    sources = [HERE / "layout.py", *sorted(PHYSICS.glob("*.py")), *sorted(METHODS.glob("*.py"))]
-    return _hash([FAST_VERSION, text, *(p.read_text() for p in sources), _versions()]), text
+    sources = {p.name: p.read_text() for p in sorted(KERNELS.glob("*.py"))}
+    deps = [HERE / "layout.py", *sorted(PHYSICS.glob("*.py")), *sorted(METHODS.glob("*.py"))]
+    parts = [FAST_VERSION, *(f"{name}\n{text}" for name, text in sources.items()), *(p.read_text() for p in deps)]
+    return _hash([*parts, _versions()]), sources
 
 
 def kernels_key() -> str:
@@ -111,27 +114,31 @@ def kernels_key() -> str:
 
 
 def kernels_path(partitioned: bool = False) -> Path:
-    """The kernels' copy in the cache: ``kernels_<key>.py``, or ``kernels_partitioned_<key>.py``."""
-    return kernels_dir() / f"kernels{'_partitioned' if partitioned else ''}_{kernels_key()}.py"
+    """The kernels' copy in the cache, a package: ``kernels_<key>/``, or ``kernels_partitioned_<key>/``."""
+    return kernels_dir() / f"kernels{'_partitioned' if partitioned else ''}_{kernels_key()}"
 
 
-def kernels_source(partitioned: bool = False) -> str:
-    """The kernels' source for a variant: as written for the partitioned system (``minimal``), and
-    with ``WITH_PARTITION = False`` for every other method (numba then prunes those branches)."""
-    text = _kernels_snapshot()[1]
-    if text.count(_VARIANT_LINE) != 1:
-        raise RuntimeError(f"{KERNELS} must set WITH_PARTITION = True on one line of its own")
-    return text if partitioned else text.replace(_VARIANT_LINE, "WITH_PARTITION = False\n")
+def kernels_source(partitioned: bool = False) -> dict[str, str]:
+    """The kernels' files for a variant (name -> text): as written for the partitioned system
+    (``minimal``), and with ``WITH_PARTITION = False`` in ``variant.py`` for every other method
+    (numba then prunes those branches)."""
+    sources = dict(_kernels_snapshot()[1])
+    variant = sources[VARIANT_FILE]
+    if variant.count(_VARIANT_LINE) != 1:
+        raise RuntimeError(f"{KERNELS / VARIANT_FILE} must set WITH_PARTITION = True on one line of its own")
+    if not partitioned:
+        sources[VARIANT_FILE] = variant.replace(_VARIANT_LINE, "WITH_PARTITION = False\n")
+    return sources
 
 
 def kernels_compiled(module: ModuleType) -> bool:
     """Whether numba's cache holds the machine code of the kernels' loop (else the first call compiles it)."""
-    path = Path(module.__file__)
-    return any((path.parent / "__pycache__").glob(f"{path.stem}.integrate-*.nbi"))
+    cache = Path(module.__file__).parent / "__pycache__"
+    return any(cache.glob("driver.integrate-*.nbi"))
 
 
 def load_kernels(partitioned: bool = False) -> ModuleType:
-    """The kernels module (imported once per process; compiled on first use once per installation).
+    """The kernels package (imported once per process; compiled on first use once per installation).
 
     Parameters
     ----------
@@ -143,44 +150,41 @@ def load_kernels(partitioned: bool = False) -> ModuleType:
         return _KERNELS[partitioned]
     if _KernelsFinder not in sys.meta_path:
         sys.meta_path.append(_KernelsFinder)
-    path = _kernels_file(partitioned)
-    name = f"csim_fast_{path.stem}"
-    module = sys.modules.get(name)  # imported already by the finder below
-    if module is None:
-        spec = importlib.util.spec_from_file_location(name, path)
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[name] = module  # numba's cache locates functions through their module
-        spec.loader.exec_module(module)
+    # numba's cache locates functions through their module, imported by name (the finder)
+    module = importlib.import_module(f"csim_fast_{_kernels_copy(partitioned).name}")
     _KERNELS[partitioned] = module
     return module
 
 
-def _kernels_file(partitioned: bool) -> Path:
+def _kernels_copy(partitioned: bool) -> Path:
     """The kernels' copy for a variant, written into the cache if it is not there yet."""
     path = kernels_path(partitioned)
-    if not path.is_file():
+    if not path.is_dir():
         path = _writable(path)
-        if not path.is_file():
-            _write_atomic(path, kernels_source(partitioned))
+        if not path.is_dir():
+            _write_package(path, kernels_source(partitioned))
     return path
 
 
 class _KernelsFinder:
-    """Imports either copy of the kernels by its module name (last on ``sys.meta_path``).
+    """Imports either copy of the kernels by its package name (last on ``sys.meta_path``).
 
     numba caches a core function compiled from one copy with a reference to that copy's
     module, and rebuilds it by importing that module by name: a process that runs only the
     other copy (``none`` after ``minimal`` filled the cache) must still find it. Importing a
-    copy only defines its functions; nothing is compiled until one is called.
+    copy only defines its functions; nothing is compiled until one is called. (A copy's
+    files are found through the package's path, as any package's.)
     """
 
     @staticmethod
     def find_spec(name, path=None, target=None):
-        if not name.startswith("csim_fast_kernels"):
+        if not name.startswith("csim_fast_kernels") or "." in name:
             return None
         for partitioned in (False, True):
-            if name == f"csim_fast_{kernels_path(partitioned).stem}":
-                return importlib.util.spec_from_file_location(name, _kernels_file(partitioned))
+            if name == f"csim_fast_{kernels_path(partitioned).name}":
+                copy = _kernels_copy(partitioned)
+                return importlib.util.spec_from_file_location(name, copy / "__init__.py",
+                                                              submodule_search_locations=[str(copy)])
         return None
 
 
@@ -400,6 +404,26 @@ def _write_atomic(path: Path, text: str) -> None:
     finally:
         if os.path.exists(tmp):
             os.remove(tmp)
+
+
+def _write_package(path: Path, sources: dict[str, str]) -> None:
+    """Write the package ``path`` (file name -> text) whole or not at all: written into a
+    temporary folder, then renamed (a rename onto a folder another process wrote first fails,
+    and that one is kept: numba's cache is keyed on its files' stamps)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.name}-"))
+    try:
+        for name, text in sources.items():
+            (tmp / name).write_text(text)
+            os.chmod(tmp / name, 0o644)  # mkstemp's 0600 would keep a shared cache from others
+        os.chmod(tmp, 0o755)
+        try:
+            os.rename(tmp, path)
+        except OSError:
+            if not path.is_dir():
+                raise
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
 
 
 _FALLBACK_DIR: Path | None = None

@@ -1,0 +1,56 @@
+"""Compiled kernels: the integration loop and the steppers DOP853, RK4, RK45, Tsit5, Vern7 and
+Radau with event location, over the shared core.
+
+One package for every mechanism, compiled once per installation: :mod:`csim.fast.module`
+loads it (through a copy named by the hash of everything it depends on, so that numba's
+on-disk cache is never stale; two copies, with and without the partitioned system of
+``minimal``, see :mod:`.variant`) and numba compiles it on first use, then loads the machine
+code from its cache in every later process. Nothing about a mechanism is a compile-time
+constant here: the sizes, the workspace offsets and the addresses of the mechanism's model
+functions are entries of ``pi`` (:mod:`csim.fast.layout`), and the model functions (C
+compiled by ``cc``, :mod:`csim.fast.ccodegen`, or numba cfuncs, :mod:`csim.fast.codegen`)
+are called through their addresses (:mod:`.calls`). A new mechanism costs only its own model
+functions.
+
+The physics is not here: the KKT solve, gamma* of each method, the switching functions,
+the load laws, the projection, the step checks, the minimal-coordinate method's solves on
+the assembly branch and its partition (:mod:`csim.physics.branch`) and the status codes are
+the functions of :mod:`csim.physics` and of the method files (:mod:`csim.solver.methods`),
+the same ones the Python driver calls. What is here is what must be compiled, one concept a
+file, from the bottom up:
+
+==============  ===========================================================================
+``common``      the decorators, the integrators' codes, the loop's scalar slots
+``variant``     whether this copy carries the partitioned system (``WITH_PARTITION``)
+``tableaus``    the explicit pairs' coefficients (scipy's DOP853, :mod:`csim.physics.tableaus`)
+``calls``       compiled-only: the model functions called by address, the core's model handle
+``system``      the right-hand side at a state, the projection, the partitioned system
+``control``     step-size control: scipy's first step, the error estimators' orders
+``dense``       each stepper's dense output and its evaluation
+``explicit``    DOP853 and the pairs RK45, Tsit5, Vern7 (scipy's ``RungeKutta`` step)
+``rk4``         the fixed-step RK4 (:class:`csim.solver.rk4.RK4`), Hermite dense output
+``radau``       Radau IIA (scipy's ``Radau``, the difference Jacobian of ``num_jac``)
+``events``      switching functions' zeros on the dense output (``brentq``), event records
+``driver``      the loop: segments, steps, checks, events, samples, restarts (:func:`integrate`)
+``entries``     the samples' recorded quantities, and one-state entries for tests and benchmark
+==============  ===========================================================================
+
+The problem is passed as three flat arrays, ``par`` (the parameters), ``pf`` and ``pi``
+(:func:`csim.fast.runner.pack_problem`), because numba counts a reference to every array
+argument at every call of a function it does not inline: few arguments keep the
+evaluation as fast as plain C. ``pi`` starts with a header (:mod:`csim.fast.layout`: the
+method's code and settings' offsets, the sizes, the function addresses, the workspace
+offsets), then the switching functions' loads and kinds (:mod:`csim.physics.loads`) and
+the method's integer settings; ``pf`` holds the load magnitudes, the switching bounds, the
+method's float settings and its gains (:meth:`csim.solver.methods.base.Method.pack`). The
+workspace w holds the model terms, then the scratch of the right-hand side and of the
+projection; matrices are flat and row-major, and the core functions get 1-D slices of w
+(a slice costs nothing, a 2-D view a reshape).
+
+The files import each other relatively: a copy in the cache is a package of its own.
+"""
+from .driver import integrate
+from .entries import evaluate_samples, project_entry, rhs_entry, rhs_repeat
+from .variant import WITH_PARTITION
+
+__all__ = ["WITH_PARTITION", "evaluate_samples", "integrate", "project_entry", "rhs_entry", "rhs_repeat"]

@@ -1,0 +1,205 @@
+"""The compiled-only part of the kernels: a mechanism's model functions and an external
+gamma* called through their addresses, and the core's model handle over them.
+
+The model functions are C (``cc``, :mod:`csim.fast.ccodegen`) or numba cfuncs
+(:mod:`csim.fast.codegen`) with one interface (:mod:`csim.fast.layout`); their addresses are
+entries of ``pi``. The core (:mod:`csim.physics.model`) reaches the model through a handle,
+here the tuple ``(par, pi, w, ym)``, for which the core's ``model_*`` functions are
+overloaded (ym: a state [q, qd, W] to call the model functions at).
+"""
+from llvmlite import ir
+from numba import types
+from numba.extending import intrinsic, overload
+
+from csim.fast.layout import (
+    EXTERNAL,
+    F_JAC,
+    F_KINETIC,
+    F_LOADS,
+    F_MASS,
+    F_OBSERVE,
+    F_PHI,
+    F_POTENTIAL,
+    F_TERMS,
+    PI_FN,
+    PI_GAMMA_FN,
+    W_E,
+    W_GAM,
+    W_J,
+    W_M,
+    W_PHI,
+)
+from csim.physics.model import model_gamma, model_jacobian, model_mass, model_phi
+from csim.solver.methods.baumgarte import baumgarte_gamma_star
+from csim.solver.methods.sliding_mode import sliding_mode_gamma_star
+
+from .common import hot
+
+
+# ---------------------------------------------------------------------------------------
+# calls through a function's address (a C function, or a numba cfunc)
+# ---------------------------------------------------------------------------------------
+def _lower_call(context, builder, argtys, args):
+    """Call the C function at the address args[0] with args[1:]: arrays as pointers to their
+    data (no reference counting), integers and floats by value. Returns nothing."""
+    llargs, lltys = [], []
+    for ty, value in zip(argtys[1:], args[1:]):
+        if isinstance(ty, types.Array):
+            llargs.append(context.make_array(ty)(context, builder, value).data)
+            lltys.append(context.get_data_type(ty.dtype).as_pointer())
+        else:
+            llargs.append(value)
+            lltys.append(context.get_value_type(ty))
+    fnty = ir.FunctionType(ir.VoidType(), lltys)
+    builder.call(builder.inttoptr(args[0], fnty.as_pointer()), llargs)
+    return context.get_dummy_value()
+
+
+@intrinsic
+def _call_model(typingctx, addr, t, y, par, out):
+    """``void f(double t, const double *y, const double *par, double *out)`` at address ``addr``."""
+    if not (isinstance(addr, types.Integer) and isinstance(t, types.Float)):
+        return None
+    sig = types.void(addr, t, y, par, out)
+
+    def codegen(context, builder, signature, args):
+        return _lower_call(context, builder, signature.args, args)
+    return sig, codegen
+
+
+@intrinsic
+def _call_gamma(typingctx, addr, r, gamma, phi, phi_dot, gains, n_gains, fpar, n_fpar, ipar, n_ipar, out):
+    """``void g(int64 r, const double *gamma, const double *phi, const double *phi_dot, const double *gains,
+    int64 n_gains, const double *fpar, int64 n_fpar, const int64 *ipar, int64 n_ipar, double *out)``."""
+    sig = types.void(addr, r, gamma, phi, phi_dot, gains, n_gains, fpar, n_fpar, ipar, n_ipar, out)
+
+    def codegen(context, builder, signature, args):
+        return _lower_call(context, builder, signature.args, args)
+    return sig, codegen
+
+
+# the model functions of the mechanism in pi (csim.fast.layout: one C interface for all)
+@hot
+def terms(t, y, par, pi, w):
+    """Every term of the right-hand side at (t, y) into w."""
+    _call_model(pi[PI_FN + F_TERMS], t, y, par, w)
+
+
+@hot
+def phi_(y, par, pi, w):
+    _call_model(pi[PI_FN + F_PHI], 0.0, y, par, w)
+
+
+@hot
+def phi_at(t, y, par, pi, w):
+    """Phi at time t (drive rows depend on it)."""
+    _call_model(pi[PI_FN + F_PHI], t, y, par, w)
+
+
+@hot
+def jac(y, par, pi, w):
+    _call_model(pi[PI_FN + F_JAC], 0.0, y, par, w)
+
+
+@hot
+def mass(y, par, pi, w):
+    _call_model(pi[PI_FN + F_MASS], 0.0, y, par, w)
+
+
+@hot
+def loads_(y, par, pi, w):
+    """Load coordinates s and their Jacobian into w, for the switching functions."""
+    _call_model(pi[PI_FN + F_LOADS], 0.0, y, par, w)
+
+
+@hot
+def kinetic(y, par, pi, w):
+    """Kinetic energy [J] (w[W_E] is its scratch)."""
+    _call_model(pi[PI_FN + F_KINETIC], 0.0, y, par, w[pi[W_E]:])
+    return w[pi[W_E]]
+
+
+@hot
+def potential(y, par, pi, w):
+    """Potential energy [J] (w[W_E] is its scratch)."""
+    _call_model(pi[PI_FN + F_POTENTIAL], 0.0, y, par, w[pi[W_E]:])
+    return w[pi[W_E]]
+
+
+@hot
+def observe(y, par, pi, out):
+    """The observables and their rates into out (2 o,)."""
+    _call_model(pi[PI_FN + F_OBSERVE], 0.0, y, par, out)
+
+
+# ---------------------------------------------------------------------------------------
+# the core's model handle (csim.physics.model) in the kernels: the tuple (par, pi, w, ym),
+# ym a state [q, qd, W] to call the model functions at
+# ---------------------------------------------------------------------------------------
+#: the compile options of the overloads (as the kernels', less the cache: they compile into their callers)
+CALL_OPTIONS = dict(error_model="numpy", _nrt=False)
+
+
+# (A process that runs minimal and another method imports both copies of this module, and each
+# registers these overloads; numba takes the first one registered. They are the same source.)
+def _is_handle(model):
+    return isinstance(model, types.BaseTuple)
+
+
+def _overload_at_q(core_fn, model_fn, slot):
+    """Overload ``core_fn(model, q, out)`` for the kernels' handle: ``model_fn`` at q, then out = its term,
+    read from w at the offset pi[slot]."""
+
+    @overload(core_fn, jit_options=CALL_OPTIONS, strict=False, inline="always")
+    def _typer(model, q, out):
+        if not _is_handle(model):
+            return None
+
+        def impl(model, q, out):
+            par, pi, w, ym = model
+            for i in range(q.size):
+                ym[i] = q[i]
+            model_fn(ym, par, pi, w)
+            for i in range(out.size):
+                out[i] = w[pi[slot] + i]
+        return impl
+    return _typer
+
+
+_overload_at_q(model_phi, phi_, W_PHI)
+_overload_at_q(model_jacobian, jac, W_J)
+_overload_at_q(model_mass, mass, W_M)
+
+
+@overload(model_gamma, jit_options=CALL_OPTIONS, strict=False, inline="always")
+def _model_gamma(model, q, qd, out):
+    if _is_handle(model):
+        def impl(model, q, qd, out):
+            par, pi, w, ym = model
+            m = q.size
+            for i in range(m):
+                ym[i] = q[i]
+                ym[m + i] = qd[i]
+            terms(0.0, ym, par, pi, w)
+            for i in range(out.size):
+                out[i] = w[pi[W_GAM] + i]
+        return impl
+    return None
+
+
+# the stabilization methods' gamma*: the built-in ones by code (csim.fast.layout.BUILTIN_GAMMA),
+# any other through its address (EXTERNAL)
+
+
+@hot
+def method_gamma_star(mk, r, gamma, phi, phi_dot, gains, fpar, ipar, out, pi):
+    """gamma* (r,) into out by the method's code; 0 is gamma* = gamma."""
+    if mk == 1:
+        baumgarte_gamma_star(r, gamma, phi, phi_dot, gains, fpar, ipar, out)
+    elif mk == 2:
+        sliding_mode_gamma_star(r, gamma, phi, phi_dot, gains, fpar, ipar, out)
+    elif mk == EXTERNAL:
+        _call_gamma(pi[PI_GAMMA_FN], r, gamma, phi, phi_dot, gains, gains.size, fpar, fpar.size, ipar, ipar.size, out)
+    else:
+        for i in range(r):
+            out[i] = gamma[i]

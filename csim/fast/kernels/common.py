@@ -1,0 +1,60 @@
+"""What every file of the kernels shares: the decorators, the integrators' codes and the
+loop's scalar slots.
+
+Importing this file activates the core (:func:`csim.physics.jit.activate`): from here on the
+functions of :mod:`csim.physics` compile, and numba types them, inside the kernels.
+"""
+import math
+
+from numba import njit
+
+from csim.physics.jit import NJIT_OPTIONS, activate
+
+activate()  # the core functions compile, and numba types them, from here on
+
+
+#: the decorator of every loop function that allocates nothing: compiled without numba's
+#: reference counting of arrays (NRT), which would cost two atomic operations per array
+#: argument and per slice at every call; the arrays live as long as ``integrate`` holds them
+hot = njit(**NJIT_OPTIONS)
+#: the same, inlined into its callers in numba's IR: a call passes every array argument as a
+#: struct of seven words, which for the small functions of every step costs more than their body
+inlined = njit(inline="always", **NJIT_OPTIONS)
+#: inlined, for functions whose callers pass their sizes as constants (the copy's loops have fixed lengths)
+sized = inlined
+#: the (m, r) whose right-hand side has a copy with constant sizes: the planar one-loop linkages
+#: (quick-return, four-bar, slider-crank) and the Cartesian pendulum
+SIZED = ((3, 2), (2, 1))
+
+
+# ---- the loop's constants (status codes are csim.physics.status's) ----
+EPS = 2.220446049250313e-16
+
+
+# integrators (csim.fast.runner.INTEGRATOR_CODES), and the dense output of an empty step
+DOP853 = 0
+RK4 = 1
+CONSTANT = 2
+RADAU = 3
+RK45 = 4
+TSIT5 = 5
+VERN7 = 6
+
+# scalars of the loop, in one float array ts_ and one int array cs_ (R_*: Radau's)
+T, T_OLD, H_ABS, HSTEP, T_STOP, SEG_START, R_H_OLD, R_ERR_OLD, R_NEWTON_TOL, R_SOL_T, R_SOL_H = range(11)
+NFEV, NSTEPS, N_REC, I_OUT, N_EV, SEG_STEPS, NJEV, NLU, R_LU_OK, R_SOL, R_CURRENT_JAC = range(11)
+
+
+@hot
+def spacing(t):
+    """|nextafter(t, +inf) - t| for t >= 0 (numpy's nextafter without its overload)."""
+    if t == 0.0:
+        return 5e-324
+    _, e = math.frexp(t)  # t = m 2^e, 0.5 <= m < 1
+    return 2.0 ** (e - 53)
+
+
+@hot
+def copy_row(src, dst, row):
+    for i in range(src.size):
+        dst[row, i] = src[i]

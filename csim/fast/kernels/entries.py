@@ -1,0 +1,115 @@
+"""The other entry points: the recorded quantities at the output samples
+(:func:`evaluate_samples`, for :func:`csim.pipeline.assemble_result`), and the right-hand side
+and the projection at one state, for the tests and the benchmark.
+"""
+import numpy as np
+from numba import njit
+
+from csim.fast.layout import PI_NC, PI_NL, PI_NO, PI_NQ, PI_NSW, W_B, W_END, W_PD, W_PHI, W_U, W_X
+from csim.physics.status import OK
+
+from .calls import kinetic, observe, potential
+from .system import project, rhs
+
+
+# ---------------------------------------------------------------------------------------
+# the recorded quantities at the output samples (csim.pipeline.assemble_result)
+# ---------------------------------------------------------------------------------------
+@njit(cache=True, error_model="numpy")
+def evaluate_samples(ts, ys, modes, par, pf, pi):
+    """Everything a result records at each sample, from the same right-hand side the loop ran.
+
+    Parameters
+    ----------
+    ts : ndarray (N,)
+        Sample times [s] (the load laws may depend on t).
+    ys : ndarray (N, 2 m + k)
+        Recorded states [q, qd, W].
+    modes : ndarray (N, n_sw) bool
+        The load laws held at each sample.
+
+    Returns
+    -------
+    ok : ndarray (N,) bool
+        False where the KKT matrix is singular (the row's other outputs are then NaN).
+    x : ndarray (N, m + r)
+        [qdd, lambda].
+    phi, phi_dot : ndarray (N, r)
+        Phi and Phi_q qd.
+    u : ndarray (N, k)
+        Load values.
+    Q : ndarray (N, m)
+        Generalized applied forces B u.
+    energy : ndarray (N, 2)
+        Kinetic and potential energy [J].
+    obs : ndarray (N, 2 o)
+        The observables and their rates (evaluated at every sample, singular or not).
+    """
+    N = ys.shape[0]
+    nq, nc, nl, no = pi[PI_NQ], pi[PI_NC], pi[PI_NL], pi[PI_NO]
+    nk = nq + nc
+    w = np.zeros(pi[W_END])
+    piv = np.zeros(nk, np.int64)
+    f = np.empty(ys.shape[1])
+    mode = np.empty(pi[PI_NSW], np.bool_)
+    ok = np.ones(N, np.bool_)
+    x, Q = np.full((N, nk), np.nan), np.full((N, nq), np.nan)
+    phi, phi_dot = np.full((N, nc), np.nan), np.full((N, nc), np.nan)
+    u, energy = np.full((N, nl), np.nan), np.full((N, 2), np.nan)
+    obs = np.empty((N, 2 * no))
+    for i in range(N):
+        y = ys[i]
+        if no > 0:
+            observe(y, par, pi, obs[i])
+        mode[:] = modes[i]
+        if rhs(ts[i], y, mode, True, par, pf, pi, w, piv, f) != OK:
+            ok[i] = False
+            continue
+        x[i] = w[pi[W_X]:pi[W_X] + nk]
+        phi[i] = w[pi[W_PHI]:pi[W_PHI] + nc]
+        phi_dot[i] = w[pi[W_PD]:pi[W_PD] + nc]
+        u[i] = w[pi[W_U]:pi[W_U] + nl]
+        for a in range(nq):  # Q = B u, B (m, k) row-major
+            acc = 0.0
+            for kk in range(nl):
+                acc += w[pi[W_B] + a * nl + kk] * w[pi[W_U] + kk]
+            Q[i, a] = acc
+        energy[i, 0] = kinetic(y, par, pi, w)
+        energy[i, 1] = potential(y, par, pi, w)
+    return ok, x, phi, phi_dot, u, Q, energy, obs
+
+
+# ---------------------------------------------------------------------------------------
+# entry points for the tests and the benchmark
+# ---------------------------------------------------------------------------------------
+@njit(cache=True, error_model="numpy")
+def rhs_entry(t, y, mode, par, pf, pi):
+    """dy/dt and [qdd, lambda] at time t and one state (mode held), for comparison with the Python path."""
+    w = np.zeros(pi[W_END])
+    piv = np.zeros(pi[PI_NQ] + pi[PI_NC], np.int64)
+    f = np.empty(y.size)
+    code = rhs(t, y, mode.copy(), True, par, pf, pi, w, piv, f)
+    return code, f, w[pi[W_X]:pi[W_X] + pi[PI_NQ] + pi[PI_NC]].copy()
+
+
+@njit(cache=True, error_model="numpy")
+def rhs_repeat(y, mode, par, pf, pi, n_eval):
+    """n_eval evaluations of the right-hand side (a timing loop for the benchmark)."""
+    w = np.zeros(pi[W_END])
+    piv = np.zeros(pi[PI_NQ] + pi[PI_NC], np.int64)
+    f = np.empty(y.size)
+    acc = 0.0
+    for _ in range(n_eval):
+        rhs(0.0, y, mode, True, par, pf, pi, w, piv, f)
+        acc += f[pi[PI_NQ]]
+    return acc
+
+
+@njit(cache=True, error_model="numpy")
+def project_entry(y, par, pf, pi):
+    w = np.zeros(pi[W_END])
+    piv = np.zeros(pi[PI_NQ] + pi[PI_NC], np.int64)
+    out = np.empty(y.size)
+    info = np.zeros(2)
+    code = project(y, out, 0.0, par, pf, pi, w, piv, info)
+    return code, info[0], out

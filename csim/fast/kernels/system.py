@@ -1,0 +1,312 @@
+"""The system the loop integrates: the right-hand side at a state (KKT solve, gamma* of the
+method, load laws), the switching functions, the projection, and the partitioned system of
+``minimal`` (its state y = [u, ud, W] turned into the full state where the loop needs it).
+"""
+import numpy as np
+
+from csim.fast.layout import (
+    PARTITIONED,
+    PI_DRV,
+    PI_FPAR,
+    PI_GAINS,
+    PI_HEAD,
+    PI_IPAR,
+    PI_MK,
+    PI_NC,
+    PI_ND,
+    PI_NFPAR,
+    PI_NGAINS,
+    PI_NIPAR,
+    PI_NL,
+    PI_NQ,
+    PI_NSW,
+    PI_SYS,
+    W_A,
+    W_B,
+    W_COL,
+    W_CQD,
+    W_DQ,
+    W_END,
+    W_G,
+    W_GAM,
+    W_GS,
+    W_H,
+    W_J,
+    W_L,
+    W_M,
+    W_M2,
+    W_P,
+    W_PART,
+    W_PD,
+    W_PHI,
+    W_PT,
+    W_S,
+    W_S2,
+    W_SD,
+    W_SQ,
+    W_U,
+    W_WINV,
+    W_WJT,
+    W_X,
+    W_YM,
+    W_Z,
+)
+from csim.physics import branch
+from csim.physics.kkt import constraint_rates, generalized_forces, kkt_solve
+from csim.physics.loads import load_rates, load_values, mode_of, switching_functions
+from csim.physics.partition import C_PENDING, partition_state
+from csim.physics.projection import max_abs
+from csim.physics.projection import project as project_state
+from csim.physics.status import NONFINITE_RHS, OK, SINGULAR_KKT
+from csim.physics.steps import all_finite
+
+from .calls import loads_, method_gamma_star, phi_at, terms
+from .common import hot, inlined, sized
+from .variant import WITH_PARTITION
+
+
+# ---------------------------------------------------------------------------------------
+# the partitioned system (minimal coordinates): its state in w and piv, the core's calls
+# ---------------------------------------------------------------------------------------
+@hot
+def _partition(pi, w, piv):
+    """The partition's state (csim.physics.partition.Partition) as views of w and piv."""
+    m, r = pi[PI_NQ], pi[PI_NC]
+    return partition_state(w[pi[W_PART]:pi[W_END]], piv[m + r:], m, r, pi[PI_NL])
+
+
+@hot
+def _partition_call(par, pf, pi, w, piv):
+    """(handle, P, r, m, k, tol, max_iter, max_condition): what every core call of csim.physics.branch takes.
+
+    The method's settings (csim.solver.methods.minimal): fpar = [tol, max_condition], ipar = [max_iter].
+    """
+    P = _partition(pi, w, piv)
+    fpar, ipar = pf[pi[PI_FPAR]:], pi[pi[PI_IPAR]:]
+    return (par, pi, w, P.ym), P, pi[PI_NC], pi[PI_NQ], pi[PI_NL], fpar[0], ipar[0], fpar[1]
+
+
+# The partitioned system's branches in the functions of every step call a function of their own:
+# numba zeroes all of a function's variables at each call, and the partition's views (a tuple of
+# 39 arrays) would cost every caller a memset of kilobytes even where it is not partitioned.
+@inlined
+def full_state(y, par, pf, pi, w, piv):
+    """(code, the full state [q, qd, W] of the integrated state y): y itself, or for the partitioned
+    system its dependent coordinates solved on the branch (csim.physics.branch.to_full), in P.yf."""
+    if WITH_PARTITION and pi[PI_SYS] == PARTITIONED:
+        return _partitioned_full_state(y, par, pf, pi, w, piv)
+    return OK, y
+
+
+@hot
+def _partitioned_full_state(y, par, pf, pi, w, piv):
+    """:func:`full_state` of the partitioned system."""
+    model, P, r, m, k, tol, max_iter, _ = _partition_call(par, pf, pi, w, piv)
+    return branch.to_full(model, P, y, P.yf, r, m, k, tol, max_iter), P.yf
+
+
+@hot
+def _partitioned_rhs(t, y, mode, located, par, pf, pi, w, piv, f):
+    """dy/dt = [ud, udd, dW/dt] (2 n + k,) of the partitioned system: the rhs at the full state, reduced."""
+    code, yf = full_state(y, par, pf, pi, w, piv)
+    if code != OK:
+        return code
+    P = _partition(pi, w, piv)
+    code = rhs(t, yf, mode, located, par, pf, pi, w, piv, P.ff)
+    if code == OK:
+        branch.reduce(P, P.ff, f, pi[PI_NC], pi[PI_NQ], pi[PI_NL])
+    return code
+
+
+@hot
+def _partition_after_step(y, par, pf, pi, w, piv):
+    """csim.physics.branch.after_step at the accepted state y: (code, restart)."""
+    model, P, r, m, k, tol, max_iter, max_condition = _partition_call(par, pf, pi, w, piv)
+    return branch.after_step(model, P, y, r, m, k, tol, max_iter, max_condition)
+
+
+@hot
+def _repartition(ya, y, par, pf, pi, w, piv):
+    """y = the accepted state ya, then csim.physics.branch.repartition from it after a breakdown; returns the code."""
+    for i in range(y.size):
+        y[i] = ya[i]
+    model, P, r, m, k, tol, max_iter, _ = _partition_call(par, pf, pi, w, piv)
+    return branch.repartition(model, P, y, r, m, k, tol, max_iter)
+
+
+@hot
+def _failure_details(pi, w, piv, info):
+    """info[2:] = the partition's failure details, for the message (a function without reference counting:
+    the views of w must not be counted by a caller that counts, as integrate does)."""
+    detail = _partition(pi, w, piv).detail
+    for i in range(detail.size):
+        info[2 + i] = detail[i]
+
+
+@inlined
+def _pending(pi, w, piv):
+    """The breakdown of a full state met where no code could be returned (a switching function's value), cleared."""
+    if WITH_PARTITION and pi[PI_SYS] == PARTITIONED:
+        return _set_pending(pi, w, piv, OK)
+    return OK
+
+
+@hot
+def _set_pending(pi, w, piv, code):
+    """Set the partitioned system's pending breakdown to ``code``; returns the one it replaces."""
+    P = _partition(pi, w, piv)
+    before = P.count[C_PENDING]
+    P.count[C_PENDING] = code
+    return before
+
+
+# ---------------------------------------------------------------------------------------
+# the model at a state: switching functions, right-hand side
+# ---------------------------------------------------------------------------------------
+@hot
+def switching_from(y, pf, pi, w):
+    """Switching functions into w[W_G:] from s and S = ds/dq^T in w (loads_ or terms evaluated) and qd in y."""
+    n_sw, nq, nl = pi[PI_NSW], pi[PI_NQ], pi[PI_NL]
+    w_sd, w_g = pi[W_SD], pi[W_G]
+    load_rates(w[pi[W_SQ]:pi[W_SQ] + nq * nl], y[nq:2 * nq], w[w_sd:w_sd + nl], nq, nl)
+    switching_functions(w[pi[W_S]:pi[W_S] + nl], w[w_sd:w_sd + nl], pi[PI_HEAD:PI_HEAD + n_sw],
+                        pi[PI_HEAD + n_sw:PI_HEAD + 2 * n_sw], pf[nl:nl + n_sw], w[w_g:w_g + n_sw])
+
+
+@hot
+def mode_at(y, par, pf, pi, w, piv, mode):
+    """The load-law conditions that hold at state y (switching functions left in w[W_G:]); returns the code."""
+    code, yv = full_state(y, par, pf, pi, w, piv)
+    if code != OK:
+        return code
+    loads_(yv, par, pi, w)
+    switching_from(yv, pf, pi, w)
+    mode_of(w[pi[W_G]:pi[W_G] + pi[PI_NSW]], mode)
+    return OK
+
+
+@sized
+def _rhs_sized(t, y, mode, located, par, pf, pi, w, piv, f, nq, nc):
+    """:func:`rhs` for nq coordinates and nc constraints (inlined where called: constants there fix the loops)."""
+    nl = pi[PI_NL]
+    nk = nq + nc
+    terms(t, y, par, pi, w)
+    qd = y[nq:2 * nq]
+    B = w[pi[W_B]:pi[W_B] + nq * nl]
+    J = w[pi[W_J]:pi[W_J] + nc * nq]
+    if not located:
+        switching_from(y, pf, pi, w)
+        mode_of(w[pi[W_G]:pi[W_G] + pi[PI_NSW]], mode)
+    u = w[pi[W_U]:pi[W_U] + nl]
+    load_values(pf[:nl], mode, pi[PI_HEAD:PI_HEAD + pi[PI_NSW]], w[pi[W_L]:pi[W_L] + nl], u)
+    p = w[pi[W_P]:pi[W_P] + nq]
+    generalized_forces(B, u, w[pi[W_CQD]:pi[W_CQD] + nq], w[pi[W_H]:pi[W_H] + nq], p, nq, nl)
+    phi_dot = w[pi[W_PD]:pi[W_PD] + nc]
+    constraint_rates(J, qd, phi_dot, nc, nq)
+    for i in range(nc):  # d/dt Phi = Phi_q qd + Phi_t (Phi_t: drive rows only)
+        phi_dot[i] += w[pi[W_PT] + i]
+    gstar = w[pi[W_GS]:pi[W_GS] + nc]
+    gains = pf[pi[PI_GAINS]:pi[PI_GAINS] + pi[PI_NGAINS]]
+    fpar = pf[pi[PI_FPAR]:pi[PI_FPAR] + pi[PI_NFPAR]]
+    ipar = pi[pi[PI_IPAR]:pi[PI_IPAR] + pi[PI_NIPAR]]
+    method_gamma_star(pi[PI_MK], nc, w[pi[W_GAM]:pi[W_GAM] + nc], w[pi[W_PHI]:pi[W_PHI] + nc], phi_dot, gains, fpar,
+                      ipar, gstar, pi)
+    x = w[pi[W_X]:pi[W_X] + nk]
+    A = w[pi[W_A]:pi[W_A] + nk * nk]
+    if not kkt_solve(w[pi[W_M]:pi[W_M] + nq * nq], J, p, gstar, A, x, piv, nq, nc):
+        return SINGULAR_KKT
+    sdot = w[pi[W_SD]:pi[W_SD] + nl]
+    load_rates(B, qd, sdot, nq, nl)
+    for i in range(nq):
+        f[i] = qd[i]
+        f[nq + i] = x[i]
+    for kk in range(nl):  # dW/dt = u * (B^T qd), the power of each load
+        f[2 * nq + kk] = u[kk] * sdot[kk]
+    nd = pi[PI_ND]
+    for kk in range(nd):  # dW_d/dt = tau qd_j, tau = -lambda_d: the power of each drive (csim.solver.driven)
+        f[2 * nq + nl + kk] = -x[nq + nc - nd + kk] * qd[pi[pi[PI_DRV] + kk]]
+    return OK
+
+
+@hot
+def rhs(t, y, mode, located, par, pf, pi, w, piv, f):
+    """dy/dt = [qd, qdd, u * B^T qd] at time t into f; [qdd, lambda] left in w[W_X:]. Returns OK or SINGULAR_KKT.
+
+    The load laws are held in ``mode``; with ``located`` False they are evaluated at y
+    itself (``mode`` is then overwritten: pass a scratch array). For the commonest sizes
+    (:data:`SIZED`) the sizes are constants of a copy of the code each (loops of known length,
+    as plain C has them); other ones run with the sizes read from pi.
+    """
+    nq, nc = pi[PI_NQ], pi[PI_NC]
+    if nq == 3 and nc == 2:
+        return _rhs_sized(t, y, mode, located, par, pf, pi, w, piv, f, 3, 2)
+    if nq == 2 and nc == 1:
+        return _rhs_sized(t, y, mode, located, par, pf, pi, w, piv, f, 2, 1)
+    return _rhs_sized(t, y, mode, located, par, pf, pi, w, piv, f, nq, nc)
+
+
+# (not inlined by numba: LLVM inlines it where it pays; numba's inlining changed the register
+# allocation of rhs itself and made the RK4 row 15 % slower than before minimal was compiled, measured alternately)
+@hot
+def feval(t, y, mode, located, par, pf, pi, w, piv, f, info):
+    """rhs plus the driver's check of a non-finite result (info = [t, max |y|] then)."""
+    if WITH_PARTITION and pi[PI_SYS] == PARTITIONED:
+        code = _partitioned_rhs(t, y, mode, located, par, pf, pi, w, piv, f)
+    else:
+        code = rhs(t, y, mode, located, par, pf, pi, w, piv, f)
+    if code == OK and not all_finite(f):
+        code = NONFINITE_RHS
+    if code != OK:
+        info[0] = t
+        info[1] = max_abs(y)
+    return code
+
+
+# ---------------------------------------------------------------------------------------
+# projection onto Phi = 0, Phi_q qd = 0 (csim.solver.methods.projection)
+# ---------------------------------------------------------------------------------------
+@hot
+def project(y, out, t, par, pf, pi, w, piv, info):
+    """out = y at time t with (q, qd) projected (csim.physics.projection.project); returns the status code.
+
+    On a failure info = [max |Phi| of the last iterate, t], as the status messages read them.
+    The method's settings: fpar[0] the tolerance on max |Phi|, ipar = [mass metric (0/1),
+    iteration limit].
+    """
+    fpar = pf[pi[PI_FPAR]:pi[PI_FPAR] + pi[PI_NFPAR]]
+    ipar = pi[pi[PI_IPAR]:pi[PI_IPAR] + pi[PI_NIPAR]]
+    for i in range(y.size):
+        out[i] = y[i]
+    nq, nc, nl = pi[PI_NQ], pi[PI_NC], pi[PI_NL]
+    model = (par, pi, w, w[pi[W_YM]:pi[W_YM] + 2 * nq + nl])
+    code, mx = project_state(model, out[:nq], out[nq:2 * nq], fpar[0], ipar[0] == 1, ipar[1], nq, nc,
+                             w[pi[W_M]:pi[W_M] + nq * nq], w[pi[W_M2]:pi[W_M2] + nq * nq],
+                             w[pi[W_WINV]:pi[W_WINV] + nq * nq], piv, w[pi[W_COL]:pi[W_COL] + nq],
+                             w[pi[W_PHI]:pi[W_PHI] + nc], w[pi[W_J]:pi[W_J] + nc * nq],
+                             w[pi[W_WJT]:pi[W_WJT] + nq * nc], w[pi[W_S2]:pi[W_S2] + nc * nc],
+                             w[pi[W_Z]:pi[W_Z] + nc], w[pi[W_DQ]:pi[W_DQ] + nq], w[pi[W_PD]:pi[W_PD] + nc])
+    if code != OK:
+        return _project_failed(code, mx, t, info)
+    return OK
+
+
+@hot
+def _project_failed(code, max_phi, t, info):
+    """info = [max |Phi|, t] of a failed projection; returns its code."""
+    info[0] = max_phi
+    info[1] = t
+    return code
+
+
+@hot
+def _max_phi(t, y, par, pf, pi, w, piv):
+    """(code, max |Phi|) of the mechanism's rows (not the drives', as the Python path's
+    ConstrainedSystem.max_phi) at time t and the integrated state y (NaN where y is not finite:
+    the step check says so)."""
+    if not all_finite(y):
+        return OK, np.nan
+    code, yv = full_state(y, par, pf, pi, w, piv)
+    if code != OK:
+        return code, np.nan
+    phi_at(t, yv, par, pi, w)
+    return OK, max_abs(w[pi[W_PHI]:pi[W_PHI] + pi[PI_NC] - pi[PI_ND]])
