@@ -220,7 +220,7 @@ def method_code(method) -> int:
 
 
 def _gamma_cfunc(kernel):
-    """A cfunc with the kernels' gamma* interface (csim.fast.kernels._call_gamma) around ``kernel``."""
+    """A cfunc with the kernels' gamma* interface (csim.fast.kernels.calls._call_gamma) around ``kernel``."""
     from numba import carray, cfunc, njit, types
 
     f8p, i8p, i8 = types.CPointer(types.float64), types.CPointer(types.int64), types.int64

@@ -7,7 +7,7 @@ evaluations a step), a 4th-order embedded solution for the error, and a free 4th
 interpolant. It is the default explicit solver of DifferentialEquations.jl and diffrax,
 tuned for a smaller principal error than Dormand-Prince 5(4) (scipy's RK45) at the same
 cost. The coefficients are in :mod:`csim.physics.tableaus` (numbers only), which the
-compiled kernels step with the same rules (:mod:`csim.fast.kernels`, ``_explicit_step``).
+compiled kernels step with the same rules (:mod:`csim.fast.kernels.explicit`).
 
 The tests (tests/test_tsit5.py) check the pair's order conditions through its convergence
 order on problems with known solutions, the interpolant against the step's end, and that

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from csim.physics import radau as coefficients
 from csim.physics.linalg import lu_factor, lu_solve
 from csim.physics.radau import (
     JAC_MAX_FACTOR,
@@ -18,24 +19,6 @@ from csim.physics.radau import (
     NUM_JAC_FACTOR_DECREASE,
     NUM_JAC_FACTOR_INCREASE,
     NUM_JAC_MIN_FACTOR,
-)
-from csim.physics.radau import (
-    TI as _RADAU_TI,
-)
-from csim.physics.radau import (
-    TI_COMPLEX as _RADAU_TI_COMPLEX,
-)
-from csim.physics.radau import (
-    C as _RADAU_C,
-)
-from csim.physics.radau import (
-    E as _RADAU_E,
-)
-from csim.physics.radau import (
-    P as _RADAU_P,
-)
-from csim.physics.radau import (
-    T as _RADAU_T,
 )
 from csim.physics.status import NONFINITE_RHS, OK
 
@@ -64,12 +47,12 @@ from .dense import _dense_weights, dense_eval
 from .system import feval
 
 # Radau IIA coefficients, scipy's (csim.physics.radau)
-RAD_C = np.ascontiguousarray(_RADAU_C)
-RAD_E = np.ascontiguousarray(_RADAU_E)
-RAD_T = np.ascontiguousarray(_RADAU_T)
-RAD_TI = np.ascontiguousarray(_RADAU_TI)
-RAD_TI_COMPLEX = np.ascontiguousarray(_RADAU_TI_COMPLEX)
-RAD_P = np.ascontiguousarray(_RADAU_P)
+RAD_C = np.ascontiguousarray(coefficients.C)
+RAD_E = np.ascontiguousarray(coefficients.E)
+RAD_T = np.ascontiguousarray(coefficients.T)
+RAD_TI = np.ascontiguousarray(coefficients.TI)
+RAD_TI_COMPLEX = np.ascontiguousarray(coefficients.TI_COMPLEX)
+RAD_P = np.ascontiguousarray(coefficients.P)
 
 
 # Radau's rows of RM (3 rows: the three stages): Newton's start Z0, the stage increments Z,

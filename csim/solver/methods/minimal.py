@@ -55,7 +55,7 @@ class Minimal(Method):
         self.max_condition = float(minimal_max_condition)
 
     def parameters(self):
-        """fpar = [tol, max_condition], ipar = [max_iter] (the kernels' csim.fast.kernels._partition_call)."""
+        """fpar = [tol, max_condition], ipar = [max_iter] (the kernels' csim.fast.kernels.system._partition_call)."""
         return [self.tol, self.max_condition], [self.max_iter]
 
     @classmethod
