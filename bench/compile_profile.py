@@ -16,8 +16,10 @@ figures. Minutes on 2 cores; one process, one core.
 from __future__ import annotations
 
 import argparse
+import atexit
 import collections
 import os
+import shutil
 import sys
 import tempfile
 import time
@@ -27,8 +29,15 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _name(event) -> str:
+    """``file:function`` for a function of the kernels' copy (``system:rhs``), else ``module:function``
+    (``csim.physics.events:check_chatter``, numba's own ``numba.np.arrayobj:ol_np_empty.<locals>.impl``)."""
     fn = getattr(event.data.get("dispatcher"), "py_func", None)
-    return f"{fn.__module__.rsplit('.', 1)[-1]}.{fn.__qualname__}" if fn is not None else "?"
+    if fn is None:
+        return "?"
+    module = fn.__module__
+    if module.startswith("csim_fast_kernels"):
+        module = module.split(".", 1)[-1]
+    return f"{module}:{fn.__qualname__}"
 
 
 def exclusive_times(buffer) -> dict[str, float]:
@@ -50,7 +59,9 @@ def main() -> None:
     parser.add_argument("--minimal", action="store_true", help="the partitioned copy (minimal), not the plain one")
     parser.add_argument("--top", type=int, default=25, help="functions to list")
     options = parser.parse_args()
-    os.environ["CSIM_CACHE_DIR"] = tempfile.mkdtemp(prefix="csim-compile-profile-")
+    cache = tempfile.mkdtemp(prefix="csim-compile-profile-")
+    atexit.register(shutil.rmtree, cache, ignore_errors=True)
+    os.environ["CSIM_CACHE_DIR"] = cache
     os.environ.pop("CSIM_KERNELS_DIR", None)
     sys.path.insert(0, str(ROOT))
     from numba.core import event
@@ -72,7 +83,7 @@ def main() -> None:
     by_function = exclusive_times(compiles.buffer)
     by_file = collections.Counter()
     for name, seconds in by_function.items():
-        by_file[name.split(".", 1)[0]] += seconds
+        by_file[name.split(":", 1)[0]] += seconds
     print(f"{method}: the run {wall:.1f} s, numba compiling {sum(by_function.values()):.1f} s "
           f"(LLVM {locked:.1f} s), {len(by_function)} functions")
     print("\nby file [s]")

@@ -36,8 +36,8 @@ def test_a_nested_compile_is_counted_once_in_its_own_function():
     # driver.integrate compiles from 0 to 10 s, and within it system.rhs (2-7 s), which compiles calls.terms (3-4 s)
     times = exclusive_times(_events(("driver.integrate", 0.0, 10.0), ("system.rhs", 2.0, 7.0),
                                     ("calls.terms", 3.0, 4.0), ("radau._radau_step", 8.0, 9.5)))
-    assert times == pytest.approx({"driver.integrate": 3.5, "system.rhs": 4.0, "calls.terms": 1.0,
-                                   "radau._radau_step": 1.5})
+    assert times == pytest.approx({"driver:integrate": 3.5, "system:rhs": 4.0, "calls:terms": 1.0,
+                                   "radau:_radau_step": 1.5})
     assert sum(times.values()) == pytest.approx(10.0)  # the outermost compile's wall time, shared out
 
 
@@ -49,5 +49,6 @@ def test_the_events_of_a_real_compile_name_its_function():
     with event.install_recorder("numba:compile") as recorder:
         probe_profiled(1)
     times = exclusive_times(recorder.buffer)
-    assert any(name.endswith("probe_profiled") for name in times), times
+    assert any(name.endswith(":test_the_events_of_a_real_compile_name_its_function.<locals>.probe_profiled")
+               for name in times), times
     assert all(seconds >= 0 for seconds in times.values())

@@ -5,6 +5,8 @@ every later one reuses them.
 """
 from __future__ import annotations
 
+import re
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -352,6 +354,13 @@ def test_the_common_kernels_leave_the_partitioned_path_to_minimals_copy():
     assert module.kernels_path() != module.kernels_path(partitioned=True)
     common = module.load_kernels()
     assert common.WITH_PARTITION is False and module.load_kernels(partitioned=True).WITH_PARTITION is True
+    # every file of each copy reads the flag of its own copy (a file that read it elsewhere would
+    # compile the partitioned path into the plain copy): relative imports only
+    for copy, flag in ((common, False), (module.load_kernels(partitioned=True), True)):
+        files = {name: mod for name, mod in sys.modules.items() if name.startswith(copy.__name__ + ".")}
+        assert len(files) == len(plain) - 1, sorted(files)  # every file but __init__.py, imported
+        assert {name for name, mod in files.items() if getattr(mod, "WITH_PARTITION", flag) is not flag} == set()
+    assert not [name for name, text in plain.items() if re.search(r"^\s*(from|import) csim\.fast\.kernels", text, re.M)]
     case, system, y0 = _system("stabilization.method=minimal", "simulation.t_end=0.1")
     args = _arguments(system, y0, case.integration_settings(), 10)
     with pytest.raises(ValueError, match="WITH_PARTITION"):

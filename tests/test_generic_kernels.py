@@ -167,3 +167,33 @@ def test_the_kernels_key_is_fixed_for_the_process(monkeypatch, tmp_path):
     assert module.kernels_key() == key
     assert {module.kernels_path(p).name.rsplit("_", 1)[1] for p in (False, True)} == {key}
     assert module.kernels_source(partitioned=True) == text  # and the copies hold the text the key hashed
+
+
+def test_a_copy_of_the_kernels_is_written_whole_and_never_replaced(tmp_path):
+    """Workers may race to write one copy: the first one written is kept (numba's cache is keyed
+    on its files' stamps), a loser leaves no temporary folder, and one a killed process left an
+    hour ago is removed."""
+    from csim.fast import module
+
+    path = tmp_path / "kernels_k"
+    module._write_package(path, {"__init__.py": "A = 1\n", "variant.py": "WITH_PARTITION = True\n"})
+    stamp = (path / "__init__.py").stat().st_mtime_ns
+    module._write_package(path, {"__init__.py": "A = 2\n", "variant.py": "WITH_PARTITION = True\n"})  # a loser
+    assert (path / "__init__.py").read_text() == "A = 1\n" and (path / "__init__.py").stat().st_mtime_ns == stamp
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["kernels_k"]
+    assert oct(path.stat().st_mode & 0o777) == "0o755" and oct((path / "variant.py").stat().st_mode & 0o777) == "0o644"
+    stale, fresh = tmp_path / ".kernels_j-stale", tmp_path / ".kernels_j-writing"
+    stale.mkdir()
+    fresh.mkdir()
+    os.utime(stale, (0, 0))
+    module._write_package(tmp_path / "kernels_j", {"__init__.py": ""})
+    assert sorted(p.name for p in tmp_path.iterdir()) == [".kernels_j-writing", "kernels_j", "kernels_k"]
+
+
+def test_an_editors_lock_file_beside_the_kernels_is_not_a_source(tmp_path):
+    from csim.fast import module
+
+    (tmp_path / "driver.py").write_text("x = 1\n")
+    (tmp_path / ".#driver.py").symlink_to(tmp_path / "missing")  # how Emacs marks a file being edited
+    (tmp_path / "__pycache__").mkdir()
+    assert [p.name for p in module._sources(tmp_path)] == ["driver.py"]

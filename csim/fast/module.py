@@ -32,6 +32,7 @@ Where the cache cannot be written, the files go to a temporary folder of this pr
 """
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import functools
 import hashlib
@@ -41,6 +42,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
@@ -88,7 +90,7 @@ def _hash(parts) -> str:
 
 
 # ---------------------------------------------------------------------------------------
-# the kernels: one module per installation
+# the kernels: one package per installation
 # ---------------------------------------------------------------------------------------
 @functools.cache
 def _kernels_snapshot() -> tuple[str, dict[str, str]]:
@@ -102,10 +104,15 @@ def _kernels_snapshot() -> tuple[str, dict[str, str]]:
     first one's, which no later process could import: every ``minimal`` run fell back to the
     Python path until the cache was cleared.
     """
-    sources = {p.name: p.read_text() for p in sorted(KERNELS.glob("*.py"))}
-    deps = [HERE / "layout.py", *sorted(PHYSICS.glob("*.py")), *sorted(METHODS.glob("*.py"))]
+    sources = {p.name: p.read_text() for p in _sources(KERNELS)}
+    deps = [HERE / "layout.py", *_sources(PHYSICS), *_sources(METHODS)]
     parts = [FAST_VERSION, *(f"{name}\n{text}" for name, text in sources.items()), *(p.read_text() for p in deps)]
     return _hash([*parts, _versions()]), sources
+
+
+def _sources(folder: Path) -> list[Path]:
+    """The Python files of ``folder``, sorted; not an editor's lock or backup (``.#driver.py``)."""
+    return sorted(p for p in folder.glob("*.py") if not p.name.startswith(".") and p.is_file())
 
 
 def kernels_key() -> str:
@@ -133,8 +140,8 @@ def kernels_source(partitioned: bool = False) -> dict[str, str]:
 
 def kernels_compiled(module: ModuleType) -> bool:
     """Whether numba's cache holds the machine code of the kernels' loop (else the first call compiles it)."""
-    cache = Path(module.__file__).parent / "__pycache__"
-    return any(cache.glob("driver.integrate-*.nbi"))
+    source = Path(module.integrate.py_func.__code__.co_filename)  # the copy's file that holds the loop
+    return any((source.parent / "__pycache__").glob(f"{source.stem}.integrate-*.nbi"))
 
 
 def load_kernels(partitioned: bool = False) -> ModuleType:
@@ -409,14 +416,19 @@ def _write_atomic(path: Path, text: str) -> None:
 def _write_package(path: Path, sources: dict[str, str]) -> None:
     """Write the package ``path`` (file name -> text) whole or not at all: written into a
     temporary folder, then renamed (a rename onto a folder another process wrote first fails,
-    and that one is kept: numba's cache is keyed on its files' stamps)."""
+    and that one is kept: numba's cache is keyed on its files' stamps). A temporary folder
+    an hour old is one a killed process left behind, and is removed."""
     path.parent.mkdir(parents=True, exist_ok=True)
+    for left in path.parent.glob(f".{path.name}-*"):
+        with contextlib.suppress(OSError):
+            if time.time() - left.stat().st_mtime > 3600:
+                shutil.rmtree(left)
     tmp = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.name}-"))
     try:
         for name, text in sources.items():
             (tmp / name).write_text(text)
-            os.chmod(tmp / name, 0o644)  # mkstemp's 0600 would keep a shared cache from others
-        os.chmod(tmp, 0o755)
+            os.chmod(tmp / name, 0o644)
+        os.chmod(tmp, 0o755)  # mkdtemp's 0700 would keep a shared cache from others
         try:
             os.rename(tmp, path)
         except OSError:

@@ -106,8 +106,10 @@ def prepare(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSett
 
     args = _arguments(system, y0, settings, max_steps=0)  # builds the model functions
     mod = _kernels_for(system)
+    copy = "minimal's copy of the kernels" if isinstance(system, PartitionedSystem) else "the kernels"
     text = ("loading the compiled kernels" if kernels_compiled(mod) else
-            "compiling the kernels (once per csim installation, and once more for minimal; 1-3 min)")
+            f"compiling {copy} (once per csim installation, 2-5 min on 2 cores; python -m csim.warmup "
+            f"compiles both ahead)")
     with status(text), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         mod.integrate(*args)
 
