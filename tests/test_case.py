@@ -520,3 +520,12 @@ def test_yaml_aliases_within_the_bounds_are_read():
             "c: &c [*b,*b,*b,*b,*b,*b,*b,*b,*b,*b]\nd: [*c,*c,*c,*c,*c,*c,*c,*c,*c,*c]\n")
     data = parse_yaml(text, "f.yaml")
     assert sum(len(a) for c in data["d"] for b in c for a in b) == 10**4 and data["d"][0][0][0] is data["a"]
+
+
+@pytest.mark.parametrize("source, key", [("q", "q_crank"), ("guess", "q_rocker")])
+@pytest.mark.parametrize("value", [HUGE, ".nan"])
+def test_a_linkage_start_value_beyond_the_float_range_is_rejected_not_a_traceback(source, key, value):
+    # found by tests/test_fuzz.py's long profile: float(10**400) raised OverflowError in the assembly's start
+    with pytest.raises(CaseError) as excinfo:
+        load_case(CONFIG.parent / "fourbar_gravity.yaml", [f"initial.{source}.{key}={value}"])
+    assert only_problem(excinfo).startswith(f"initial.{source}.{key}: got ")

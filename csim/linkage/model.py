@@ -395,8 +395,8 @@ def _start(tables: Tables, names: list[str], drive: dict[str, sp.Expr], drive_so
     and the variables it holds fixed: the drives, else ``initial.q``; with ``partial``
     (driven dynamics, which may drive fewer joints than degrees of freedom) the drives and
     the free variables ``initial.q`` names. A value written with a unit (``30 deg``) is
-    converted to its variable's unit (``units``); one that cannot be is left to the case's
-    own check of ``initial``."""
+    converted to its variable's unit (``units``); one that cannot be, and a number that is
+    not finite, is left to the case's own check of ``initial``."""
     start: dict[str, float] = {}
     for source in ("guess", "q"):
         for key, value in (initial.get(source) or {}).items():
@@ -404,7 +404,8 @@ def _start(tables: Tables, names: list[str], drive: dict[str, sp.Expr], drive_so
                 problems.append(f"initial.{source}.{key}: not a joint variable of this mechanism; expected one of "
                                 f"{', '.join(names)}")
             elif isinstance(value, (int, float)) and not isinstance(value, bool):
-                start[key] = float(value)
+                if finite_number(value):  # else (.nan, 10**400) the case's own check of initial names it
+                    start[key] = float(value)
             elif is_quantity(value) and units and key in units:
                 number, _ = convert(value, units[key])
                 if finite_number(number):
