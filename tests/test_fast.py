@@ -365,3 +365,19 @@ def test_the_common_kernels_leave_the_partitioned_path_to_minimals_copy():
     args = _arguments(system, y0, case.integration_settings(), 10)
     with pytest.raises(ValueError, match="WITH_PARTITION"):
         common.integrate(*args)
+
+
+def test_the_loop_refuses_to_run_without_the_address_of_its_right_hand_side():
+    """The loop calls feval through pi[PI_FEVAL] (csim.fast.kernels.calls.call_feval): arguments packed
+    without it are refused with a message, not a jump to address 0."""
+    from csim.fast import module
+    from csim.fast.layout import PI_FEVAL
+    from csim.fast.runner import _arguments
+
+    case, system, y0 = _system("simulation.t_end=0.1")
+    args = list(_arguments(system, y0, case.integration_settings(), 10))
+    pi = args[5]
+    assert pi[PI_FEVAL] == module.feval_address(module.load_kernels()) != 0
+    pi[PI_FEVAL] = 0
+    with pytest.raises(ValueError, match="PI_FEVAL"):
+        module.load_kernels().integrate(*args)

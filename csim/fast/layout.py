@@ -73,8 +73,11 @@ CONSTRAINED, PARTITIONED = 0, 1
 #: drives (csim.solver.driven): how many of the constraint rows, the last ones, are drives
 #: q_j = f_j(t), and where in pi their coordinates j are (each drive's work is a state after the loads')
 PI_ND, PI_DRV = 14, 15
+#: the address of the kernels' right-hand side ``feval``, whose callers call it through this address
+#: (csim.fast.kernels.calls.call_feval) instead of each linking its machine code into theirs
+PI_FEVAL = 16
 #: the addresses of the model functions (MODEL_FUNCTIONS)
-PI_FN = 16
+PI_FN = 17
 #: the workspace offsets (MODEL_TERMS, then SCRATCH)
 PI_W = PI_FN + len(MODEL_FUNCTIONS)
 _W_NAMES = MODEL_TERMS + tuple(name for name, _ in SCRATCH)

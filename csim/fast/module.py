@@ -70,6 +70,8 @@ MODEL_BACKENDS = ("auto", "c", "numba")
 _KERNELS: dict[bool, ModuleType] = {}
 #: the line of the kernels' variant.py that a variant sets (csim.fast.kernels.variant.WITH_PARTITION)
 _VARIANT_LINE = "WITH_PARTITION = True\n"
+#: the loaded kernels -> the address of their feval (feval_address)
+_FEVAL: dict[ModuleType, int] = {}
 #: (id(definition), drives) -> (definition, model): hashing a definition takes milliseconds
 _BY_DEFINITION: dict[tuple, tuple[MechanismDefinition, CompiledModel]] = {}
 _MODELS: dict[str, CompiledModel] = {}
@@ -161,6 +163,22 @@ def load_kernels(partitioned: bool = False) -> ModuleType:
     module = importlib.import_module(f"csim_fast_{_kernels_copy(partitioned).name}")
     _KERNELS[partitioned] = module
     return module
+
+
+def feval_address(kernels: ModuleType) -> int:
+    """The address of the machine code of ``kernels.feval`` (the right-hand side its callers call by
+    address, :func:`csim.fast.kernels.calls.call_feval`), compiled for ``kernels.FEVAL_TYPES`` or loaded
+    from numba's cache on the first call in a process."""
+    if kernels not in _FEVAL:
+        from numba import types
+
+        signature = tuple(kernels.FEVAL_TYPES)
+        kernels.feval.compile(signature)
+        compiled = kernels.feval.overloads[signature]
+        if compiled.signature.return_type != types.int64:  # call_feval reads an int64
+            raise RuntimeError(f"feval returns {compiled.signature.return_type}, the kernels expect int64")
+        _FEVAL[kernels] = compiled.library.get_pointer_to_function(compiled.fndesc.llvm_func_name)
+    return _FEVAL[kernels]
 
 
 def _kernels_copy(partitioned: bool) -> Path:

@@ -14,8 +14,8 @@ from contextlib import contextmanager, suppress
 
 import numpy as np
 
-from csim.fast.layout import CONSTRAINED, PARTITIONED, PI_HEAD, workspace
-from csim.fast.module import Drives, kernels_compiled, load_kernels, load_model, method_dispatch
+from csim.fast.layout import CONSTRAINED, PARTITIONED, PI_FEVAL, PI_HEAD, workspace
+from csim.fast.module import Drives, feval_address, kernels_compiled, load_kernels, load_model, method_dispatch
 from csim.physics.events import chattering_switches
 from csim.physics.status import OK, code_kind
 from csim.solver.driven import DrivenSystem
@@ -32,7 +32,8 @@ def pack_problem(system: ConstrainedSystem) -> tuple[np.ndarray, np.ndarray, np.
 
     pf = [magnitudes (k), sw_value (n_sw), fpar (F), gains (G * r)];
     pi = [mk, n_sw, at(ipar), I, at(fpar), F, at(gains), G * r, m, r, k, o, gamma* address, system kind, d,
-    at(driven), model function addresses, workspace offsets, sw_load (n_sw), sw_kind (n_sw), ipar (I), driven (d)]
+    at(driven), feval's address (0 here: :func:`_arguments` sets it), model function addresses, workspace
+    offsets, sw_load (n_sw), sw_kind (n_sw), ipar (I), driven (d)]
     (:mod:`csim.fast.layout`), where mk is the method's dispatch code and ``at(x)`` where x
     starts in pi or pf. The load laws are :class:`csim.load_laws.LoadSet`'s packing, the method's
     settings :meth:`csim.solver.methods.base.Method.pack`'s. A driven system's (:class:`DrivenSystem`)
@@ -55,7 +56,7 @@ def pack_problem(system: ConstrainedSystem) -> tuple[np.ndarray, np.ndarray, np.
     kind = PARTITIONED if isinstance(system, PartitionedSystem) else CONSTRAINED
     driven = np.zeros(0, np.int64) if drives is None else np.array(drives.driven, np.int64)
     header = [code, n_sw, at_ipar, ipar.size, at_fpar, fpar.size, at_fpar + fpar.size, gains.size, m, r, k, o,
-              gamma_fn, kind, d, at_ipar + ipar.size, *model.addresses, *workspace(m, r, k, n_sw)]
+              gamma_fn, kind, d, at_ipar + ipar.size, 0, *model.addresses, *workspace(m, r, k, n_sw)]
     pf = np.concatenate((loads.magnitudes, loads.sw_value, fpar, gains)).astype(float)
     pi = np.concatenate((header, loads.sw_load, loads.sw_kind, ipar, driven)).astype(np.int64)
     return np.ascontiguousarray(system.par, dtype=float), pf, pi
@@ -71,7 +72,8 @@ def _drives(system: ConstrainedSystem) -> Drives | None:
 
 
 def _arguments(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSettings, max_steps: int) -> tuple:
-    """The arguments of the kernel ``integrate`` (see its docstring)."""
+    """The arguments of the kernel ``integrate`` (see its docstring), for the kernels' copy that runs ``system``
+    (whose ``feval`` is compiled, or loaded from numba's cache, here: the loop calls it by its address)."""
     t_out = output_times(settings.t_end, settings.output_dt)
     locate = settings.events and system.loads.n_switches > 0
     iset = np.array([int(locate), settings.event_samples, settings.max_events, max_steps, settings.chatter_events],
@@ -79,8 +81,10 @@ def _arguments(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationS
     fset = np.array([settings.t_end, settings.rtol, settings.atol, settings.step, settings.max_step,
                      np.nan if settings.first_step is None else settings.first_step, settings.max_phi,
                      settings.min_step], dtype=float)
+    par, pf, pi = pack_problem(system)
+    pi[PI_FEVAL] = feval_address(_kernels_for(system))
     return (INTEGRATOR_CODES[settings.integrator], np.ascontiguousarray(y0, dtype=float), t_out,
-            *pack_problem(system), system.stabilizer.projects, iset, fset, np.zeros(2))
+            par, pf, pi, system.stabilizer.projects, iset, fset, np.zeros(2))
 
 
 def _kernels_for(system: ConstrainedSystem):

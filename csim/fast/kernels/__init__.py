@@ -23,7 +23,7 @@ file, from the bottom up:
 ``common``      the decorators, the integrators' codes, the loop's scalar slots
 ``variant``     whether this copy carries the partitioned system (``WITH_PARTITION``)
 ``tableaus``    the explicit pairs' coefficients (scipy's DOP853, :mod:`csim.physics.tableaus`)
-``calls``       compiled-only: the model functions called by address, the core's model handle
+``calls``       compiled-only: the model functions and ``feval`` called by address, the model handle
 ``system``      the right-hand side at a state, the projection, the partitioned system
 ``control``     step-size control: scipy's first step, the error estimators' orders
 ``dense``       each stepper's dense output and its evaluation
@@ -49,8 +49,11 @@ projection; matrices are flat and row-major, and the core functions get 1-D slic
 
 The files import each other relatively: a copy in the cache is a package of its own.
 """
+from .calls import FEVAL_TYPES
 from .driver import integrate
 from .entries import evaluate_samples, project_entry, rhs_entry, rhs_repeat
+from .system import feval
 from .variant import WITH_PARTITION
 
-__all__ = ["WITH_PARTITION", "evaluate_samples", "integrate", "project_entry", "rhs_entry", "rhs_repeat"]
+__all__ = ["FEVAL_TYPES", "WITH_PARTITION", "evaluate_samples", "feval", "integrate", "project_entry", "rhs_entry",
+           "rhs_repeat"]

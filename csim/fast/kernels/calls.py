@@ -9,6 +9,8 @@ overloaded (ym: a state [q, qd, W] to call the model functions at).
 """
 from llvmlite import ir
 from numba import types
+from numba.core import cgutils
+from numba.core.callconv import excinfo_t
 from numba.extending import intrinsic, overload
 
 from csim.fast.layout import (
@@ -75,6 +77,43 @@ def _call_gamma(typingctx, addr, r, gamma, phi, phi_dot, gains, n_gains, fpar, n
 
     def codegen(context, builder, signature, args):
         return _lower_call(context, builder, signature.args, args)
+    return sig, codegen
+
+
+#: the argument types ``feval`` is compiled for (:func:`csim.fast.module.feval_address`), and its callers call
+#: it with: (t, y, mode, located, par, pf, pi, w, piv, f, info)
+_F8, _I8 = types.Array(types.float64, 1, "C"), types.Array(types.int64, 1, "C")
+FEVAL_TYPES = (types.float64, _F8, types.Array(types.boolean, 1, "C"), types.boolean, _F8, _F8, _I8, _F8, _I8, _F8,
+               _F8)
+
+
+@intrinsic
+def call_feval(typingctx, addr, t, y, mode, located, par, pf, pi, w, piv, f, info):
+    """``feval(t, y, ...)`` called through its address (pi[PI_FEVAL]), with numba's own calling convention.
+
+    numba links the machine code of every function a compiled function calls into it, and
+    optimizes and emits the whole again: each of the dozen functions that evaluate the
+    right-hand side (the steppers' stages, the dense outputs, the first step, Radau's
+    Jacobian) would carry its own copy of the right-hand side's closure, most of the cold
+    compile. Called by address, ``feval`` is compiled once, on its own, for :data:`FEVAL_TYPES`
+    (the arguments must be exactly those: the call is typed only for them). It cannot raise
+    (a status code is its result), so numba's error status is not read.
+    """
+    argtys = (t, y, mode, located, par, pf, pi, w, piv, f, info)
+    if not isinstance(addr, types.Integer) or argtys != FEVAL_TYPES:
+        return None
+    sig = types.int64(addr, *argtys)
+
+    def codegen(context, builder, signature, args):
+        call_conv = context.call_conv
+        fnty = call_conv.get_function_type(types.int64, argtys)
+        fn = builder.inttoptr(args[0], fnty.as_pointer())
+        result = cgutils.alloca_once(builder, call_conv.get_return_type(types.int64).pointee)
+        builder.store(cgutils.get_null_value(result.type.pointee), result)
+        excinfo = cgutils.alloca_once(builder, ir.PointerType(excinfo_t))
+        packed = list(call_conv._get_arg_packer(argtys).as_arguments(builder, args[1:]))
+        builder.call(fn, [result, excinfo, *packed])
+        return context.get_returned_value(builder, types.int64, builder.load(result))
     return sig, codegen
 
 

@@ -7,7 +7,7 @@ from csim.physics.status import OK
 from csim.physics.tableaus import ERROR_ESTIMATOR_ORDER, VERN7_ERROR_ESTIMATOR_ORDER
 
 from .common import DOP853, NFEV, RADAU, VERN7, hot, inlined
-from .system import feval
+from .system import feval_call
 
 SAFETY = 0.9
 MIN_FACTOR = 0.2
@@ -46,7 +46,7 @@ def _initial_step(t, y, f, t_end, rtol, tolv, max_step, first_step, par, pf, pi,
     for i in range(n):
         ytmp[i] = y[i] + h0 * f[i]
     cs[NFEV] += 1
-    status = feval(t + h0, ytmp, rmode, locate, par, pf, pi, w, piv, f1, info)
+    status = feval_call(t + h0, ytmp, rmode, locate, par, pf, pi, w, piv, f1, info)
     if status != OK:
         return status, 0.0
     for i in range(n):

@@ -5,7 +5,7 @@ from csim.physics.status import OK
 from csim.physics.tableaus import VERN7_P
 
 from .common import CONSTANT, DOP853, NFEV, RADAU, RK45, TSIT5, VERN7, hot, inlined
-from .system import feval
+from .system import feval_call
 from .tableaus import DOP_A_EXTRA, DOP_C_EXTRA, DOP_D, DOP_NS, DOP_NX, DOP_POWER, V7_A_EXTRA, V7_C_EXTRA, V7_NS, V7_P
 
 
@@ -82,7 +82,7 @@ def _extra_stages(A, C, first, t_old, h, y_old, mode, locate, par, pf, pi, w, pi
             for jj in range(s):
                 acc += K[jj, i] * A[e, jj]
             ytmp[i] = y_old[i] + acc * h
-        code = feval(t_old + C[e] * h, ytmp, mode, locate, par, pf, pi, w, piv, K[s], info)
+        code = feval_call(t_old + C[e] * h, ytmp, mode, locate, par, pf, pi, w, piv, K[s], info)
         if code != OK:
             return code
     return OK

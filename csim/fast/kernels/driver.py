@@ -4,7 +4,7 @@ checks, events, sampling, restarts and repartitioning (:func:`integrate`).
 import numpy as np
 from numba import njit
 
-from csim.fast.layout import PARTITIONED, PI_NC, PI_ND, PI_NL, PI_NQ, PI_NSW, PI_SYS, W_END
+from csim.fast.layout import PARTITIONED, PI_FEVAL, PI_NC, PI_ND, PI_NL, PI_NQ, PI_NSW, PI_SYS, W_END
 from csim.physics import branch
 from csim.physics.events import check_chatter
 from csim.physics.partition import D_HEAD, partition_sizes
@@ -49,7 +49,7 @@ from .system import (
     _partition_after_step,
     _partition_call,
     _repartition,
-    feval,
+    feval_call,
     full_state,
     mode_at,
     project,
@@ -144,7 +144,7 @@ def _start_segment(method, ts_, y, f, t_end, rtol, atol, max_step, first_step, t
     for i in range(n):
         tolv[i] = atol * scale_w if i >= n - pi[PI_NL] - pi[PI_ND] else atol
     cs[NFEV] += 1
-    status = feval(ts_[T], y, rmode, locate, par, pf, pi, w, piv, f,
+    status = feval_call(ts_[T], y, rmode, locate, par, pf, pi, w, piv, f,
                    info)
     if status != OK:
         return status
@@ -204,7 +204,7 @@ def _after_step(ts_, y, f, f_new, yp, projects, par, pf, pi, rmode, locate, w, p
     for i in range(y.size):
         y[i] = yp[i]
     cs[NFEV] += 1
-    return feval(ts_[T], y, rmode, locate, par, pf, pi, w, piv, f, info), False
+    return feval_call(ts_[T], y, rmode, locate, par, pf, pi, w, piv, f, info), False
 
 
 @hot
@@ -330,6 +330,8 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset, control):
     partitioned = WITH_PARTITION and pi[PI_SYS] == PARTITIONED
     if pi[PI_SYS] == PARTITIONED and not WITH_PARTITION:
         raise ValueError("the partitioned system needs the kernels built with WITH_PARTITION")
+    if pi[PI_FEVAL] == 0:
+        raise ValueError("pi[PI_FEVAL], the address of feval, is not set (csim.fast.runner._arguments sets it)")
     n_free = pi[PI_NQ] - pi[PI_NC] if partitioned else pi[PI_NQ]  # the integrated state: 2 n_free + k
     n, n_sw = 2 * n_free + pi[PI_NL] + pi[PI_ND], pi[PI_NSW]
     w = np.zeros(pi[W_END])

@@ -8,7 +8,7 @@ from csim.physics.status import OK
 from .common import DOP853, H_ABS, HSTEP, NFEV, RK45, TSIT5, VERN7, T, hot, sized, spacing
 from .control import MAX_FACTOR, MIN_FACTOR, SAFETY, _error_order
 from .dense import _dense_weights
-from .system import feval
+from .system import feval_call
 from .tableaus import (
     DOP_A,
     DOP_B,
@@ -67,7 +67,7 @@ def _rk_stages(A, B, C, ns, t, hstep, y, f, K, ytmp, y_new, f_new, par, pf, pi, 
                 acc += K[jj, i] * A[s, jj]
             ytmp[i] = y[i] + acc * hstep
         cs[NFEV] += 1
-        status = feval(t + C[s] * hstep, ytmp, rmode, locate, par, pf, pi, w, piv, K[s], info)
+        status = feval_call(t + C[s] * hstep, ytmp, rmode, locate, par, pf, pi, w, piv, K[s], info)
         if status != OK:
             return status
     for i in range(n):  # y_new = y + h K[:s]^T B
@@ -76,7 +76,7 @@ def _rk_stages(A, B, C, ns, t, hstep, y, f, K, ytmp, y_new, f_new, par, pf, pi, 
             acc += K[jj, i] * B[jj]
         y_new[i] = y[i] + hstep * acc
     cs[NFEV] += 1
-    status = feval(t + hstep, y_new, rmode, locate, par, pf, pi, w, piv, f_new, info)
+    status = feval_call(t + hstep, y_new, rmode, locate, par, pf, pi, w, piv, f_new, info)
     if status != OK:
         return status
     for i in range(n):

@@ -44,7 +44,7 @@ from .common import (
 )
 from .control import MAX_FACTOR, MIN_FACTOR
 from .dense import _dense_weights, dense_eval
-from .system import feval
+from .system import feval_call
 
 # Radau IIA coefficients, scipy's (csim.physics.radau)
 RAD_C = np.ascontiguousarray(coefficients.C)
@@ -86,7 +86,7 @@ def _radau_column(t, yt, j, value, f, fc, par, pf, pi, rmode, locate, w, piv, cs
     non-finite column is no failure (status OK)."""
     yt[j] = value
     cs[NFEV] += 1
-    status = feval(t, yt, rmode, locate, par, pf, pi, w, piv, fc, info)
+    status = feval_call(t, yt, rmode, locate, par, pf, pi, w, piv, fc, info)
     if status == NONFINITE_RHS:
         status = OK
     best, at = -1.0, 0
@@ -184,7 +184,7 @@ def _radau_newton(t, y, h, scale, tol, RM, RLR, RLC, rpiv, rcv, par, pf, pi, rmo
             for i in range(n):
                 yt[i] = y[i] + RM[R_Z + s, i]
             cs[NFEV] += 1
-            status = feval(t + h * RAD_C[s], yt, rmode, locate, par, pf, pi, w, piv, F[s], info)
+            status = feval_call(t + h * RAD_C[s], yt, rmode, locate, par, pf, pi, w, piv, F[s], info)
             if status == NONFINITE_RHS:
                 finite = False
             elif status != OK:
@@ -300,7 +300,7 @@ def _radau_error(t, h, y, f, y_new, tolv, rtol, rejected, RM, RLR, rpiv, par, pf
         for i in range(n):
             RM[R_YT, i] = y[i] + err[i]
         cs[NFEV] += 1
-        status = feval(t, RM[R_YT], rmode, locate, par, pf, pi, w, piv, err, info)
+        status = feval_call(t, RM[R_YT], rmode, locate, par, pf, pi, w, piv, err, info)
         if status != OK and status != NONFINITE_RHS:
             return status, err_norm
         for i in range(n):
@@ -372,7 +372,7 @@ def _radau_step(ts_, t_end, rtol, tolv, max_step, y, f, F, y_old, y_new, f_new, 
     else:
         cs[R_LU_OK] = 0
     cs[NFEV] += 1
-    status = feval(t_new, y_new, rmode, locate, par, pf, pi, w, piv, f_new, info)
+    status = feval_call(t_new, y_new, rmode, locate, par, pf, pi, w, piv, f_new, info)
     if status != OK and status != NONFINITE_RHS:
         return status, t, True
     if recompute_jac:

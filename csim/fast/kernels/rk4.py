@@ -4,7 +4,7 @@ Hermite dense output.
 from csim.physics.status import OK
 
 from .common import HSTEP, NFEV, SEG_START, SEG_STEPS, T, hot
-from .system import feval
+from .system import feval_call
 
 
 @hot
@@ -25,13 +25,13 @@ def _rk4_step(ts_, t_end, fixed_h, y, f, K, ytmp, y_new, f_new, par, pf, pi, rmo
         for i in range(n):
             ytmp[i] = y[i] + (hstep if s == 3 else hstep / 2) * K[s - 1, i]
         cs[NFEV] += 1
-        status = feval(t + c * hstep, ytmp, rmode, locate, par, pf, pi, w, piv, K[s], info)
+        status = feval_call(t + c * hstep, ytmp, rmode, locate, par, pf, pi, w, piv, K[s], info)
         if status != OK:
             return status, t, True
     for i in range(n):
         y_new[i] = y[i] + hstep / 6 * (K[0, i] + 2 * K[1, i] + 2 * K[2, i] + K[3, i])
     cs[NFEV] += 1
-    status = feval(t_new, y_new, rmode, locate, par, pf, pi, w, piv,
+    status = feval_call(t_new, y_new, rmode, locate, par, pf, pi, w, piv,
                    f_new, info)
     if status != OK:
         return status, t, True

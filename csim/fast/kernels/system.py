@@ -7,6 +7,7 @@ import numpy as np
 from csim.fast.layout import (
     PARTITIONED,
     PI_DRV,
+    PI_FEVAL,
     PI_FPAR,
     PI_GAINS,
     PI_HEAD,
@@ -60,7 +61,7 @@ from csim.physics.projection import project as project_state
 from csim.physics.status import NONFINITE_RHS, OK, SINGULAR_KKT
 from csim.physics.steps import all_finite
 
-from .calls import loads_, method_gamma_star, phi_at, terms
+from .calls import call_feval, loads_, method_gamma_star, phi_at, terms
 from .common import hot, inlined, sized
 from .variant import WITH_PARTITION
 
@@ -245,8 +246,11 @@ def rhs(t, y, mode, located, par, pf, pi, w, piv, f):
     return _rhs_sized(t, y, mode, located, par, pf, pi, w, piv, f, nq, nc)
 
 
-# (not inlined by numba: LLVM inlines it where it pays; numba's inlining changed the register
-# allocation of rhs itself and made the RK4 row 15 % slower than before minimal was compiled, measured alternately)
+# Compiled on its own and called through its address (feval_call): numba links the machine code of a
+# callee into each of its callers, and this one has a dozen, each of which then carried the right-hand
+# side's closure (the cold compile 286 s -> 206 s on 2 cores, 2026-11-26, the steps' times unchanged).
+# (Not inlined by numba either: that changed the register allocation of rhs itself and made the RK4 row
+# 15 % slower, measured alternately.)
 @hot
 def feval(t, y, mode, located, par, pf, pi, w, piv, f, info):
     """rhs plus the driver's check of a non-finite result (info = [t, max |y|] then)."""
@@ -260,6 +264,12 @@ def feval(t, y, mode, located, par, pf, pi, w, piv, f, info):
         info[0] = t
         info[1] = max_abs(y)
     return code
+
+
+@inlined
+def feval_call(t, y, mode, located, par, pf, pi, w, piv, f, info):
+    """:func:`feval` called through its address pi[PI_FEVAL] (:func:`.calls.call_feval`): what its callers call."""
+    return call_feval(pi[PI_FEVAL], t, y, mode, located, par, pf, pi, w, piv, f, info)
 
 
 # ---------------------------------------------------------------------------------------
