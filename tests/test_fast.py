@@ -381,3 +381,36 @@ def test_the_loop_refuses_to_run_without_the_address_of_its_right_hand_side():
     pi[PI_FEVAL] = 0
     with pytest.raises(ValueError, match="PI_FEVAL"):
         module.load_kernels().integrate(*args)
+
+
+def test_a_call_by_address_returns_the_result_and_passes_an_exception_on():
+    """csim.fast.kernels.calls.call_feval on a small function of feval's argument types: the result and
+    the outputs come back, and an exception raised behind the address reaches Python (numba's own call
+    passes it on; read as a result, it would have been status 0, OK)."""
+    import types as pytypes
+
+    from numba import njit
+
+    from csim.fast import module
+    from csim.fast.kernels.calls import FEVAL_TYPES, call_feval
+
+    @njit  # compiled by feval_address, for FEVAL_TYPES
+    def target(t, y, mode, located, par, pf, pi, w, piv, f, info):
+        if t < 0:
+            raise ValueError("negative time")
+        f[0] = 2 * t + y[0]
+        return np.int64(7)
+
+    @njit
+    def caller(addr, t, y, mode, located, par, pf, pi, w, piv, f, info):
+        return call_feval(addr, t, y, mode, located, par, pf, pi, w, piv, f, info)
+
+    fake = pytypes.ModuleType("fake_kernels")
+    fake.feval, fake.FEVAL_TYPES = target, FEVAL_TYPES
+    address = module.feval_address(fake)
+    f = np.zeros(1)
+    rest = (np.zeros(1, np.bool_), True, np.zeros(1), np.zeros(1), np.zeros(1, np.int64), np.zeros(1),
+            np.zeros(1, np.int64), f, np.zeros(2))
+    assert caller(address, 1.5, np.array([1.0]), *rest) == 7 and f[0] == 4.0
+    with pytest.raises(ValueError, match="negative time"):
+        caller(address, -1.0, np.array([1.0]), *rest)

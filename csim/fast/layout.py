@@ -74,7 +74,7 @@ CONSTRAINED, PARTITIONED = 0, 1
 #: q_j = f_j(t), and where in pi their coordinates j are (each drive's work is a state after the loads')
 PI_ND, PI_DRV = 14, 15
 #: the address of the kernels' right-hand side ``feval``, whose callers call it through this address
-#: (csim.fast.kernels.calls.call_feval) instead of each linking its machine code into theirs
+#: (csim.fast.kernels.calls.call_feval) instead of each linking its code into theirs
 PI_FEVAL = 16
 #: the addresses of the model functions (MODEL_FUNCTIONS)
 PI_FN = 17

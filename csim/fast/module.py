@@ -141,9 +141,12 @@ def kernels_source(partitioned: bool = False) -> dict[str, str]:
 
 
 def kernels_compiled(module: ModuleType) -> bool:
-    """Whether numba's cache holds the machine code of the kernels' loop (else the first call compiles it)."""
-    source = Path(module.integrate.py_func.__code__.co_filename)  # the copy's file that holds the loop
-    return any((source.parent / "__pycache__").glob(f"{source.stem}.integrate-*.nbi"))
+    """Whether numba's cache holds the machine code of the kernels' loop and of the right-hand side it calls by
+    address (else the first run compiles them)."""
+    def cached(dispatcher) -> bool:  # the copy's file that holds it, and numba's index of it there
+        source = Path(dispatcher.py_func.__code__.co_filename)
+        return any((source.parent / "__pycache__").glob(f"{source.stem}.{dispatcher.__name__}-*.nbi"))
+    return cached(module.integrate) and cached(module.feval)
 
 
 def load_kernels(partitioned: bool = False) -> ModuleType:
@@ -177,7 +180,10 @@ def feval_address(kernels: ModuleType) -> int:
         compiled = kernels.feval.overloads[signature]
         if compiled.signature.return_type != types.int64:  # call_feval reads an int64
             raise RuntimeError(f"feval returns {compiled.signature.return_type}, the kernels expect int64")
-        _FEVAL[kernels] = compiled.library.get_pointer_to_function(compiled.fndesc.llvm_func_name)
+        address = compiled.library.get_pointer_to_function(compiled.fndesc.llvm_func_name)
+        if not address:
+            raise RuntimeError(f"no machine code for {compiled.fndesc.llvm_func_name} in {kernels.__name__}")
+        _FEVAL[kernels] = address
     return _FEVAL[kernels]
 
 

@@ -108,14 +108,14 @@ def prepare(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSett
     """
     from csim.progress import status
 
-    args = _arguments(system, y0, settings, max_steps=0)  # builds the model functions
+    pack_problem(system)  # builds the model functions (with a status line of their own)
     mod = _kernels_for(system)
     copy = "minimal's copy of the kernels" if isinstance(system, PartitionedSystem) else "the kernels"
     text = ("loading the compiled kernels" if kernels_compiled(mod) else
-            f"compiling {copy} (once per csim installation, 2-5 min on 2 cores; python -m csim.warmup "
+            f"compiling {copy} (once per csim installation, 2-4 min on 2 cores; python -m csim.warmup "
             f"compiles both ahead)")
     with status(text), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        mod.integrate(*args)
+        mod.integrate(*_arguments(system, y0, settings, max_steps=0))  # (_arguments compiles feval)
 
 
 #: how often the waiting thread reports progress and lets Python's signal handlers run [s]

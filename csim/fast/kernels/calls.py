@@ -11,6 +11,7 @@ from llvmlite import ir
 from numba import types
 from numba.core import cgutils
 from numba.core.callconv import excinfo_t
+from numba.core.errors import TypingError
 from numba.extending import intrinsic, overload
 
 from csim.fast.layout import (
@@ -91,17 +92,23 @@ FEVAL_TYPES = (types.float64, _F8, types.Array(types.boolean, 1, "C"), types.boo
 def call_feval(typingctx, addr, t, y, mode, located, par, pf, pi, w, piv, f, info):
     """``feval(t, y, ...)`` called through its address (pi[PI_FEVAL]), with numba's own calling convention.
 
-    numba links the machine code of every function a compiled function calls into it, and
+    numba links the LLVM IR of every function a compiled function calls into it, and
     optimizes and emits the whole again: each of the dozen functions that evaluate the
     right-hand side (the steppers' stages, the dense outputs, the first step, Radau's
-    Jacobian) would carry its own copy of the right-hand side's closure, most of the cold
+    Jacobian) carried its own copy of the right-hand side's closure, a third of the cold
     compile. Called by address, ``feval`` is compiled once, on its own, for :data:`FEVAL_TYPES`
-    (the arguments must be exactly those: the call is typed only for them). It cannot raise
-    (a status code is its result), so numba's error status is not read.
+    (the arguments must be exactly those: the call is typed only for them). As numba's own
+    call does, an error status (an exception, which nothing in ``feval`` raises today but
+    ``NUMBA_BOUNDSCHECK=1`` would) is passed on to the caller instead of read as a result.
+    (``_get_arg_packer`` and ``_get_return_status`` are numba's, 0.60 to 0.68.)
     """
     argtys = (t, y, mode, located, par, pf, pi, w, piv, f, info)
-    if not isinstance(addr, types.Integer) or argtys != FEVAL_TYPES:
+    if not isinstance(addr, types.Integer):
         return None
+    for i, (got, want) in enumerate(zip(argtys, FEVAL_TYPES)):
+        if got != want:
+            raise TypingError(f"call_feval: argument {i + 1} is {got}; feval is compiled for {want} "
+                              f"(csim.fast.kernels.calls.FEVAL_TYPES)")
     sig = types.int64(addr, *argtys)
 
     def codegen(context, builder, signature, args):
@@ -112,7 +119,10 @@ def call_feval(typingctx, addr, t, y, mode, located, par, pf, pi, w, piv, f, inf
         builder.store(cgutils.get_null_value(result.type.pointee), result)
         excinfo = cgutils.alloca_once(builder, ir.PointerType(excinfo_t))
         packed = list(call_conv._get_arg_packer(argtys).as_arguments(builder, args[1:]))
-        builder.call(fn, [result, excinfo, *packed])
+        code = builder.call(fn, [result, excinfo, *packed])
+        status = call_conv._get_return_status(builder, code, builder.load(excinfo))
+        with cgutils.if_unlikely(builder, status.is_error):
+            call_conv.return_status_propagate(builder, status)
         return context.get_returned_value(builder, types.int64, builder.load(result))
     return sig, codegen
 

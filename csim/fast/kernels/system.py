@@ -246,7 +246,7 @@ def rhs(t, y, mode, located, par, pf, pi, w, piv, f):
     return _rhs_sized(t, y, mode, located, par, pf, pi, w, piv, f, nq, nc)
 
 
-# Compiled on its own and called through its address (feval_call): numba links the machine code of a
+# Compiled on its own and called through its address (feval_call): numba links the LLVM IR of a
 # callee into each of its callers, and this one has a dozen, each of which then carried the right-hand
 # side's closure (the cold compile 286 s -> 206 s on 2 cores, 2026-11-26, the steps' times unchanged).
 # (Not inlined by numba either: that changed the register allocation of rhs itself and made the RK4 row
