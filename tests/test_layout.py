@@ -100,3 +100,29 @@ def test_the_check_finds_a_cycle_hidden_in_a_function(tmp_path):
 def test_the_core_imports_only_itself_and_the_leaves():
     """csim.physics, the numba-able core both backends run, imports no other csim package."""
     assert not set(import_graph()["physics"]) - {"errors"}, dict(import_graph()["physics"])
+
+
+#: the longest a function of csim may be, in lines (docstring included): issue 22's rule
+MAX_FUNCTION_LINES = 100
+
+
+def long_functions(root: Path = CSIM, limit: int = MAX_FUNCTION_LINES) -> list[str]:
+    """``file:line name (lines)`` of every function of ``root`` longer than ``limit`` lines."""
+    found = []
+    for path in sorted(root.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+                lines = node.end_lineno - node.lineno + 1
+                if lines > limit:
+                    found.append(f"{path.relative_to(root.parent)}:{node.lineno} {node.name} ({lines})")
+    return found
+
+
+def test_no_function_is_over_a_hundred_lines():
+    assert long_functions() == []
+
+
+def test_the_length_check_finds_a_long_function(tmp_path):
+    body = "".join(f"    x{i} = {i}\n" for i in range(MAX_FUNCTION_LINES))
+    (tmp_path / "m.py").write_text(f"def long():\n{body}\n\ndef short():\n    pass\n")
+    assert long_functions(tmp_path) == [f"{tmp_path.name}/m.py:1 long ({MAX_FUNCTION_LINES + 1})"]

@@ -314,14 +314,12 @@ def _count_step(method, ok, t_new, max_steps, ts_, cs, info):
 def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset, control):
     """Integrate from t = 0, state y0 (n,), sampling at t_out (csim.solver.simulate.integrate).
 
-    The problem arrays are the module docstring's; ``projects``: project after every step;
-    ``iset`` = [locate, event_samples, max_events, max_steps, chatter_events]; ``fset`` = [t_end, rtol, atol,
-    step, max_step, first_step (NaN: automatic), max_phi, min_step]; ``control`` (2,), shared
-    with the caller, which runs this without the GIL in a thread: every POLL_STEPS steps the
-    time reached goes to control[1], and a nonzero control[0] (Ctrl-C) ends the run with
-    status INTERRUPTED and the samples so far. Returns (n_rec, ts, ys, modes, n_ev, ev_t,
-    ev_switched, nfev, nsteps, status, info (2,), njev, nlu).
-    """
+    The problem arrays as in the package docstring; ``projects``: project after every step; ``iset`` = [locate,
+    event_samples, max_events, max_steps, chatter_events]; ``fset`` = [t_end, rtol, atol, step, max_step,
+    first_step (NaN: automatic), max_phi, min_step]; ``control`` (2,), shared with the calling thread (this
+    runs without the GIL): every POLL_STEPS steps control[1] = the time reached, and a nonzero control[0]
+    (Ctrl-C) ends the run, INTERRUPTED with the samples so far. Returns (n_rec, ts, ys, modes, n_ev, ev_t,
+    ev_switched, nfev, nsteps, status, info (2,), njev, nlu)."""
     locate, n_interior, max_events, max_steps, n_chatter = iset[0] != 0, iset[1], iset[2], iset[3], iset[4]
     t_end, rtol, atol, fixed_h, max_step, first_step, max_phi, min_step = fset[0], fset[1], fset[2], fset[3], \
         fset[4], fset[5], fset[6], fset[7]
