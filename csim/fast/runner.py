@@ -108,7 +108,7 @@ def prepare(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSett
     """
     from csim.progress import status
 
-    pack_problem(system)  # builds the model functions (with a status line of their own)
+    load_model(system.model.definition, _drives(system))  # built first, with a status line of their own
     mod = _kernels_for(system)
     copy = "minimal's copy of the kernels" if isinstance(system, PartitionedSystem) else "the kernels"
     text = ("loading the compiled kernels" if kernels_compiled(mod) else
