@@ -271,9 +271,10 @@ SCHEMA = Section({
                          "unit of Phi", gt=0.0),
         "min_step": Field("number", 1e-10, "fail when an adaptive integrator accepts a shorter step "
                           "(step-size collapse)", "s", gt=0.0),
-        "backend": Field("string", "auto", "compiled (numba kernels), python (the reference path) or auto "
-                         "(compiled where supported, python otherwise); see csim.fast.support",
-                         choices=("auto", "python", "compiled")),
+        "backend": Field("string", "auto", "compiled (numba kernels), interpreted (the kernels' source run by "
+                         "Python: the same steps, no numba), python (the reference path) or auto (compiled where "
+                         "supported, python otherwise); see csim.fast.support",
+                         choices=("auto", "python", "compiled", "interpreted")),
     }),
     "output": Section({
         "dt": Field("number", 0.01, "output sampling interval", "s", gt=0.0),
@@ -850,11 +851,12 @@ def _validate_combination(case: Case, problems):
         from csim.solver.driven import driven_problems
 
         problems += driven_problems(case)
-    if case.simulation.backend == "compiled" and integrator is not None:  # an unknown integrator: reported
+    backend = case.simulation.backend
+    if backend in ("compiled", "interpreted") and integrator is not None:  # an unknown integrator: reported
         from csim.fast.support import unsupported
 
         for reason in unsupported(case):
-            problems.append(f"simulation.backend: got 'compiled' (string) with {reason}; or set "
+            problems.append(f"simulation.backend: got {backend!r} (string) with {reason}; or set "
                             f"simulation.backend to 'python' or 'auto'")
     if method == "projection" and integrator == "LSODA":
         problems.append("stabilization.method: got 'projection' (string) with simulation.integrator 'LSODA'; "

@@ -11,7 +11,7 @@ import numpy as np
 
 from csim.case import Case
 from csim.errors import SimulationFailure
-from csim.fast import integrate_compiled, prepare_compiled, resolve_backend
+from csim.fast import KERNEL_BACKENDS, integrate_compiled, prepare_compiled, resolve_backend
 from csim.io.outputs import EVALUATED
 from csim.io.units import mechanism_units
 from csim.model.cache import definition_key
@@ -127,8 +127,8 @@ def run_case(case: Case, progress: Callable[[float], None] | None = None) -> Res
                                failure="backend")
             return assemble_result(case, system, empty, 0.0, backend="compiled")
         start = time.perf_counter()  # loading (on a cold cache: compiling) the kernels is not the run's time
-    if backend == "compiled":  # numba kernels, entered once per run (csim.fast)
-        trajectory = integrate_compiled(system, y0, settings, progress=progress)
+    if backend in KERNEL_BACKENDS:  # numba kernels entered once per run, or their source run by Python (csim.fast)
+        trajectory = integrate_compiled(system, y0, settings, progress=progress, interpreted=backend == "interpreted")
         if progress is not None:
             progress(trajectory.t[-1] if trajectory.t.size else 0.0)
     else:
@@ -144,11 +144,10 @@ def run_case(case: Case, progress: Callable[[float], None] | None = None) -> Res
         linkage_outputs(case, system, trajectory, result)
     record_integrity(case, system, result)
     result.kernel_load_time = load_time
-    if backend == "python" and case.simulation.backend == "auto":  # why auto fell back (run summary)
-        from csim.fast.support import numba_available, unsupported
+    if backend != case.simulation.backend:  # why auto (or compiled) ran on another backend (run summary)
+        from csim.fast.support import why_not_compiled
 
-        result.backend_reason = why or "; ".join(unsupported(case)) or (
-            "" if numba_available() else "numba is not installed")
+        result.backend_reason = why or why_not_compiled(case, backend)
     return result
 
 
@@ -277,10 +276,10 @@ def _sample_values(system: ConstrainedSystem, traj: Trajectory, backend: str,
     arrays = {name: np.full((N, *columns[out.columns]), np.nan) for name, out in EVALUATED.items()}
     arrays.update(observables=np.full((N, o), np.nan), observable_rates=np.full((N, o), np.nan))
     drive_forces = None
-    if backend == "compiled" and N:
+    if backend in KERNEL_BACKENDS and N:
         from csim.fast.runner import evaluate_compiled
 
-        values = evaluate_compiled(system, traj.t, traj.y, traj.mode)
+        values = evaluate_compiled(system, traj.t, traj.y, traj.mode, interpreted=backend == "interpreted")
         for name, a in arrays.items():
             a[:] = values[name]
         todo = np.flatnonzero(~values["ok"])

@@ -122,8 +122,9 @@ class Result:
     wall_time : float [s], integration and post-processing
     nfev, njev, nlu, nsteps : int
     event_times : (E,) [s]; event_labels : list of str
-    backend : {"python", "compiled"}
-        What integrated the run: the Python driver or the compiled kernels (``csim.fast``).
+    backend : {"python", "compiled", "interpreted"}
+        What integrated the run: the Python driver, the compiled kernels (``csim.fast``) or their source run
+        by Python.
     kernel_load_time : float [s]
         Time to load the compiled kernels before the run (on a cold cache: to generate and
         compile them); not part of ``wall_time``.
@@ -358,7 +359,7 @@ class Result:
         items.append(("events", f"{len(self.event_times)}"))
         items.append(("wall time", f"{self.wall_time:.3f} s ({self.backend} backend)"))
         if self.backend_reason:
-            items.append(("python backend", f"not compiled because {self.backend_reason}"))
+            items.append((f"{self.backend} backend", f"not compiled because {self.backend_reason}"))
         if self.backend == "compiled" and self.kernel_load_time > COMPILE_NOTICE:
             items.append(("compilation", f"{self.kernel_load_time:.1f} s before the run (the first run of this "
                                          f"mechanism, or of this csim installation: the kernels are compiled once; "

@@ -168,7 +168,7 @@ def test_parse_reads_shorthands_ranges_and_lists(pendulum):
     ({"max_phi": {"maximum": 1}}, "e.max_phi: got {'maximum': 1} (mapping); expected a number"),
     ({"events": 2.5}, "e.events: got 2.5 (number); expected an integer >= 0 (the exact count)"),
     ({"status": "ok"}, "e.status: got 'ok' (string); expected one of success, failed"),
-    ({"backend": "numba"}, "e.backend: got 'numba' (string); expected one of compiled, python"),
+    ({"backend": "numba"}, "e.backend: got 'numba' (string); expected one of compiled, interpreted, python"),
     ({"value": {"name": "q1", "t": 1, "expected": 0, "tol": 1}},
      "e.value.name: got 'q1' (string); expected a coordinate or observable of pendulum: x, y"),
     ({"value": {"name": "x", "t": 3, "expected": 0, "tol": 1}}, "e.value.t: got 3 (integer); expected a time in s "

@@ -131,7 +131,7 @@ def test_ctrl_c_inside_compiled_code_is_an_interrupt_not_a_crash(tmp_path, monke
     """numba hands a KeyboardInterrupt raised during a kernel back as SystemError."""
     out = tmp_path / "compiled.h5"
 
-    def kernel(system, y0, settings, progress=None):
+    def kernel(system, y0, settings, progress=None, interpreted=False):
         try:
             ctrl_c()
         except KeyboardInterrupt as exc:

@@ -5,6 +5,7 @@ every later one reuses them.
 """
 from __future__ import annotations
 
+import importlib
 import re
 import sys
 from pathlib import Path
@@ -346,10 +347,13 @@ def test_the_common_kernels_leave_the_partitioned_path_to_minimals_copy():
     """Two copies of one source (csim.fast.module): minimal's carries the partitioned system, the
     other one has it pruned and refuses a partitioned problem rather than integrate it wrongly."""
     from csim.fast import module
-    from csim.fast.runner import _arguments
+    from csim.fast.runner import _arguments, _kernels_for
 
     plain, partitioned = module.kernels_source(), module.kernels_source(partitioned=True)
     assert "WITH_PARTITION = False\n" in plain["variant.py"] and "WITH_PARTITION = True\n" in partitioned["variant.py"]
+    # both copies are compiled; the package's own source is the interpreted backend (csim.fast.kernels.interpreted)
+    assert all("COMPILED = True\n" in copy["variant.py"] for copy in (plain, partitioned))
+    assert importlib.import_module("csim.fast.kernels").COMPILED is False
     assert {name for name in plain if plain[name] != partitioned[name]} == {"variant.py"}
     assert module.kernels_path() != module.kernels_path(partitioned=True)
     common = module.load_kernels()
@@ -358,11 +362,12 @@ def test_the_common_kernels_leave_the_partitioned_path_to_minimals_copy():
     # compile the partitioned path into the plain copy): relative imports only
     for copy, flag in ((common, False), (module.load_kernels(partitioned=True), True)):
         files = {name: mod for name, mod in sys.modules.items() if name.startswith(copy.__name__ + ".")}
-        assert len(files) == len(plain) - 1, sorted(files)  # every file but __init__.py, imported
+        # every file but __init__.py, imported; the interpreted package's calls are not
+        assert len(files) == len(plain) - 2 and copy.__name__ + ".interpreted" not in files, sorted(files)
         assert {name for name, mod in files.items() if getattr(mod, "WITH_PARTITION", flag) is not flag} == set()
     assert not [name for name, text in plain.items() if re.search(r"^\s*(from|import) csim\.fast\.kernels", text, re.M)]
     case, system, y0 = _system("stabilization.method=minimal", "simulation.t_end=0.1")
-    args = _arguments(system, y0, case.integration_settings(), 10)
+    args = _arguments(system, y0, case.integration_settings(), 10, _kernels_for(system))
     with pytest.raises(ValueError, match="WITH_PARTITION"):
         common.integrate(*args)
 
@@ -375,7 +380,7 @@ def test_the_loop_refuses_to_run_without_the_address_of_its_right_hand_side():
     from csim.fast.runner import _arguments
 
     case, system, y0 = _system("simulation.t_end=0.1")
-    args = list(_arguments(system, y0, case.integration_settings(), 10))
+    args = list(_arguments(system, y0, case.integration_settings(), 10, module.load_kernels()))
     pi = args[5]
     assert pi[PI_FEVAL] == module.feval_address(module.load_kernels()) != 0
     pi[PI_FEVAL] = 0
@@ -392,7 +397,7 @@ def test_a_call_by_address_returns_the_result_and_passes_an_exception_on():
     from numba import njit
 
     from csim.fast import module
-    from csim.fast.kernels.calls import FEVAL_TYPES, call_feval
+    from csim.fast.kernels.addresses import FEVAL_TYPES, call_feval
 
     @njit  # compiled by feval_address, for FEVAL_TYPES
     def target(t, y, mode, located, par, pf, pi, w, piv, f, info):
@@ -406,7 +411,7 @@ def test_a_call_by_address_returns_the_result_and_passes_an_exception_on():
         return call_feval(addr, t, y, mode, located, par, pf, pi, w, piv, f, info)
 
     fake = pytypes.ModuleType("fake_kernels")
-    fake.feval, fake.FEVAL_TYPES = target, FEVAL_TYPES
+    fake.feval, fake.FEVAL_TYPES, fake.COMPILED = target, FEVAL_TYPES, True
     address = module.feval_address(fake)
     f = np.zeros(1)
     rest = (np.zeros(1, np.bool_), True, np.zeros(1), np.zeros(1), np.zeros(1, np.int64), np.zeros(1),

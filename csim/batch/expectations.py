@@ -48,8 +48,8 @@ if TYPE_CHECKING:
 
 #: the two statuses of a run
 STATUSES = ("success", "failed")
-#: the two backends that integrate a run
-BACKENDS = ("compiled", "python")
+#: the backends that integrate a run
+BACKENDS = ("compiled", "interpreted", "python")
 #: how close t must lie to an output time [s, relative to max(1, |t|)] to take that sample
 SAMPLE_MATCH = 1e-9
 

@@ -187,7 +187,7 @@ def schedule(runs: list[CaseRun]) -> list[CaseRun]:
     first, python, rest, seen = [], [], [], set()
     for run in runs:
         case = run.entry.case
-        if case.kinematic or resolve_backend(case) == "python":
+        if case.kinematic or resolve_backend(case) != "compiled":
             python.append(run)
             continue
         key = definition_key(case.mechanism)

@@ -4,21 +4,21 @@
 
 ``support``  which cases it runs (no numba import)
 ``codegen``  njit model functions generated from the symbolic derivation
-``kernels``  KKT right-hand side, stabilizers, projection, DOP853/RK4 loops with events
+``kernels``  the loop, steppers and event location, compiled (a copy in the cache) or interpreted
 ``module``   generated module: cache on disk, load
 ``runner``   pack a system into arrays, call the loop, build the Trajectory
 """
-from csim.fast.support import BACKENDS, resolve_backend, unsupported
+from csim.fast.support import BACKENDS, KERNEL_BACKENDS, resolve_backend, unsupported
 
-__all__ = ["BACKENDS", "integrate_compiled", "prepare_compiled", "resolve_backend", "unsupported"]
+__all__ = ["BACKENDS", "KERNEL_BACKENDS", "integrate_compiled", "prepare_compiled", "resolve_backend", "unsupported"]
 
 
-def integrate_compiled(system, y0, settings, progress=None):
-    """:func:`csim.solver.simulate.integrate` in compiled code (imports numba on first use);
-    ``progress(t)`` gets the time reached while it runs."""
+def integrate_compiled(system, y0, settings, progress=None, interpreted: bool = False):
+    """:func:`csim.solver.simulate.integrate` in compiled code (imports numba on first use), or with
+    ``interpreted`` the same source run by Python; ``progress(t)`` gets the time reached while it runs."""
     from csim.fast.runner import integrate_compiled as run
 
-    return run(system, y0, settings, progress=progress)
+    return run(system, y0, settings, progress=progress, interpreted=interpreted)
 
 
 def prepare_compiled(system, y0, settings):

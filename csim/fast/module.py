@@ -45,7 +45,7 @@ import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import ModuleType
+from types import ModuleType, SimpleNamespace
 
 import numpy as np
 
@@ -63,13 +63,14 @@ KERNELS = HERE / "kernels"
 VARIANT_FILE = "variant.py"
 PHYSICS = HERE.parent / "physics"
 METHODS = HERE.parent / "solver" / "methods"
-#: model backends (CSIM_MODEL_BACKEND)
-MODEL_BACKENDS = ("auto", "c", "numba")
+#: model backends (CSIM_MODEL_BACKEND; python: the cfunc source run by Python, for the interpreted kernels only)
+MODEL_BACKENDS = ("auto", "c", "numba", "python")
 
 #: the loaded kernels, by variant (True: with the partitioned system)
 _KERNELS: dict[bool, ModuleType] = {}
-#: the line of the kernels' variant.py that a variant sets (csim.fast.kernels.variant.WITH_PARTITION)
+#: the lines of the kernels' variant.py that a copy sets (csim.fast.kernels.variant)
 _VARIANT_LINE = "WITH_PARTITION = True\n"
+_COMPILED_LINE = "COMPILED = False\n"
 #: the loaded kernels -> the address of their feval (feval_address)
 _FEVAL: dict[ModuleType, int] = {}
 #: (id(definition), drives) -> (definition, model): hashing a definition takes milliseconds
@@ -128,15 +129,18 @@ def kernels_path(partitioned: bool = False) -> Path:
 
 
 def kernels_source(partitioned: bool = False) -> dict[str, str]:
-    """The kernels' files for a variant (name -> text): as written for the partitioned system
-    (``minimal``), and with ``WITH_PARTITION = False`` in ``variant.py`` for every other method
-    (numba then prunes those branches)."""
+    """The files of a compiled copy of the kernels (name -> text): ``variant.py`` with ``COMPILED = True``,
+    and for every method but ``minimal`` (not ``partitioned``) ``WITH_PARTITION = False`` (numba then prunes
+    those branches)."""
     sources = dict(_kernels_snapshot()[1])
     variant = sources[VARIANT_FILE]
-    if variant.count(_VARIANT_LINE) != 1:
-        raise RuntimeError(f"{KERNELS / VARIANT_FILE} must set WITH_PARTITION = True on one line of its own")
+    for line in (_VARIANT_LINE, _COMPILED_LINE):
+        if variant.count(line) != 1:
+            raise RuntimeError(f"{KERNELS / VARIANT_FILE} must set {line.strip()} on one line of its own")
+    variant = variant.replace(_COMPILED_LINE, "COMPILED = True\n")
     if not partitioned:
-        sources[VARIANT_FILE] = variant.replace(_VARIANT_LINE, "WITH_PARTITION = False\n")
+        variant = variant.replace(_VARIANT_LINE, "WITH_PARTITION = False\n")
+    sources[VARIANT_FILE] = variant
     return sources
 
 
@@ -149,7 +153,7 @@ def kernels_compiled(module: ModuleType) -> bool:
     return cached(module.integrate) and cached(module.feval)
 
 
-def load_kernels(partitioned: bool = False) -> ModuleType:
+def load_kernels(partitioned: bool = False, compiled: bool = True) -> ModuleType:
     """The kernels package (imported once per process; compiled on first use once per installation).
 
     Parameters
@@ -157,7 +161,12 @@ def load_kernels(partitioned: bool = False) -> ModuleType:
     partitioned : bool
         The variant with the partitioned system (:class:`csim.solver.partitioned.PartitionedSystem`,
         ``minimal``); the other one, for every other method, neither compiles nor runs that path.
+    compiled : bool
+        False: the package's own source, run by Python (the interpreted backend, one package for
+        every method; numba is not imported).
     """
+    if not compiled:
+        return importlib.import_module("csim.fast.kernels")
     if partitioned in _KERNELS:
         return _KERNELS[partitioned]
     if _KernelsFinder not in sys.meta_path:
@@ -172,6 +181,8 @@ def feval_address(kernels: ModuleType) -> int:
     """The address of the machine code of ``kernels.feval`` (the right-hand side its callers call by
     address, :func:`csim.fast.kernels.calls.call_feval`), compiled for ``kernels.FEVAL_TYPES`` or loaded
     from numba's cache on the first call in a process."""
+    if not kernels.COMPILED:  # the interpreted package calls its feval from Python: an id stands for the address
+        return id(kernels.feval)
     if kernels not in _FEVAL:
         from numba import types
 
@@ -231,15 +242,21 @@ def _py(fn):
     return getattr(fn, "py_func", fn)
 
 
-def method_dispatch(method) -> tuple[int, int]:
+def method_dispatch(method, interpreted: bool = False) -> tuple[int, int]:
     """(code, address) of a method's gamma* for the kernels: code 0 is gamma* = gamma, 1.. the
-    kernels' built-in dispatch, EXTERNAL a cfunc at ``address``."""
+    kernels' built-in dispatch, EXTERNAL a cfunc at ``address`` (for the interpreted kernels, the
+    key of its Python kernel in :data:`csim.fast.kernels.interpreted.PYTHON_FUNCTIONS`)."""
     fn = type(method).gamma_star_kernel
     if fn is None:
         return 0, 0
     for code, builtin in enumerate(BUILTIN_GAMMA, start=1):
         if _py(builtin) is _py(fn):
             return code, 0
+    if interpreted:
+        from csim.fast.kernels.interpreted import PYTHON_FUNCTIONS
+
+        PYTHON_FUNCTIONS[id(_py(fn))] = _py(fn)
+        return EXTERNAL, id(_py(fn))
     if fn not in _GAMMA_CFUNCS:
         _GAMMA_CFUNCS[fn] = _gamma_cfunc(fn)
     return EXTERNAL, _GAMMA_CFUNCS[fn].address
@@ -273,7 +290,7 @@ class CompiledModel:
     """A mechanism's model functions, loaded: their addresses in the order of MODEL_FUNCTIONS."""
 
     name: str
-    #: "c" (the system's C compiler) or "numba" (cfuncs)
+    #: "c" (the system's C compiler), "numba" (cfuncs) or "python" (the cfunc source run by Python)
     backend: str
     #: (m, r, k, o)
     dims: tuple[int, int, int, int]
@@ -367,13 +384,7 @@ def _load_c(definition, key: str, derived: _Derived) -> CompiledModel:
 
 
 def _load_numba(definition, key: str, derived: _Derived, reason: str) -> CompiledModel:
-    path = cache_dir() / "fast" / f"{definition.name}_{key}_cfunc.py"
-    if not path.is_file():
-        path = _writable(path)
-    if not path.is_file():
-        from csim.fast.codegen import cfunc_source
-
-        _write_atomic(path, cfunc_source(derived.get()))
+    path = _cfunc_source_path(definition, key, derived)
     from csim.progress import status
 
     name = f"csim_model_{path.stem}"
@@ -387,29 +398,85 @@ def _load_numba(definition, key: str, derived: _Derived, reason: str) -> Compile
                          reason)
 
 
-def load_model(definition: MechanismDefinition, drives: Drives | None = None) -> CompiledModel:
+def load_model(definition: MechanismDefinition, drives: Drives | None = None,
+               interpreted: bool = False) -> CompiledModel:
     """The model functions of ``definition``, with the rows of ``drives`` if given (generated and
-    built on the first call for this key)."""
-    known = _BY_DEFINITION.get((id(definition), drives))
+    built on the first call for this key).
+
+    C where a C compiler works, else numba cfuncs (``CSIM_MODEL_BACKEND`` chooses). For the
+    interpreted kernels (``interpreted``), where numba is not to be used (``CSIM_PURE_PYTHON=1``,
+    or not installed), the cfunc source run as Python instead; the compiled kernels refuse those.
+    """
+    backend = model_backend()
+    if backend == "python" and not interpreted:
+        raise ValueError("CSIM_MODEL_BACKEND=python: the compiled kernels call machine code; python is for "
+                         "simulation.backend 'interpreted' only")
+    memo_key = (id(definition), drives, interpreted, backend)
+    known = _BY_DEFINITION.get(memo_key)
     if known is not None and known[0] is definition:
         return known[1]
     key = model_key(definition, drives)
-    backend = model_backend()
-    memo = f"{key}:{backend}"
+    # (the Python functions stand in for numba's cfuncs, where the interpreted kernels may not use numba)
+    python_ok = backend == "python" or (interpreted and backend == "auto" and not _numba_usable())
+    memo = f"{key}:{backend}:{python_ok}"
     if memo not in _MODELS:
         derived = _Derived(definition, drives)
-        reason = "CSIM_MODEL_BACKEND=numba"
+        reason = f"CSIM_MODEL_BACKEND={backend}"
         model = None
-        if backend != "numba":
+        if backend in ("auto", "c"):
             try:
                 model = _load_c(definition, key, derived)
             except Exception as exc:
                 if backend == "c":
                     raise
                 reason = f"{type(exc).__name__}: {exc}"
+        if model is None and python_ok:
+            model = _load_python(definition, key, derived, reason)
         _MODELS[memo] = model or _load_numba(definition, key, derived, reason)
-    _BY_DEFINITION[(id(definition), drives)] = (definition, _MODELS[memo])
+    _BY_DEFINITION[memo_key] = (definition, _MODELS[memo])
     return _MODELS[memo]
+
+
+def _numba_usable() -> bool:
+    """Whether numba may be used here: installed, and not ruled out by ``CSIM_PURE_PYTHON=1``."""
+    from csim.physics.jit import pure_python
+
+    return not pure_python() and importlib.util.find_spec("numba") is not None
+
+
+def _cfunc_source_path(definition, key: str, derived: _Derived) -> Path:
+    """The mechanism's cfunc module in the cache (:func:`csim.fast.codegen.cfunc_source`), written if missing."""
+    path = cache_dir() / "fast" / f"{definition.name}_{key}_cfunc.py"
+    if not path.is_file():
+        path = _writable(path)
+    if not path.is_file():
+        from csim.fast.codegen import cfunc_source
+
+        _write_atomic(path, cfunc_source(derived.get()))
+    return path
+
+
+#: the names the cfunc source takes from numba, as no-ops: run as Python, its functions are plain functions
+_NO_NUMBA = {"cfunc": lambda *args, **kwargs: (lambda fn: fn),
+             "types": SimpleNamespace(CPointer=lambda dtype: None, float64=None, void=lambda *args: None)}
+_NUMBA_IMPORT = "from numba import cfunc, types\n"
+
+
+def _load_python(definition, key: str, derived: _Derived, reason: str) -> CompiledModel:
+    """The model functions as Python functions of the cfunc source, registered for the interpreted kernels
+    (:data:`csim.fast.kernels.interpreted.PYTHON_FUNCTIONS`) under their ids, which stand for their addresses."""
+    from csim.fast.kernels.interpreted import PYTHON_FUNCTIONS
+
+    text = _cfunc_source_path(definition, key, derived).read_text()
+    if text.count(_NUMBA_IMPORT) != 1:
+        raise RuntimeError(f"the cfunc source of {definition.name!r} does not import numba as expected")
+    namespace = dict(_NO_NUMBA, __name__=f"csim_model_{definition.name}_{key}_python")
+    exec(compile(text.replace(_NUMBA_IMPORT, ""), f"<model functions of {definition.name}>", "exec"), namespace)
+    functions = [namespace[fn] for fn in MODEL_FUNCTIONS]
+    for fn in functions:
+        PYTHON_FUNCTIONS[id(fn)] = fn
+    return CompiledModel(definition.name, "python", tuple(namespace["DIMS"]),
+                         np.array([id(fn) for fn in functions], dtype=np.int64), functions, reason)
 
 
 def load_module(definition: MechanismDefinition) -> ModuleType:

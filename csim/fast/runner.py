@@ -10,13 +10,14 @@ from __future__ import annotations
 import signal
 import threading
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager, suppress
+from contextlib import contextmanager, nullcontext, suppress
 
 import numpy as np
 
 from csim.fast.layout import CONSTRAINED, PARTITIONED, PI_FEVAL, PI_HEAD, workspace
 from csim.fast.module import Drives, feval_address, kernels_compiled, load_kernels, load_model, method_dispatch
 from csim.physics.events import chattering_switches
+from csim.physics.jit import plain
 from csim.physics.status import OK, code_kind
 from csim.solver.driven import DrivenSystem
 from csim.solver.failures import failure_message
@@ -27,8 +28,9 @@ from csim.solver.system import ConstrainedSystem
 INTEGRATOR_CODES = {"DOP853": 0, "RK4": 1, "Radau": 3, "RK45": 4, "Tsit5": 5, "Vern7": 6}
 
 
-def pack_problem(system: ConstrainedSystem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(par, pf, pi)``: the problem as the flat arrays of :mod:`csim.fast.kernels`.
+def pack_problem(system: ConstrainedSystem, interpreted: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(par, pf, pi)``: the problem as the flat arrays of :mod:`csim.fast.kernels` (``interpreted``: for the
+    interpreted kernels, whose model functions and gamma* may be Python functions).
 
     pf = [magnitudes (k), sw_value (n_sw), fpar (F), gains (G * r)];
     pi = [mk, n_sw, at(ipar), I, at(fpar), F, at(gains), G * r, m, r, k, o, gamma* address, system kind, d,
@@ -44,7 +46,7 @@ def pack_problem(system: ConstrainedSystem) -> tuple[np.ndarray, np.ndarray, np.
     loads, method = system.loads, system.stabilizer
     drives = _drives(system)
     d = 0 if drives is None else len(drives.driven)
-    model = load_model(system.model.definition, drives)
+    model = load_model(system.model.definition, drives, interpreted)
     m, r, k, o = model.dims
     if (m, r, k) != (system.m, system.r + d, loads.magnitudes.size):
         raise RuntimeError(f"the compiled model of {model.name!r} has sizes {(m, r, k)}, the system "
@@ -52,7 +54,7 @@ def pack_problem(system: ConstrainedSystem) -> tuple[np.ndarray, np.ndarray, np.
     gains, fpar, ipar = method.pack(system.r + d)  # the drive rows are stabilized too
     n_sw = loads.n_switches
     at_ipar, at_fpar = PI_HEAD + 2 * n_sw, k + n_sw
-    code, gamma_fn = method_dispatch(method)
+    code, gamma_fn = method_dispatch(method, interpreted)
     kind = PARTITIONED if isinstance(system, PartitionedSystem) else CONSTRAINED
     driven = np.zeros(0, np.int64) if drives is None else np.array(drives.driven, np.int64)
     header = [code, n_sw, at_ipar, ipar.size, at_fpar, fpar.size, at_fpar + fpar.size, gains.size, m, r, k, o,
@@ -71,9 +73,11 @@ def _drives(system: ConstrainedSystem) -> Drives | None:
     return Drives(tuple(int(j) for j in system.driven), tuple(system.expressions))
 
 
-def _arguments(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSettings, max_steps: int) -> tuple:
-    """The arguments of the kernel ``integrate`` (see its docstring), for the kernels' copy that runs ``system``
-    (whose ``feval`` is compiled, or loaded from numba's cache, here: the loop calls it by its address)."""
+def _arguments(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSettings, max_steps: int,
+               kernels) -> tuple:
+    """The arguments of the kernel ``integrate`` (see its docstring) in ``kernels``, the copy that runs ``system``
+    (whose ``feval`` is compiled, or loaded from numba's cache, here: the loop calls it by its address), or the
+    interpreted package."""
     t_out = output_times(settings.t_end, settings.output_dt)
     locate = settings.events and system.loads.n_switches > 0
     iset = np.array([int(locate), settings.event_samples, settings.max_events, max_steps, settings.chatter_events],
@@ -81,15 +85,16 @@ def _arguments(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationS
     fset = np.array([settings.t_end, settings.rtol, settings.atol, settings.step, settings.max_step,
                      np.nan if settings.first_step is None else settings.first_step, settings.max_phi,
                      settings.min_step], dtype=float)
-    par, pf, pi = pack_problem(system)
-    pi[PI_FEVAL] = feval_address(_kernels_for(system))
+    par, pf, pi = pack_problem(system, interpreted=not kernels.COMPILED)
+    pi[PI_FEVAL] = feval_address(kernels)
     return (INTEGRATOR_CODES[settings.integrator], np.ascontiguousarray(y0, dtype=float), t_out,
             par, pf, pi, system.stabilizer.projects, iset, fset, np.zeros(2))
 
 
-def _kernels_for(system: ConstrainedSystem):
-    """The kernels' variant that integrates ``system`` (:func:`csim.fast.module.load_kernels`)."""
-    return load_kernels(partitioned=isinstance(system, PartitionedSystem))
+def _kernels_for(system: ConstrainedSystem, interpreted: bool = False):
+    """The kernels' variant that integrates ``system`` (:func:`csim.fast.module.load_kernels`), or the
+    interpreted package."""
+    return load_kernels(partitioned=isinstance(system, PartitionedSystem), compiled=not interpreted)
 
 
 def _chattering_labels(ev_sw: np.ndarray, n_ev: int, n_chatter: int, labels: list[str]) -> list[str]:
@@ -115,7 +120,13 @@ def prepare(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSett
             f"compiling {copy} (once per csim installation, 2-4 min on 2 cores; python -m csim.warmup "
             f"compiles both ahead)")
     with status(text), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        mod.integrate(*_arguments(system, y0, settings, max_steps=0))  # (_arguments compiles feval)
+        mod.integrate(*_arguments(system, y0, settings, 0, mod))  # (_arguments compiles feval)
+
+
+def _plain_core(kernels):
+    """For the interpreted package, :func:`csim.physics.jit.plain`: the core functions not compiled in this
+    process run as Python (compiling each on its own would take minutes); nothing for a compiled copy."""
+    return nullcontext() if kernels.COMPILED else plain()
 
 
 #: how often the waiting thread reports progress and lets Python's signal handlers run [s]
@@ -123,8 +134,9 @@ WAIT_PERIOD = 0.05
 
 
 def integrate_compiled(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSettings,
-                       progress: Callable[[float], None] | None = None) -> Trajectory:
-    """:func:`csim.solver.simulate.integrate`, in compiled code (same arguments and result).
+                       progress: Callable[[float], None] | None = None, interpreted: bool = False) -> Trajectory:
+    """:func:`csim.solver.simulate.integrate`, in compiled code (same arguments and result); with
+    ``interpreted``, the same source run by Python (:mod:`csim.fast.kernels.interpreted`).
 
     The kernel runs without the GIL in a thread while this thread waits: Python's signal
     handlers run here, so Ctrl-C (KeyboardInterrupt) asks the kernel to stop through its
@@ -133,8 +145,8 @@ def integrate_compiled(system: ConstrainedSystem, y0: np.ndarray, settings: Inte
     time reached every :data:`WAIT_PERIOD` seconds. The caller has checked the combination
     with :func:`csim.fast.support.unsupported`.
     """
-    args = _arguments(system, y0, settings, settings.max_steps)
-    mod = _kernels_for(system)
+    mod = _kernels_for(system, interpreted)
+    args = _arguments(system, y0, settings, settings.max_steps, mod)
     n_rec, ts, ys, modes, n_ev, ev_t, ev_sw, nfev, nsteps, code, info, njev, nlu = _run_kernel(mod, args, progress)
     labels = system.loads.switch_labels
     status, message, failure = "success", f"reached t_end = {settings.t_end:g} s", ""
@@ -158,7 +170,7 @@ def _run_kernel(mod, args: tuple, progress: Callable[[float], None] | None) -> t
 
     def target() -> None:
         try:
-            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            with np.errstate(over="ignore", invalid="ignore", divide="ignore"), _plain_core(mod):
                 out["value"] = mod.integrate(*args)
         except BaseException as exc:  # handed to the waiting thread
             out["error"] = exc
@@ -222,8 +234,9 @@ def _event_labels(switched: np.ndarray, labels: list[str]) -> list[str]:
 
 
 def evaluate_compiled(system: ConstrainedSystem, t: np.ndarray, y: np.ndarray,
-                      mode: np.ndarray) -> dict[str, np.ndarray]:
-    """The recorded quantities at the samples of a compiled run, in one compiled call.
+                      mode: np.ndarray, interpreted: bool = False) -> dict[str, np.ndarray]:
+    """The recorded quantities at the samples of a compiled run, in one compiled call (``interpreted``: of an
+    interpreted run, by the interpreted package).
 
     Parameters
     ----------
@@ -244,9 +257,9 @@ def evaluate_compiled(system: ConstrainedSystem, t: np.ndarray, y: np.ndarray,
         ``observables`` (N, o) and ``observable_rates`` (N, o), and ``drive_forces`` (N, d), a
         driven system's tau = -lambda_d (:meth:`csim.solver.driven.DrivenSystem.drive_forces`; d = 0 else).
     """
-    par, pf, pi = pack_problem(system)
-    mod = _kernels_for(system)  # one copy per process for a run of one method
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+    par, pf, pi = pack_problem(system, interpreted)
+    mod = _kernels_for(system, interpreted)  # one copy per process for a run of one method
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"), _plain_core(mod):
         ok, x, phi, phi_dot, u, Q, energy, obs = mod.evaluate_samples(
             np.ascontiguousarray(t, dtype=float), np.ascontiguousarray(y, dtype=float),
             np.ascontiguousarray(mode, dtype=np.bool_), par, pf, pi)

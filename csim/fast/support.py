@@ -5,12 +5,19 @@
 ``auto`` (default)
     compiled when the combination is supported (below) and numba is installed, the Python
     path otherwise: an explicit fallback, chosen per case, never a silent difference in
-    results (both paths give the same results to round-off).
+    results (both paths give the same results to round-off). A supported combination where
+    numba is not installed, or ``CSIM_PURE_PYTHON=1`` rules it out, runs interpreted.
 ``compiled``
     the compiled kernels; an unsupported combination is rejected by the case validation
-    with the key and the reason.
+    with the key and the reason. Under ``CSIM_PURE_PYTHON=1``, interpreted.
+``interpreted``
+    the compiled kernels' own source run by Python (:mod:`csim.fast.kernels.interpreted`): the
+    same loop, steps and model functions as ``compiled``, without numba; for debugging the
+    compiled path (a breakpoint anywhere in the loop) and for checking it. About as fast as
+    ``python``, a few hundred times slower than ``compiled``. Supports what ``compiled`` does.
 ``python``
-    the reference Python path (:func:`csim.solver.simulate.integrate`), for debugging.
+    the reference Python path (:func:`csim.solver.simulate.integrate`: scipy's integrators,
+    and every formulation and method), for debugging.
 
 Supported: ``formulation.method: kkt``; every ``stabilization.method`` whose class says
 ``compiled = True`` (:mod:`csim.solver.methods`); ``simulation.integrator`` DOP853, RK45, Tsit5,
@@ -24,7 +31,9 @@ import importlib.util
 
 from csim.solver.methods import STABILIZERS
 
-BACKENDS = ("auto", "python", "compiled")
+BACKENDS = ("auto", "python", "compiled", "interpreted")
+#: the backends that run the kernels (compiled, or their source run by Python)
+KERNEL_BACKENDS = ("compiled", "interpreted")
 
 #: what the compiled backend implements
 FORMULATIONS = ("kkt",)
@@ -70,10 +79,25 @@ def numba_available() -> bool:
 
 
 def resolve_backend(case) -> str:
-    """``"compiled"`` or ``"python"``: the backend that runs a validated case (:class:`csim.case.Case`)."""
+    """``"compiled"``, ``"interpreted"`` or ``"python"``: the backend that runs a validated case
+    (:class:`csim.case.Case`)."""
+    from csim.physics.jit import pure_python
+
     backend = case.simulation.backend
-    if backend == "python":
+    if backend in ("python", "interpreted"):
+        return backend
+    if backend == "auto" and unsupported(case):
         return "python"
-    if backend == "compiled":
-        return "compiled"
-    return "compiled" if not unsupported(case) and numba_available() else "python"
+    return "compiled" if numba_available() and not pure_python() else "interpreted"
+
+
+def why_not_compiled(case, backend: str) -> str:
+    """Why a case resolved to ``backend`` under ``simulation.backend`` auto or compiled ("" when it asked for
+    that backend, or it is compiled)."""
+    from csim.physics.jit import pure_python
+
+    if backend == "compiled" or case.simulation.backend == backend:
+        return ""
+    if backend == "python":
+        return "; ".join(unsupported(case))
+    return "CSIM_PURE_PYTHON=1 rules numba out" if pure_python() else "numba is not installed"

@@ -29,12 +29,17 @@ _JITABLES: list = []
 _PLAIN = {"depth": 0}
 
 
+def pure_python() -> bool:
+    """Whether ``CSIM_PURE_PYTHON`` rules numba out in this process."""
+    return os.environ.get("CSIM_PURE_PYTHON", "") not in ("", "0")
+
+
 def activate():
     """Import numba (once) and make the core compilable; returns its njit, or None for pure Python."""
     if _NUMBA["tried"]:
         return _NUMBA["njit"]
     _NUMBA["tried"] = True
-    if os.environ.get("CSIM_PURE_PYTHON", "") not in ("", "0"):
+    if pure_python():
         return None
     try:
         from numba import njit

@@ -1,19 +1,11 @@
-"""The compiled-only part of the kernels: a mechanism's model functions and an external
-gamma* called through their addresses, and the core's model handle over them.
+"""How the kernels reach the mechanism: its model functions, the stabilization method's gamma*
+and the right-hand side ``feval``, each called through an address in ``pi``, and the core's
+model handle (:mod:`csim.physics.model`).
 
-The model functions are C (``cc``, :mod:`csim.fast.ccodegen`) or numba cfuncs
-(:mod:`csim.fast.codegen`) with one interface (:mod:`csim.fast.layout`); their addresses are
-entries of ``pi``. The core (:mod:`csim.physics.model`) reaches the model through a handle,
-here the tuple ``(par, pi, w, ym)``, for which the core's ``model_*`` functions are
-overloaded (ym: a state [q, qd, W] to call the model functions at).
+A compiled copy calls the addresses from machine code (:mod:`.addresses`, the compiled-only
+part); the interpreted package calls the same functions from Python (:mod:`.interpreted`).
+Everything below is the same source for both.
 """
-from llvmlite import ir
-from numba import types
-from numba.core import cgutils
-from numba.core.callconv import excinfo_t
-from numba.core.errors import TypingError
-from numba.extending import intrinsic, overload
-
 from csim.fast.layout import (
     EXTERNAL,
     F_JAC,
@@ -27,213 +19,73 @@ from csim.fast.layout import (
     PI_FN,
     PI_GAMMA_FN,
     W_E,
-    W_GAM,
-    W_J,
-    W_M,
-    W_PHI,
 )
-from csim.physics.model import model_gamma, model_jacobian, model_mass, model_phi
 from csim.solver.methods.baumgarte import baumgarte_gamma_star
 from csim.solver.methods.sliding_mode import sliding_mode_gamma_star
 
 from .common import hot
+from .variant import COMPILED
 
+if COMPILED:
+    from .addresses import call_feval, call_gamma, call_model, model_handle
+else:
+    from .interpreted import call_feval, call_gamma, call_model, model_handle
 
-# ---------------------------------------------------------------------------------------
-# calls through a function's address (a C function, or a numba cfunc)
-# ---------------------------------------------------------------------------------------
-def _lower_call(context, builder, argtys, args):
-    """Call the C function at the address args[0] with args[1:]: arrays as pointers to their
-    data (no reference counting), integers and floats by value. Returns nothing."""
-    llargs, lltys = [], []
-    for ty, value in zip(argtys[1:], args[1:]):
-        if isinstance(ty, types.Array):
-            llargs.append(context.make_array(ty)(context, builder, value).data)
-            lltys.append(context.get_data_type(ty.dtype).as_pointer())
-        else:
-            llargs.append(value)
-            lltys.append(context.get_value_type(ty))
-    fnty = ir.FunctionType(ir.VoidType(), lltys)
-    builder.call(builder.inttoptr(args[0], fnty.as_pointer()), llargs)
-    return context.get_dummy_value()
-
-
-@intrinsic
-def _call_model(typingctx, addr, t, y, par, out):
-    """``void f(double t, const double *y, const double *par, double *out)`` at address ``addr``."""
-    if not (isinstance(addr, types.Integer) and isinstance(t, types.Float)):
-        return None
-    sig = types.void(addr, t, y, par, out)
-
-    def codegen(context, builder, signature, args):
-        return _lower_call(context, builder, signature.args, args)
-    return sig, codegen
-
-
-@intrinsic
-def _call_gamma(typingctx, addr, r, gamma, phi, phi_dot, gains, n_gains, fpar, n_fpar, ipar, n_ipar, out):
-    """``void g(int64 r, const double *gamma, const double *phi, const double *phi_dot, const double *gains,
-    int64 n_gains, const double *fpar, int64 n_fpar, const int64 *ipar, int64 n_ipar, double *out)``."""
-    sig = types.void(addr, r, gamma, phi, phi_dot, gains, n_gains, fpar, n_fpar, ipar, n_ipar, out)
-
-    def codegen(context, builder, signature, args):
-        return _lower_call(context, builder, signature.args, args)
-    return sig, codegen
-
-
-#: the argument types ``feval`` is compiled for (:func:`csim.fast.module.feval_address`), and its callers call
-#: it with: (t, y, mode, located, par, pf, pi, w, piv, f, info)
-_F8, _I8 = types.Array(types.float64, 1, "C"), types.Array(types.int64, 1, "C")
-FEVAL_TYPES = (types.float64, _F8, types.Array(types.boolean, 1, "C"), types.boolean, _F8, _F8, _I8, _F8, _I8, _F8,
-               _F8)
-
-
-@intrinsic
-def call_feval(typingctx, addr, t, y, mode, located, par, pf, pi, w, piv, f, info):
-    """``feval(t, y, ...)`` called through its address (pi[PI_FEVAL]), with numba's own calling convention.
-
-    numba links the LLVM IR of every function a compiled function calls into it, and
-    optimizes and emits the whole again: each of the dozen functions that evaluate the
-    right-hand side (the steppers' stages, the dense outputs, the first step, Radau's
-    Jacobian) carried its own copy of the right-hand side's closure, a third of the cold
-    compile. Called by address, ``feval`` is compiled once, on its own, for :data:`FEVAL_TYPES`
-    (the arguments must be exactly those: the call is typed only for them). As numba's own
-    call does, an error status (an exception, which nothing in ``feval`` raises today but
-    ``NUMBA_BOUNDSCHECK=1`` would) is passed on to the caller instead of read as a result.
-    (``_get_arg_packer`` and ``_get_return_status`` are numba's, 0.60 to 0.68.)
-    """
-    argtys = (t, y, mode, located, par, pf, pi, w, piv, f, info)
-    if not isinstance(addr, types.Integer):
-        return None
-    for i, (got, want) in enumerate(zip(argtys, FEVAL_TYPES)):
-        if got != want:
-            raise TypingError(f"call_feval: argument {i + 1} is {got}; feval is compiled for {want} "
-                              f"(csim.fast.kernels.calls.FEVAL_TYPES)")
-    sig = types.int64(addr, *argtys)
-
-    def codegen(context, builder, signature, args):
-        call_conv = context.call_conv
-        fnty = call_conv.get_function_type(types.int64, argtys)
-        fn = builder.inttoptr(args[0], fnty.as_pointer())
-        result = cgutils.alloca_once(builder, call_conv.get_return_type(types.int64).pointee)
-        builder.store(cgutils.get_null_value(result.type.pointee), result)
-        excinfo = cgutils.alloca_once(builder, ir.PointerType(excinfo_t))
-        packed = list(call_conv._get_arg_packer(argtys).as_arguments(builder, args[1:]))
-        code = builder.call(fn, [result, excinfo, *packed])
-        status = call_conv._get_return_status(builder, code, builder.load(excinfo))
-        with cgutils.if_unlikely(builder, status.is_error):
-            call_conv.return_status_propagate(builder, status)
-        return context.get_returned_value(builder, types.int64, builder.load(result))
-    return sig, codegen
+__all__ = ["call_feval", "model_handle"]
 
 
 # the model functions of the mechanism in pi (csim.fast.layout: one C interface for all)
 @hot
 def terms(t, y, par, pi, w):
     """Every term of the right-hand side at (t, y) into w."""
-    _call_model(pi[PI_FN + F_TERMS], t, y, par, w)
+    call_model(pi[PI_FN + F_TERMS], t, y, par, w)
 
 
 @hot
 def phi_(y, par, pi, w):
-    _call_model(pi[PI_FN + F_PHI], 0.0, y, par, w)
+    call_model(pi[PI_FN + F_PHI], 0.0, y, par, w)
 
 
 @hot
 def phi_at(t, y, par, pi, w):
     """Phi at time t (drive rows depend on it)."""
-    _call_model(pi[PI_FN + F_PHI], t, y, par, w)
+    call_model(pi[PI_FN + F_PHI], t, y, par, w)
 
 
 @hot
 def jac(y, par, pi, w):
-    _call_model(pi[PI_FN + F_JAC], 0.0, y, par, w)
+    call_model(pi[PI_FN + F_JAC], 0.0, y, par, w)
 
 
 @hot
 def mass(y, par, pi, w):
-    _call_model(pi[PI_FN + F_MASS], 0.0, y, par, w)
+    call_model(pi[PI_FN + F_MASS], 0.0, y, par, w)
 
 
 @hot
 def loads_(y, par, pi, w):
     """Load coordinates s and their Jacobian into w, for the switching functions."""
-    _call_model(pi[PI_FN + F_LOADS], 0.0, y, par, w)
+    call_model(pi[PI_FN + F_LOADS], 0.0, y, par, w)
 
 
 @hot
 def kinetic(y, par, pi, w):
     """Kinetic energy [J] (w[W_E] is its scratch)."""
-    _call_model(pi[PI_FN + F_KINETIC], 0.0, y, par, w[pi[W_E]:])
+    call_model(pi[PI_FN + F_KINETIC], 0.0, y, par, w[pi[W_E]:])
     return w[pi[W_E]]
 
 
 @hot
 def potential(y, par, pi, w):
     """Potential energy [J] (w[W_E] is its scratch)."""
-    _call_model(pi[PI_FN + F_POTENTIAL], 0.0, y, par, w[pi[W_E]:])
+    call_model(pi[PI_FN + F_POTENTIAL], 0.0, y, par, w[pi[W_E]:])
     return w[pi[W_E]]
 
 
 @hot
 def observe(y, par, pi, out):
     """The observables and their rates into out (2 o,)."""
-    _call_model(pi[PI_FN + F_OBSERVE], 0.0, y, par, out)
-
-
-# ---------------------------------------------------------------------------------------
-# the core's model handle (csim.physics.model) in the kernels: the tuple (par, pi, w, ym),
-# ym a state [q, qd, W] to call the model functions at
-# ---------------------------------------------------------------------------------------
-#: the compile options of the overloads (as the kernels', less the cache: they compile into their callers)
-CALL_OPTIONS = dict(error_model="numpy", _nrt=False)
-
-
-# (A process that runs minimal and another method imports both copies of this module, and each
-# registers these overloads; numba takes the first one registered. They are the same source.)
-def _is_handle(model):
-    return isinstance(model, types.BaseTuple)
-
-
-def _overload_at_q(core_fn, model_fn, slot):
-    """Overload ``core_fn(model, q, out)`` for the kernels' handle: ``model_fn`` at q, then out = its term,
-    read from w at the offset pi[slot]."""
-
-    @overload(core_fn, jit_options=CALL_OPTIONS, strict=False, inline="always")
-    def _typer(model, q, out):
-        if not _is_handle(model):
-            return None
-
-        def impl(model, q, out):
-            par, pi, w, ym = model
-            for i in range(q.size):
-                ym[i] = q[i]
-            model_fn(ym, par, pi, w)
-            for i in range(out.size):
-                out[i] = w[pi[slot] + i]
-        return impl
-    return _typer
-
-
-_overload_at_q(model_phi, phi_, W_PHI)
-_overload_at_q(model_jacobian, jac, W_J)
-_overload_at_q(model_mass, mass, W_M)
-
-
-@overload(model_gamma, jit_options=CALL_OPTIONS, strict=False, inline="always")
-def _model_gamma(model, q, qd, out):
-    if _is_handle(model):
-        def impl(model, q, qd, out):
-            par, pi, w, ym = model
-            m = q.size
-            for i in range(m):
-                ym[i] = q[i]
-                ym[m + i] = qd[i]
-            terms(0.0, ym, par, pi, w)
-            for i in range(out.size):
-                out[i] = w[pi[W_GAM] + i]
-        return impl
-    return None
+    call_model(pi[PI_FN + F_OBSERVE], 0.0, y, par, out)
 
 
 # the stabilization methods' gamma*: the built-in ones by code (csim.fast.layout.BUILTIN_GAMMA),
@@ -248,7 +100,7 @@ def method_gamma_star(mk, r, gamma, phi, phi_dot, gains, fpar, ipar, out, pi):
     elif mk == 2:
         sliding_mode_gamma_star(r, gamma, phi, phi_dot, gains, fpar, ipar, out)
     elif mk == EXTERNAL:
-        _call_gamma(pi[PI_GAMMA_FN], r, gamma, phi, phi_dot, gains, gains.size, fpar, fpar.size, ipar, ipar.size, out)
+        call_gamma(pi[PI_GAMMA_FN], r, gamma, phi, phi_dot, gains, gains.size, fpar, fpar.size, ipar, ipar.size, out)
     else:
         for i in range(r):
             out[i] = gamma[i]

@@ -1,25 +1,38 @@
 """What every file of the kernels shares: the decorators, the integrators' codes and the
 loop's scalar slots.
 
-Importing this file activates the core (:func:`csim.physics.jit.activate`): from here on the
-functions of :mod:`csim.physics` compile, and numba types them, inside the kernels.
+In a compiled copy (:data:`.variant.COMPILED`), importing this file activates the core
+(:func:`csim.physics.jit.activate`): from here on the functions of :mod:`csim.physics` compile,
+and numba types them, inside the kernels. In the interpreted package every decorator returns
+the function itself, and numba is not imported.
 """
 import math
 
-from numba import njit
+from .variant import COMPILED
 
-from csim.physics.jit import NJIT_OPTIONS, activate
+if COMPILED:
+    from numba import njit
 
-activate()  # the core functions compile, and numba types them, from here on
+    from csim.physics.jit import NJIT_OPTIONS, activate
 
+    activate()  # the core functions compile, and numba types them, from here on
 
-#: the decorator of every loop function that allocates nothing: compiled without numba's
-#: reference counting of arrays (NRT), which would cost two atomic operations per array
-#: argument and per slice at every call; the arrays live as long as ``integrate`` holds them
-hot = njit(**NJIT_OPTIONS)
-#: the same, inlined into its callers in numba's IR: a call passes every array argument as a
-#: struct of seven words, which for the small functions of every step costs more than their body
-inlined = njit(inline="always", **NJIT_OPTIONS)
+    #: the decorator of every loop function that allocates nothing: compiled without numba's
+    #: reference counting of arrays (NRT), which would cost two atomic operations per array
+    #: argument and per slice at every call; the arrays live as long as ``integrate`` holds them
+    hot = njit(**NJIT_OPTIONS)
+    #: the same, inlined into its callers in numba's IR: a call passes every array argument as a
+    #: struct of seven words, which for the small functions of every step costs more than their body
+    inlined = njit(inline="always", **NJIT_OPTIONS)
+    #: a function that allocates (numba's allocator and reference counting: the entry points, the event records)
+    allocating = njit(cache=True, error_model="numpy")
+    #: the loop itself: allocates, and runs without the GIL (:func:`csim.fast.runner.integrate_compiled`)
+    loop = njit(cache=True, error_model="numpy", nogil=True)
+else:
+    def hot(fn):
+        """The interpreted package: the function itself."""
+        return fn
+    inlined = allocating = loop = hot
 #: inlined, for functions whose callers pass their sizes as constants (the copy's loops have fixed lengths)
 sized = inlined
 #: the (m, r) whose right-hand side has a copy with constant sizes: the planar one-loop linkages

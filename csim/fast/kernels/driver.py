@@ -2,7 +2,6 @@
 checks, events, sampling, restarts and repartitioning (:func:`integrate`).
 """
 import numpy as np
-from numba import njit
 
 from csim.fast.layout import PARTITIONED, PI_FEVAL, PI_NC, PI_ND, PI_NL, PI_NQ, PI_NSW, PI_SYS, W_END
 from csim.physics import branch
@@ -34,8 +33,10 @@ from .common import (
     TSIT5,
     VERN7,
     T,
+    allocating,
     copy_row,
     hot,
+    loop,
 )
 from .control import _error_order, _initial_step
 from .dense import _ensure_dense, dense_eval
@@ -268,7 +269,7 @@ def _accept(ts_, y, ya):
 POLL_STEPS = 256
 
 
-@njit(cache=True, error_model="numpy")  # _record_event may grow the records: numba's allocator
+@allocating  # _record_event may grow the records: numba's allocator
 def _event_restart(t_a, ts_, dense_kind, y_old, y, ya, F, Fh, projects, mode, roots, has_root, ev_t, ev_sw, n_chatter,
                    max_events, min_step, par, pf, pi, w, piv, ytmp, yp, cs, info):
     """Move to the located event's state, accept it, record the event and check the events'
@@ -310,7 +311,7 @@ def _count_step(method, ok, t_new, max_steps, ts_, cs, info):
     return OK
 
 
-@njit(cache=True, error_model="numpy", nogil=True)
+@loop
 def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset, control):
     """Integrate from t = 0, state y0 (n,), sampling at t_out (csim.solver.simulate.integrate).
 

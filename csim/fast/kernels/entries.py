@@ -3,19 +3,19 @@
 and the projection at one state, for the tests and the benchmark.
 """
 import numpy as np
-from numba import njit
 
 from csim.fast.layout import PI_NC, PI_NL, PI_NO, PI_NQ, PI_NSW, W_B, W_END, W_PD, W_PHI, W_U, W_X
 from csim.physics.status import OK
 
 from .calls import kinetic, observe, potential
+from .common import allocating
 from .system import project, rhs
 
 
 # ---------------------------------------------------------------------------------------
 # the recorded quantities at the output samples (csim.pipeline.assemble_result)
 # ---------------------------------------------------------------------------------------
-@njit(cache=True, error_model="numpy")
+@allocating
 def evaluate_samples(ts, ys, modes, par, pf, pi):
     """Everything a result records at each sample, from the same right-hand side the loop ran.
 
@@ -82,7 +82,7 @@ def evaluate_samples(ts, ys, modes, par, pf, pi):
 # ---------------------------------------------------------------------------------------
 # entry points for the tests and the benchmark
 # ---------------------------------------------------------------------------------------
-@njit(cache=True, error_model="numpy")
+@allocating
 def rhs_entry(t, y, mode, par, pf, pi):
     """dy/dt and [qdd, lambda] at time t and one state (mode held), for comparison with the Python path."""
     w = np.zeros(pi[W_END])
@@ -92,7 +92,7 @@ def rhs_entry(t, y, mode, par, pf, pi):
     return code, f, w[pi[W_X]:pi[W_X] + pi[PI_NQ] + pi[PI_NC]].copy()
 
 
-@njit(cache=True, error_model="numpy")
+@allocating
 def rhs_repeat(y, mode, par, pf, pi, n_eval):
     """n_eval evaluations of the right-hand side (a timing loop for the benchmark)."""
     w = np.zeros(pi[W_END])
@@ -105,7 +105,7 @@ def rhs_repeat(y, mode, par, pf, pi, n_eval):
     return acc
 
 
-@njit(cache=True, error_model="numpy")
+@allocating
 def project_entry(y, par, pf, pi):
     w = np.zeros(pi[W_END])
     piv = np.zeros(pi[PI_NQ] + pi[PI_NC], np.int64)

@@ -2,13 +2,12 @@
 dense output by ``brentq``, and the event's state and record.
 """
 import numpy as np
-from numba import njit
 
 from csim.fast.layout import PI_NSW, W_G
 from csim.physics.status import NO_SIGN_CHANGE, OK
 
 from .calls import loads_
-from .common import EPS, RK4, T_OLD, T_STOP, T, hot
+from .common import EPS, RK4, T_OLD, T_STOP, T, allocating, hot
 from .dense import _ensure_dense, dense_eval
 from .system import _pending, _set_pending, full_state, mode_at, project, switching_from
 from .variant import WITH_PARTITION
@@ -184,7 +183,7 @@ def _event_state(ts_, dense_kind, y_old, y, F, Fh, projects, par, pf, pi, w, piv
     return OK
 
 
-@njit(cache=True, error_model="numpy")
+@allocating
 def _record_event(t, mode, roots, has_root, ev_t, ev_sw, n_ev):
     """Flip the conditions that switch at t (zeros within 4 eps of it) and record the event.
 

@@ -61,7 +61,7 @@ from csim.physics.projection import project as project_state
 from csim.physics.status import NONFINITE_RHS, OK, SINGULAR_KKT
 from csim.physics.steps import all_finite
 
-from .calls import call_feval, loads_, method_gamma_star, phi_at, terms
+from .calls import call_feval, loads_, method_gamma_star, model_handle, phi_at, terms
 from .common import hot, inlined, sized
 from .variant import WITH_PARTITION
 
@@ -84,7 +84,7 @@ def _partition_call(par, pf, pi, w, piv):
     """
     P = _partition(pi, w, piv)
     fpar, ipar = pf[pi[PI_FPAR]:], pi[pi[PI_IPAR]:]
-    return (par, pi, w, P.ym), P, pi[PI_NC], pi[PI_NQ], pi[PI_NL], fpar[0], ipar[0], fpar[1]
+    return model_handle(par, pi, w, P.ym), P, pi[PI_NC], pi[PI_NQ], pi[PI_NL], fpar[0], ipar[0], fpar[1]
 
 
 # The partitioned system's branches in the functions of every step call a function of their own:
@@ -288,7 +288,7 @@ def project(y, out, t, par, pf, pi, w, piv, info):
     for i in range(y.size):
         out[i] = y[i]
     nq, nc, nl = pi[PI_NQ], pi[PI_NC], pi[PI_NL]
-    model = (par, pi, w, w[pi[W_YM]:pi[W_YM] + 2 * nq + nl])
+    model = model_handle(par, pi, w, w[pi[W_YM]:pi[W_YM] + 2 * nq + nl])
     code, mx = project_state(model, out[:nq], out[nq:2 * nq], fpar[0], ipar[0] == 1, ipar[1], nq, nc,
                              w[pi[W_M]:pi[W_M] + nq * nq], w[pi[W_M2]:pi[W_M2] + nq * nq],
                              w[pi[W_WINV]:pi[W_WINV] + nq * nq], piv, w[pi[W_COL]:pi[W_COL] + nq],

@@ -1,0 +1,118 @@
+"""The interpreted package's calls: what :mod:`.addresses` does in machine code, done from Python.
+
+The package's own source (``csim.fast.kernels``, :data:`.variant.COMPILED` False) is the
+interpreted backend: the loop, the steppers and the event location the compiled copies run,
+run by Python, with the core functions as plain Python where they are not compiled in the
+process (:func:`csim.fast.runner.integrate_compiled` runs it inside
+:func:`csim.physics.jit.plain`). Only the calls differ, here:
+
+- a model function's address in ``pi`` is a C function (``cc``) or a numba cfunc, called
+  through ctypes, so that both backends evaluate the very same machine code of the model;
+  where there is neither (no C compiler, and no numba or ``CSIM_PURE_PYTHON=1``) it is the
+  key of a Python function of the cfunc source in :data:`PYTHON_FUNCTIONS`
+  (:func:`csim.fast.module.load_model`, model backend ``python``);
+- a method's gamma* outside the built-in dispatch likewise: a cfunc's address, or the key of
+  its Python kernel in :data:`PYTHON_FUNCTIONS`;
+- ``feval`` is this package's own function (its address in ``pi`` is only checked to be set);
+- the model handle is a :class:`ModelHandle`, whose methods are the compiled overloads'
+  bodies, for the core's :mod:`csim.physics.model`.
+
+Python raises where machine code gives inf or NaN (a float divided by zero, ``math.sqrt`` of a
+negative): on the way to a blow-up the interpreted loop can stop with an exception where the
+compiled one runs on to its own failure (:func:`csim.fast.runner.integrate_compiled` reports it).
+"""
+from __future__ import annotations
+
+import ctypes
+from collections.abc import Callable
+
+from csim.fast.layout import F_JAC, F_MASS, F_PHI, F_TERMS, PI_FN, W_GAM, W_J, W_M, W_PHI
+
+#: key -> the Python function that stands for a C function at that "address" (model functions:
+#: ``f(t, y, par, out)``; gamma*: the method's kernel ``g(r, gamma, phi, phi_dot, gains, fpar, ipar, out)``)
+PYTHON_FUNCTIONS: dict[int, Callable] = {}
+
+_P = ctypes.c_void_p
+_MODEL = ctypes.CFUNCTYPE(None, ctypes.c_double, _P, _P, _P)
+_I8 = ctypes.c_int64
+_GAMMA = ctypes.CFUNCTYPE(None, _I8, _P, _P, _P, _P, _I8, _P, _I8, _P, _I8, _P)
+#: address -> its ctypes function (made once)
+_CTYPES: dict[int, Callable] = {}
+
+
+def _c_function(addr: int, prototype) -> Callable:
+    fn = _CTYPES.get(addr)
+    if fn is None:
+        if not addr:
+            raise ValueError("a function's address in pi is 0")
+        fn = _CTYPES[addr] = prototype(int(addr))
+    return fn
+
+
+def _data(a) -> int:
+    """The address of an array's first element (C-contiguous 1-D: the kernels' arrays and their slices)."""
+    return a.ctypes.data
+
+
+def call_model(addr, t, y, par, out):
+    """``void f(double t, const double *y, const double *par, double *out)`` at ``addr``, or its Python function."""
+    fn = PYTHON_FUNCTIONS.get(addr)
+    if fn is not None:
+        fn(t, y, par, out)
+    else:
+        _c_function(addr, _MODEL)(t, _data(y), _data(par), _data(out))
+
+
+def call_gamma(addr, r, gamma, phi, phi_dot, gains, n_gains, fpar, n_fpar, ipar, n_ipar, out):
+    """A method's gamma* at ``addr`` (:func:`.addresses.call_gamma`'s interface), or its Python kernel."""
+    fn = PYTHON_FUNCTIONS.get(addr)
+    if fn is not None:
+        fn(r, gamma, phi, phi_dot, gains, fpar, ipar, out)
+    else:
+        _c_function(addr, _GAMMA)(r, _data(gamma), _data(phi), _data(phi_dot), _data(gains), n_gains, _data(fpar),
+                                  n_fpar, _data(ipar), n_ipar, _data(out))
+
+
+def call_feval(addr, t, y, mode, located, par, pf, pi, w, piv, f, info):
+    """This package's ``feval`` (the compiled copies call theirs through ``addr``)."""
+    from .system import feval  # (system imports this module)
+
+    return feval(t, y, mode, located, par, pf, pi, w, piv, f, info)
+
+
+class ModelHandle:
+    """The core's model handle (:mod:`csim.physics.model`) over the model functions in ``pi``:
+    each method calls one at the state ``ym`` [q, qd, W] and copies its term out of ``w``."""
+
+    __slots__ = ("par", "pi", "w", "ym")
+
+    def __init__(self, par, pi, w, ym):
+        self.par, self.pi, self.w, self.ym = par, pi, w, ym
+
+    def _at_q(self, fn, slot, q, out):
+        self.ym[:q.size] = q
+        call_model(self.pi[PI_FN + fn], 0.0, self.ym, self.par, self.w)
+        at = self.pi[slot]
+        out[:] = self.w[at:at + out.size]
+
+    def phi(self, q, out):
+        self._at_q(F_PHI, W_PHI, q, out)
+
+    def jacobian(self, q, out):
+        self._at_q(F_JAC, W_J, q, out)
+
+    def mass(self, q, out):
+        self._at_q(F_MASS, W_M, q, out)
+
+    def gamma(self, q, qd, out):
+        m = q.size
+        self.ym[:m] = q
+        self.ym[m:2 * m] = qd
+        call_model(self.pi[PI_FN + F_TERMS], 0.0, self.ym, self.par, self.w)
+        at = self.pi[W_GAM]
+        out[:] = self.w[at:at + out.size]
+
+
+def model_handle(par, pi, w, ym):
+    """The core's model handle (:class:`ModelHandle`; the compiled copies' is a tuple)."""
+    return ModelHandle(par, pi, w, ym)
