@@ -169,6 +169,9 @@ def load_kernels(partitioned: bool = False, compiled: bool = True) -> ModuleType
         return importlib.import_module("csim.fast.kernels")
     if partitioned in _KERNELS:
         return _KERNELS[partitioned]
+    from csim.fast.cache_load import install
+
+    install()  # a warm run loads the machine code without loading all of numba's target (csim.fast.cache_load)
     if _KernelsFinder not in sys.meta_path:
         sys.meta_path.append(_KernelsFinder)
     # numba's cache locates functions through their module, imported by name (the finder)
