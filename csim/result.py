@@ -139,9 +139,10 @@ class Result:
         (:func:`failure_kind`) when the run is made; written to HDF5 as the ``failure``
         attribute.
     backend_reason : str
-        Why a run under ``simulation.backend: auto`` ran on the Python path (the combination
-        has no compiled path, numba is missing, or the kernels could not be loaded); ``""``
-        when it ran compiled or the Python path was asked for.
+        Why a run under ``simulation.backend: auto`` (or ``compiled``) was not compiled: on the
+        Python path, the combination has no compiled path or the kernels could not be loaded;
+        interpreted, numba is missing or ``CSIM_PURE_PYTHON=1`` rules it out. ``""`` when it ran
+        compiled or on the backend asked for.
     reactions : list of JointReaction
         The reactions of the joints of a link-coupling mechanism, the cut joints' first
         (empty otherwise, and for a kinematic analysis).

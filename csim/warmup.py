@@ -63,7 +63,8 @@ def _all() -> int:
     from csim.model.cache import kernels_dir
 
     if not numba_available():
-        print("csim: numba is not installed; csim runs on the Python path (nothing to compile)")
+        print("csim: numba is not installed; csim runs the kernels interpreted, or on the Python path (nothing to "
+              "compile)")
         return 0
     start = time.perf_counter()
     print(f"csim: compiling the kernels into {kernels_dir()} (once per installation; minutes on 2 cores) ...",

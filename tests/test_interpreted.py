@@ -79,7 +79,30 @@ def test_a_run_records_the_same_quantities():
     for name in ("q", "qd", "qdd", "lam", "phi", "phi_dot", "loads", "generalized_forces", "kinetic", "potential",
                  "observables"):
         np.testing.assert_array_equal(getattr(fast, name), getattr(slow, name), err_msg=name)
-    assert "interpreted backend" in slow.summary()
+    assert slow.backend_reason == "" and "not compiled because" not in slow.summary()  # it was asked for
+
+
+def test_a_blow_up_fails_as_the_compiled_run_does():
+    """A torque of 1e170 N m: the first step's norms overflow. Python raises where machine code goes on
+    with inf (a float divided by zero); the loop's norms are numpy's, so both fail alike."""
+    fast, slow = _both(qr_case("loads.torque=1e170", "simulation.t_end=0.1"))
+    assert fast.status == "failed", fast.message
+    _assert_same_steps(fast, slow)
+
+
+def test_an_exception_in_the_interpreted_loop_is_a_failed_run(monkeypatch):
+    """What Python still raises on the way to a blow-up comes back as a failed run of kind backend, saying so."""
+    import csim.fast.kernels.driver as driver
+
+    def raises(*args):
+        raise ZeroDivisionError("float division by zero")
+
+    case = qr_case("simulation.t_end=0.1")
+    system = build_system(case)
+    monkeypatch.setattr(driver, "_start", raises)
+    run = integrate_compiled(system, initial_state(case, system), case.integration_settings(), interpreted=True)
+    assert (run.status, run.failure, run.t.size) == ("failed", "backend", 0)
+    assert "ZeroDivisionError" in run.message and "run it compiled" in run.message
 
 
 def test_python_model_functions_give_the_same_motion(monkeypatch):
@@ -98,6 +121,51 @@ def test_python_model_functions_give_the_same_motion(monkeypatch):
     np.testing.assert_allclose(run.y, reference.y, rtol=1e-11, atol=1e-11)
     with pytest.raises(ValueError, match="CSIM_MODEL_BACKEND=python"):
         integrate_compiled(system, y0, settings)
+
+
+PURE_STEPS = """
+import sys
+import numpy as np
+from csim.case import load_case
+from csim.fast.runner import integrate_compiled
+from csim.pipeline import build_system, initial_state
+out = {}
+for i, sets in enumerate(eval(sys.argv[2])):
+    case = load_case(sys.argv[1], sets)
+    system = build_system(case)
+    run = integrate_compiled(system, initial_state(case, system), case.integration_settings(), interpreted=True)
+    out.update({f"t{i}": run.t, f"y{i}": run.y, f"counts{i}": [run.nfev, run.nsteps, run.njev, run.nlu],
+                f"events{i}": np.asarray(run.event_times), f"status{i}": run.status})
+np.savez(sys.argv[3], numba="numba" in sys.modules, **out)
+"""
+
+#: the integrators and methods whose core differs most between Python and numba: Radau's complex LU,
+#: minimal's Newton solves on the branch, the projection
+PURE_COMBINATIONS = [["simulation.integrator=Radau"], ["stabilization.method=minimal"],
+                     ["stabilization.method=projection", "simulation.integrator=Vern7"]]
+
+
+def test_pure_python_takes_the_compiled_steps(tmp_path):
+    """CSIM_PURE_PYTHON=1: the loop and every core function run as Python (numba is never imported), and
+    still take the compiled run's steps to the last bit (numpy's complex division, which Radau's complex LU
+    used, rounded otherwise)."""
+    sets = [[*extra, "simulation.t_end=0.3"] for extra in PURE_COMBINATIONS]
+    out = tmp_path / "pure.npz"
+    env = dict(os.environ, CSIM_PURE_PYTHON="1")
+    done = subprocess.run([sys.executable, "-c", PURE_STEPS, str(CONFIGS / "quick_return.yaml"), repr(sets), str(out)],
+                          env=env, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    pure = np.load(out)
+    assert not pure["numba"]
+    for i, extra in enumerate(sets):
+        case = qr_case(*extra)
+        system = build_system(case)
+        fast = integrate_compiled(system, initial_state(case, system), case.integration_settings())
+        assert fast.status == str(pure[f"status{i}"]) == "success", (extra, fast.message)
+        assert [fast.nfev, fast.nsteps, fast.njev, fast.nlu] == pure[f"counts{i}"].tolist(), extra
+        np.testing.assert_array_equal(fast.event_times, pure[f"events{i}"], err_msg=str(extra))
+        np.testing.assert_array_equal(fast.t, pure[f"t{i}"], err_msg=str(extra))
+        np.testing.assert_array_equal(fast.y, pure[f"y{i}"], err_msg=str(extra))
 
 
 PURE_RUN = """

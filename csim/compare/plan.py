@@ -282,8 +282,9 @@ def _one_backend(runs: _RunCases, cases: dict[tuple[str, float], Case],
     if len(on_python) >= len(chosen) or not on_python:
         return cases, ""
     if not python_only:
-        return cases, (f"python for {', '.join(own)} (no compiled path for its integrator), compiled for the "
-                       f"others: compare wall times within one backend")
+        others = sorted({resolve_backend(c) for (m, _), c in cases.items() if m not in on_python})
+        return cases, (f"python for {', '.join(own)} (no compiled path for its integrator), {'/'.join(others)} for "
+                       f"the others: compare wall times within one backend")
     moved = {(m, v): runs.make(m, v, extra=["simulation.backend=python"]) for (m, v) in cases}
     return moved, (f"python for every run ({', '.join(python_only)} has no compiled path; one backend keeps "
                    f"the wall times comparable)")

@@ -388,8 +388,10 @@ def _load_c(definition, key: str, derived: _Derived) -> CompiledModel:
 
 def _load_numba(definition, key: str, derived: _Derived, reason: str) -> CompiledModel:
     path = _cfunc_source_path(definition, key, derived)
+    from csim.fast.cache_load import install
     from csim.progress import status
 
+    install()  # (cached cfuncs load without numba's whole target too)
     name = f"csim_model_{path.stem}"
     with status(f"compiling the model functions of {definition.name!r} with numba (no C compiler: seconds)"):
         spec = importlib.util.spec_from_file_location(name, path)
@@ -414,13 +416,13 @@ def load_model(definition: MechanismDefinition, drives: Drives | None = None,
     if backend == "python" and not interpreted:
         raise ValueError("CSIM_MODEL_BACKEND=python: the compiled kernels call machine code; python is for "
                          "simulation.backend 'interpreted' only")
-    memo_key = (id(definition), drives, interpreted, backend)
+    # (the Python functions stand in for numba's cfuncs, where the interpreted kernels may not use numba)
+    python_ok = backend == "python" or (interpreted and backend == "auto" and not _numba_usable())
+    memo_key = (id(definition), drives, backend, python_ok)
     known = _BY_DEFINITION.get(memo_key)
     if known is not None and known[0] is definition:
         return known[1]
     key = model_key(definition, drives)
-    # (the Python functions stand in for numba's cfuncs, where the interpreted kernels may not use numba)
-    python_ok = backend == "python" or (interpreted and backend == "auto" and not _numba_usable())
     memo = f"{key}:{backend}:{python_ok}"
     if memo not in _MODELS:
         derived = _Derived(definition, drives)

@@ -147,7 +147,12 @@ def integrate_compiled(system: ConstrainedSystem, y0: np.ndarray, settings: Inte
     """
     mod = _kernels_for(system, interpreted)
     args = _arguments(system, y0, settings, settings.max_steps, mod)
-    n_rec, ts, ys, modes, n_ev, ev_t, ev_sw, nfev, nsteps, code, info, njev, nlu = _run_kernel(mod, args, progress)
+    try:
+        n_rec, ts, ys, modes, n_ev, ev_t, ev_sw, nfev, nsteps, code, info, njev, nlu = _run_kernel(mod, args, progress)
+    except (ArithmeticError, ValueError) as exc:
+        if mod.COMPILED:
+            raise
+        return _raised(system, exc)
     labels = system.loads.switch_labels
     status, message, failure = "success", f"reached t_end = {settings.t_end:g} s", ""
     if code != OK:
@@ -161,6 +166,15 @@ def integrate_compiled(system: ConstrainedSystem, y0: np.ndarray, settings: Inte
         nsteps=int(nsteps),
         event_times=ev_t[:n_ev].tolist(), event_labels=_event_labels(ev_sw[:n_ev], labels),
     )
+
+
+def _raised(system: ConstrainedSystem, exc: Exception) -> Trajectory:
+    """The failed run of an interpreted kernel that raised: Python raises where machine code goes on with
+    inf or NaN (a float divided by zero, a math function out of its domain), on the way to a blow-up."""
+    message = (f"simulation.backend 'interpreted': Python raised {type(exc).__name__} ({exc}) where compiled code "
+               f"goes on with inf or NaN, on the way to a blow-up; run it compiled to see where the motion fails")
+    return Trajectory(t=np.zeros(0), y=np.zeros((0, system.n_state)), mode=np.zeros((0, system.loads.n_switches), bool),
+                      status="failed", message=message, failure="backend")
 
 
 def _run_kernel(mod, args: tuple, progress: Callable[[float], None] | None) -> tuple:

@@ -477,7 +477,7 @@ COMPARISON_COLUMNS: dict[str, str] = {
     "wall_time": "s",
     "nfev": "count of right-hand-side evaluations",
     "nsteps": "count of accepted steps",
-    "backend": "what integrated the run: python or compiled",
+    "backend": "what integrated the run: python, compiled or interpreted",
 }
 
 

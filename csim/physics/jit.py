@@ -83,23 +83,27 @@ class LazyKernel:
     Attributes
     ----------
     py_func : function
-        The Python function.
+        The Python function numba compiles.
+    python : function
+        What runs where it is not compiled: ``py_func``, or a twin that makes Python's scalars
+        compute as the compiled code does (:func:`inline_kernel`'s ``python``).
     """
 
-    def __init__(self, fn, options: dict):
+    def __init__(self, fn, options: dict, python=None):
         functools.update_wrapper(self, fn)
         self.py_func, self._options, self._compiled = fn, options, None
+        self.python = python or fn
 
     def compiled(self):
         """The numba dispatcher (or the plain function where numba does not load)."""
         if self._compiled is None:
             njit = activate()
-            self._compiled = self.py_func if njit is None else njit(**self._options)(self.py_func)
+            self._compiled = self.python if njit is None else njit(**self._options)(self.py_func)
         return self._compiled
 
     def __call__(self, *args):
         if self._compiled is None and _PLAIN["depth"]:
-            return self.py_func(*args)
+            return self.python(*args)
         return (self._compiled or self.compiled())(*args)
 
 
@@ -124,17 +128,23 @@ def kernel(fn):
     return _lazy(fn, NJIT_OPTIONS)
 
 
-def _lazy(fn, options):
+def _lazy(fn, options, python=None):
     """A LazyKernel, or the dispatcher itself once numba is loaded."""
-    lazy = LazyKernel(fn, options)
+    lazy = LazyKernel(fn, options, python)
     return lazy.compiled() if _NUMBA["njit"] is not None else lazy
 
 
-def inline_kernel(fn):
+def inline_kernel(fn=None, *, python=None):
     """:func:`kernel`, and inlined into compiled callers in numba's IR, so that the sizes they pass
     as constants fix its loop lengths (the KKT solve of a right-hand side: about 0.6x the time of a
-    call). Only for the few functions on the right-hand side's path: inlining costs compile time."""
-    return _lazy(fn, dict(inline="always", **NJIT_OPTIONS))
+    call). Only for the few functions on the right-hand side's path: inlining costs compile time.
+
+    ``python`` (``@inline_kernel(python=twin)``): what runs in its place where it is not compiled,
+    for the rare operation whose Python scalars compute otherwise than compiled code (numpy's
+    complex division, :func:`csim.physics.linalg.quotient`)."""
+    if fn is None:
+        return lambda f: inline_kernel(f, python=python)
+    return _lazy(fn, dict(inline="always", **NJIT_OPTIONS), python)
 
 
 def jitable(fn=None, *, inline: bool = False):

@@ -14,6 +14,22 @@ import numpy as np
 from csim.physics.jit import inline_kernel
 
 
+def _python_quotient(a, b):
+    """a / b as compiled code divides: complex numbers by CPython's algorithm (``_Py_c_quot``, which
+    numba's complex division is), not numpy's, whose complex128 scalars round otherwise."""
+    if isinstance(a, complex) or isinstance(b, complex):  # (numpy's complex128 is a complex)
+        return complex(a) / complex(b)
+    return a / b
+
+
+@inline_kernel(python=_python_quotient)
+def quotient(a, b):
+    """a / b. Where it runs as Python (the interpreted kernels), numpy's complex128 scalars divide
+    otherwise than numba does: the interpreted Radau, whose complex LU divides them, took other
+    steps than the compiled one."""
+    return a / b
+
+
 def as_core(a) -> np.ndarray:
     """``a`` (a vector or a matrix) as the core functions take it: C-contiguous float64, flat row-major.
 
@@ -44,7 +60,7 @@ def lu_factor(A, n, piv):
                 tmp = A[c * n + j]
                 A[c * n + j] = A[p * n + j]
                 A[p * n + j] = tmp
-        inv = 1.0 / A[c * n + c]
+        inv = quotient(1.0, A[c * n + c])
         for i in range(c + 1, n):
             A[i * n + c] *= inv
             lic = A[i * n + c]
@@ -72,4 +88,4 @@ def lu_solve(A, n, piv, b):
         s = b[i]
         for j in range(i + 1, n):
             s -= A[i * n + j] * b[j]
-        b[i] = s / A[i * n + i]
+        b[i] = quotient(s, A[i * n + i])

@@ -1,7 +1,7 @@
 """Step-size control shared by the adaptive integrators: scipy's first step
 (``select_initial_step``), its constants, and each integrator's error-estimator order.
 """
-import math
+import numpy as np
 
 from csim.physics.status import OK
 from csim.physics.tableaus import ERROR_ESTIMATOR_ORDER, VERN7_ERROR_ESTIMATOR_ORDER
@@ -20,7 +20,7 @@ def _rms(x, scale):
     for i in range(x.size):
         v = x[i] / scale[i]
         s += v * v
-    return math.sqrt(s) / x.size**0.5
+    return np.sqrt(s) / x.size**0.5  # (np: a float64, which divides by zero as compiled code does)
 
 
 @hot

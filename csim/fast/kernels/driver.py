@@ -56,7 +56,7 @@ from .system import (
     project,
 )
 from .tableaus import DOP_NX, DOP_POWER
-from .variant import WITH_PARTITION
+from .variant import COMPILED, WITH_PARTITION
 
 
 @hot
@@ -265,8 +265,9 @@ def _accept(ts_, y, ya):
 
 
 #: steps between two looks at ``control`` (the interrupt request, the time reached): reading
-#: one element costs nothing next to a step, and a few hundred steps take milliseconds
-POLL_STEPS = 256
+#: one element costs nothing next to a step, and a few hundred steps take milliseconds (the
+#: interpreted loop, whose step takes a millisecond or more, looks at every step)
+POLL_STEPS = 256 if COMPILED else 1
 
 
 @allocating  # _record_event may grow the records: numba's allocator

@@ -1,7 +1,7 @@
 """The adaptive explicit Runge-Kutta step of DOP853, RK45, Tsit5 and Vern7: scipy's
 ``RungeKutta._step_impl`` with each pair's tableau and error estimate.
 """
-import math
+import numpy as np
 
 from csim.physics.status import OK
 
@@ -49,7 +49,7 @@ def _dop853_error(K, y, y_new, tolv, rtol, hstep):
         e3 += a3 * a3
     if e5 == 0 and e3 == 0:
         return 0.0
-    return abs(hstep) * e5 / math.sqrt((e5 + 0.01 * e3) * n)
+    return abs(hstep) * e5 / np.sqrt((e5 + 0.01 * e3) * n)
 
 
 @sized
@@ -155,4 +155,4 @@ def _erk_error(E, K, y, y_new, tolv, rtol, hstep):
             acc += K[jj, i] * E[jj]
         v = acc * hstep / (tolv[i] + max(abs(y[i]), abs(y_new[i])) * rtol)
         s += v * v
-    return math.sqrt(s / n)
+    return np.sqrt(s / n)

@@ -17,9 +17,11 @@ process (:func:`csim.fast.runner.integrate_compiled` runs it inside
 - the model handle is a :class:`ModelHandle`, whose methods are the compiled overloads'
   bodies, for the core's :mod:`csim.physics.model`.
 
-Python raises where machine code gives inf or NaN (a float divided by zero, ``math.sqrt`` of a
-negative): on the way to a blow-up the interpreted loop can stop with an exception where the
-compiled one runs on to its own failure (:func:`csim.fast.runner.integrate_compiled` reports it).
+Python raises where machine code gives inf or NaN (a Python float divided by zero, a ``math``
+function out of its domain): the loop's own norms are numpy's for that reason, but on the way
+to a blow-up the interpreted loop can still stop with an exception where the compiled one runs
+on to its own failure (:func:`csim.fast.runner.integrate_compiled` returns it as a failed run,
+kind ``backend``, saying so).
 """
 from __future__ import annotations
 
@@ -50,7 +52,9 @@ def _c_function(addr: int, prototype) -> Callable:
 
 
 def _data(a) -> int:
-    """The address of an array's first element (C-contiguous 1-D: the kernels' arrays and their slices)."""
+    """The address of an array's first element (C-contiguous: the kernels' arrays and their 1-D slices)."""
+    if not a.flags.c_contiguous:
+        raise RuntimeError("the interpreted kernels passed a strided array to a C function")
     return a.ctypes.data
 
 

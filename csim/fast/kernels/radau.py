@@ -2,8 +2,6 @@
 the difference Jacobian of ``num_jac`` capped as :class:`csim.solver.dae.DifferenceJacobian`
 caps it, the error estimate and step-size predictor).
 """
-import math
-
 import numpy as np
 
 from csim.physics import radau as coefficients
@@ -76,7 +74,7 @@ def _radau_rms(M, row0, rows, scale):
         for i in range(n):
             v = M[row0 + a, i] / scale[i]
             s += v * v
-    return math.sqrt(s / (rows * n))
+    return np.sqrt(s / (rows * n))
 
 
 @hot
