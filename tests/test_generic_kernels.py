@@ -190,6 +190,30 @@ def test_a_copy_of_the_kernels_is_written_whole_and_never_replaced(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == [".kernels_j-writing", "kernels_j", "kernels_k"]
 
 
+def test_copies_of_other_keys_unused_for_a_month_are_removed(tmp_path):
+    """An upgrade leaves the copies of the old key (27 MB) behind: they go once no process has loaded them
+    for UNUSED_DAYS, with the single-file copies of older csims and their machine code; this process's
+    copies, recent ones (another installation sharing the cache) and the models' files stay."""
+    from csim.fast import module
+
+    now = 1.0e9
+    old, recent = now - (module.UNUSED_DAYS + 1) * 86400, now - 5 * 86400
+    pycache = tmp_path / "__pycache__"
+    pycache.mkdir()
+    current = tmp_path / module.kernels_path().name
+    entries = {current: old, tmp_path / "kernels_aaa": old, tmp_path / "kernels_partitioned_bbb": recent,
+               tmp_path / "kernels_ccc.py": old, pycache / "kernels_ccc.integrate-300.py311.nbi": old,
+               pycache / "pendulum_ddd_cfunc.terms-12.py311.nbc": old, tmp_path / "pendulum_ddd.so": old}
+    for path, stamp in entries.items():
+        path.mkdir() if not path.suffix else path.write_text("")  # the copies are folders
+        os.utime(path, (stamp, stamp))
+    removed = module.prune_kernels(tmp_path, now=now)
+    assert sorted(p.name for p in removed) == ["kernels_aaa", "kernels_ccc.integrate-300.py311.nbi", "kernels_ccc.py"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        ["__pycache__", current.name, "kernels_partitioned_bbb", "pendulum_ddd.so"])
+    assert [p.name for p in pycache.iterdir()] == ["pendulum_ddd_cfunc.terms-12.py311.nbc"]
+
+
 def test_an_editors_lock_file_beside_the_kernels_is_not_a_source(tmp_path):
     from csim.fast import module
 

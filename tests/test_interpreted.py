@@ -61,6 +61,27 @@ def test_a_failure_fails_at_the_same_step_with_the_same_message():
     _assert_same_steps(fast, slow)
 
 
+@pytest.mark.parametrize(("sets", "kind"), [
+    (["simulation.max_steps=40"], "max steps"),
+    (["simulation.max_events=2"], "chatter"),
+    (["simulation.integrator=Radau", "simulation.min_step=1e-3"], "step collapse"),
+    (["simulation.integrator=RK4", "simulation.step=0.2"], "drift"),
+])
+def test_each_way_to_fail_fails_alike(sets, kind):
+    """The loop's other exits: too many steps, chattering events, Radau's step collapse, RK4's drift."""
+    fast, slow = _both(qr_case("simulation.t_end=0.5", *sets))
+    assert (fast.status, fast.failure) == ("failed", kind), fast.message
+    _assert_same_steps(fast, slow)
+
+
+def test_minimal_on_an_overconstrained_spatial_linkage():
+    """Bricard's mechanism (IFToMM A04) for 10 s with minimal: the partitioned system on the branch of a
+    linkage whose closure equations are dependent, 206 steps."""
+    fast, slow = _both(load_case(CONFIGS / "iftomm" / "a04_bricard.yaml"))
+    assert fast.status == "success" and fast.nsteps > 100, fast.message
+    _assert_same_steps(fast, slow)
+
+
 def test_drives_run_interpreted():
     """A driven mechanism (its drives are constraint rows of the model, their work a state)."""
     case = load_case(CONFIGS / "slider_crank_dynamic.yaml", ["simulation.t_end=0.3"])

@@ -13,7 +13,8 @@ package instead of stale machine code.) There are two copies, two variants of on
 ``kernels_partitioned_<key>/`` for the partitioned system of ``minimal``, and
 ``kernels_<key>/``, whose ``variant.py`` says ``WITH_PARTITION = False``, for every other method: that
 one neither compiles the partitioned path nor carries it through the loop. Each compiles on
-the first run that needs it.
+the first run that needs it. Copies of other keys (an upgrade, an edit) that no process has
+loaded for 30 days are removed when a new copy is written (:func:`prune_kernels`).
 
 A mechanism's model functions (:mod:`csim.fast.codegen`) are built into
 ``<cache>/fast/<mechanism>_<key>.so`` by the system's C compiler (:mod:`csim.fast.ccodegen`,
@@ -202,13 +203,43 @@ def feval_address(kernels: ModuleType) -> int:
 
 
 def _kernels_copy(partitioned: bool) -> Path:
-    """The kernels' copy for a variant, written into the cache if it is not there yet."""
+    """The kernels' copy for a variant, written into the cache if it is not there yet (and then the copies
+    of other keys that no process has used for :data:`UNUSED_DAYS` removed: :func:`prune_kernels`); its
+    time stamp says when a process last loaded it."""
     path = kernels_path(partitioned)
     if not path.is_dir():
         path = _writable(path)
         if not path.is_dir():
             _write_package(path, kernels_source(partitioned))
+            prune_kernels(path.parent)
+    with contextlib.suppress(OSError):
+        os.utime(path)  # used now (a copy's own files keep their stamps: numba's cache checks them)
     return path
+
+
+#: a copy of the kernels of another key (an earlier csim, numba or edit) that no process has loaded for
+#: this many days is removed when a new copy is written (27 MB a key; the machine code of both copies)
+UNUSED_DAYS = 30
+
+
+def prune_kernels(folder: Path, now: float | None = None) -> list[Path]:
+    """Remove from ``folder`` the kernels' copies of other keys than this process's, unused for
+    :data:`UNUSED_DAYS` (their folder's time stamp, :func:`_kernels_copy`): package copies
+    ``kernels[_partitioned]_<key>/`` and the single-file copies of csim before the package, with their
+    machine code in ``__pycache__``. Another installation that shares the cache and still runs keeps
+    its copy fresh by loading it. Returns what was removed."""
+    now = time.time() if now is None else now
+    current = {kernels_path(False).name, kernels_path(True).name}
+    removed = []
+    candidates = [p for p in folder.glob("kernels_*") if p.name.split(".")[0] not in current]
+    candidates += [p for p in (folder / "__pycache__").glob("kernels_*")
+                   if p.name.split(".")[0] not in current]  # numba's files of the single-file copies
+    for path in candidates:
+        with contextlib.suppress(OSError):
+            if now - path.stat().st_mtime > UNUSED_DAYS * 86400:
+                shutil.rmtree(path) if path.is_dir() else path.unlink()
+                removed.append(path)
+    return removed
 
 
 class _KernelsFinder:
