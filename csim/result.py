@@ -43,7 +43,7 @@ FAILURE_KINDS = (
     ("branch", ("minimal: the assembly branch",)),
     ("event location", ("numerical error",)),
     ("drive", ("mechanism.drive",)),
-    ("backend", ("simulation.backend 'compiled'",)),
+    ("backend", ("simulation.backend 'compiled'", "simulation.backend 'interpreted'")),
 )
 
 #: values of :attr:`Result.failure`: "" for a success, a kind of :data:`FAILURE_KINDS`, or

@@ -12,6 +12,7 @@ import os
 import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -192,26 +193,49 @@ def test_a_copy_of_the_kernels_is_written_whole_and_never_replaced(tmp_path):
 
 def test_copies_of_other_keys_unused_for_a_month_are_removed(tmp_path):
     """An upgrade leaves the copies of the old key (27 MB) behind: they go once no process has loaded them
-    for UNUSED_DAYS, with the single-file copies of older csims and their machine code; this process's
-    copies, recent ones (another installation sharing the cache) and the models' files stay."""
+    for UNUSED_DAYS, with the single-file copies of older csims and their machine code. This process's
+    copies, recent ones (another installation sharing the cache), a copy whose machine code was read
+    lately (an older csim, which sets no stamp), the models' files and other names stay."""
     from csim.fast import module
 
     now = 1.0e9
     old, recent = now - (module.UNUSED_DAYS + 1) * 86400, now - 5 * 86400
+    key = {c: c * 24 for c in "abcdef"}
     pycache = tmp_path / "__pycache__"
     pycache.mkdir()
-    current = tmp_path / module.kernels_path().name
-    entries = {current: old, tmp_path / "kernels_aaa": old, tmp_path / "kernels_partitioned_bbb": recent,
-               tmp_path / "kernels_ccc.py": old, pycache / "kernels_ccc.integrate-300.py311.nbi": old,
-               pycache / "pendulum_ddd_cfunc.terms-12.py311.nbc": old, tmp_path / "pendulum_ddd.so": old}
-    for path, stamp in entries.items():
+    files = {tmp_path / module.kernels_path().name: old, tmp_path / module.kernels_path(True).name: old,
+             tmp_path / f"kernels_{key['a']}": old, tmp_path / f"kernels_partitioned_{key['b']}": recent,
+             tmp_path / f"kernels_{key['e']}": old, tmp_path / f"kernels_{key['e']}" / "__pycache__": old,
+             tmp_path / f"kernels_{key['c']}.py": old, pycache / f"kernels_{key['c']}.integrate-300.py311.nbi": old,
+             tmp_path / f"kernels_{key['d']}.py": old, pycache / f"kernels_{key['d']}.integrate-300.py311.nbi": recent,
+             pycache / "pendulum_ddd_cfunc.terms-12.py311.nbc": old, tmp_path / "pendulum_ddd.so": old,
+             tmp_path / "kernels_notes": old}
+    for path, stamp in files.items():
         path.mkdir() if not path.suffix else path.write_text("")  # the copies are folders
         os.utime(path, (stamp, stamp))
+    used = tmp_path / f"kernels_{key['e']}" / "__pycache__" / "driver.integrate-40.py311.nbi"
+    used.write_text("")
+    os.utime(used, (recent, old))  # read five days ago: an older csim still loads this copy
+    os.utime(tmp_path / f"kernels_{key['e']}", (old, old))
     removed = module.prune_kernels(tmp_path, now=now)
-    assert sorted(p.name for p in removed) == ["kernels_aaa", "kernels_ccc.integrate-300.py311.nbi", "kernels_ccc.py"]
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
-        ["__pycache__", current.name, "kernels_partitioned_bbb", "pendulum_ddd.so"])
-    assert [p.name for p in pycache.iterdir()] == ["pendulum_ddd_cfunc.terms-12.py311.nbc"]
+    assert sorted(p.name for p in removed) == [f"kernels_{key['a']}", f"kernels_{key['c']}.py"]
+    assert not (pycache / f"kernels_{key['c']}.integrate-300.py311.nbi").exists()
+    kept = set(files) - set(removed) - {pycache / f"kernels_{key['c']}.integrate-300.py311.nbi"}
+    assert all(p.exists() for p in kept), sorted(p.name for p in kept if not p.exists())
+
+
+def test_a_new_copy_prunes_and_a_load_stamps_its_copy(tmp_path, monkeypatch):
+    """The wiring: writing a copy prunes the folder, and every load stamps the copy it loads."""
+    from csim.fast import module
+
+    monkeypatch.setenv("CSIM_KERNELS_DIR", str(tmp_path))
+    stale = tmp_path / f"kernels_{'a' * 24}"
+    stale.mkdir()
+    os.utime(stale, (0, 0))
+    copy = module._kernels_copy(False)
+    assert copy.parent == tmp_path and not stale.exists()
+    os.utime(copy, (0, 0))
+    assert module._kernels_copy(False) == copy and time.time() - copy.stat().st_mtime < 60
 
 
 def test_an_editors_lock_file_beside_the_kernels_is_not_a_source(tmp_path):

@@ -22,6 +22,7 @@ from conftest import CONFIGS, qr_case
 from csim.case import load_case
 from csim.fast.runner import integrate_compiled
 from csim.pipeline import build_system, initial_state, run_case
+from csim.result import failure_kind
 
 #: every integrator of the kernels, each with another method (minimal: the partitioned system)
 COMBINATIONS = [("DOP853", "none"), ("RK4", "baumgarte"), ("RK45", "sliding_mode"), ("Tsit5", "projection"),
@@ -124,6 +125,25 @@ def test_an_exception_in_the_interpreted_loop_is_a_failed_run(monkeypatch):
     run = integrate_compiled(system, initial_state(case, system), case.integration_settings(), interpreted=True)
     assert (run.status, run.failure, run.t.size) == ("failed", "backend", 0)
     assert "ZeroDivisionError" in run.message and "run it compiled" in run.message
+    assert "tests/test_interpreted.py" in run.message and "(raises)" in run.message  # where it raised
+    assert failure_kind(run.message) == "backend"
+
+
+@pytest.mark.parametrize("error", [ValueError("operands could not be broadcast together"),
+                                   IndexError("index 7 is out of bounds"), TypeError("a bug")])
+def test_any_other_exception_of_the_interpreted_loop_is_raised(monkeypatch, error):
+    """A bug, a deliberate check of the loop or a plug-in's own error is raised as it is (the backend is
+    for debugging), not reported as a blow-up."""
+    import csim.fast.kernels.driver as driver
+
+    def raises(*args):
+        raise error
+
+    case = qr_case("simulation.t_end=0.1")
+    system = build_system(case)
+    monkeypatch.setattr(driver, "_start", raises)
+    with pytest.raises(type(error), match=str(error)):
+        integrate_compiled(system, initial_state(case, system), case.integration_settings(), interpreted=True)
 
 
 def test_python_model_functions_give_the_same_motion(monkeypatch):
@@ -151,35 +171,40 @@ from csim.case import load_case
 from csim.fast.runner import integrate_compiled
 from csim.pipeline import build_system, initial_state
 out = {}
-for i, sets in enumerate(eval(sys.argv[2])):
-    case = load_case(sys.argv[1], sets)
+for i, (config, sets) in enumerate(eval(sys.argv[1])):
+    case = load_case(config, sets)
     system = build_system(case)
     run = integrate_compiled(system, initial_state(case, system), case.integration_settings(), interpreted=True)
     out.update({f"t{i}": run.t, f"y{i}": run.y, f"counts{i}": [run.nfev, run.nsteps, run.njev, run.nlu],
                 f"events{i}": np.asarray(run.event_times), f"status{i}": run.status})
-np.savez(sys.argv[3], numba="numba" in sys.modules, **out)
+np.savez(sys.argv[2], numba="numba" in sys.modules, **out)
 """
 
-#: the integrators and methods whose core differs most between Python and numba: Radau's complex LU,
-#: minimal's Newton solves on the branch, the projection
-PURE_COMBINATIONS = [["simulation.integrator=Radau"], ["stabilization.method=minimal"],
-                     ["stabilization.method=projection", "simulation.integrator=Vern7"]]
+#: (config, settings): every integrator and method of COMBINATIONS, minimal on Bricard's mechanism (its Newton
+#: solves on the branch), drives
+PURE_COMBINATIONS = [
+    *((CONFIGS / "quick_return.yaml", [f"simulation.integrator={integrator}", f"stabilization.method={method}",
+                                       "simulation.t_end=0.4", "simulation.step=0.002"])
+      for integrator, method in COMBINATIONS),
+    (CONFIGS / "iftomm" / "a04_bricard.yaml", []),
+    (CONFIGS / "slider_crank_dynamic.yaml", ["simulation.t_end=0.3"]),
+]
 
 
 def test_pure_python_takes_the_compiled_steps(tmp_path):
     """CSIM_PURE_PYTHON=1: the loop and every core function run as Python (numba is never imported), and
     still take the compiled run's steps to the last bit (numpy's complex division, which Radau's complex LU
-    used, rounded otherwise)."""
-    sets = [[*extra, "simulation.t_end=0.3"] for extra in PURE_COMBINATIONS]
+    used, rounded otherwise). In this process the core is compiled, so only here does the test see it as Python."""
+    runs = [(str(config), extra) for config, extra in PURE_COMBINATIONS]
     out = tmp_path / "pure.npz"
     env = dict(os.environ, CSIM_PURE_PYTHON="1")
-    done = subprocess.run([sys.executable, "-c", PURE_STEPS, str(CONFIGS / "quick_return.yaml"), repr(sets), str(out)],
+    done = subprocess.run([sys.executable, "-c", PURE_STEPS, repr(runs), str(out)],
                           env=env, capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr
     pure = np.load(out)
     assert not pure["numba"]
-    for i, extra in enumerate(sets):
-        case = qr_case(*extra)
+    for i, (config, extra) in enumerate(runs):
+        case = load_case(config, extra)
         system = build_system(case)
         fast = integrate_compiled(system, initial_state(case, system), case.integration_settings())
         assert fast.status == str(pure[f"status{i}"]) == "success", (extra, fast.message)

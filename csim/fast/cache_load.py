@@ -4,8 +4,9 @@ Before it looks in its on-disk cache, numba refreshes the CPU target
 (``Cache.load_overload`` calls ``target_context.refresh()``): it imports and installs the
 implementations of everything numba can compile (numpy's linear algebra, which imports
 ``scipy.linalg`` for its BLAS check, random generators, typed containers, jitclasses, cffi,
-...). For a warm run that is 0.6-0.7 s of its 1.5 s (2-core machine, 2026-11-27), spent on
-code that nothing loaded from the cache uses: a cached function is machine code that needs
+...). That is 0.3-0.4 s of every warm run (alternated on the 2-core machine, 2026-11-27: a warm
+quick-return run 1.4-1.6 s with this module, 1.7-2.1 s without), spent on code that nothing
+loaded from the cache uses: a cached function is machine code that needs
 only numba's runtime (NRT: the allocator that ``integrate`` and the samples' evaluation
 call), whose symbols :func:`numba.core.runtime.rtsys.initialize` registers. A cache miss
 compiles, and numba's compiler refreshes the target itself (``CompilerBase.__init__``), so

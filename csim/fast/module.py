@@ -39,6 +39,7 @@ import functools
 import hashlib
 import importlib.util
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -224,22 +225,44 @@ UNUSED_DAYS = 30
 
 def prune_kernels(folder: Path, now: float | None = None) -> list[Path]:
     """Remove from ``folder`` the kernels' copies of other keys than this process's, unused for
-    :data:`UNUSED_DAYS` (their folder's time stamp, :func:`_kernels_copy`): package copies
-    ``kernels[_partitioned]_<key>/`` and the single-file copies of csim before the package, with their
-    machine code in ``__pycache__``. Another installation that shares the cache and still runs keeps
-    its copy fresh by loading it. Returns what was removed."""
+    :data:`UNUSED_DAYS`: package copies ``kernels[_partitioned]_<key>/`` and the single-file copies
+    of csim before the package (``kernels_<key>.py``), with their machine code in ``__pycache__``.
+    A copy's last use is the newest stamp of its folder or file (:func:`_kernels_copy` sets it at
+    each load) and of its machine code's files (numba reads their index at each load: the access
+    time, where the file system keeps it, tells of an older csim that sets no stamp). Returns what
+    was removed."""
     now = time.time() if now is None else now
     current = {kernels_path(False).name, kernels_path(True).name}
     removed = []
-    candidates = [p for p in folder.glob("kernels_*") if p.name.split(".")[0] not in current]
-    candidates += [p for p in (folder / "__pycache__").glob("kernels_*")
-                   if p.name.split(".")[0] not in current]  # numba's files of the single-file copies
-    for path in candidates:
+    for path in sorted(folder.iterdir()) if folder.is_dir() else ():
+        match = _COPY.match(path.name)
+        if match is None or match.group(1) in current or (path.is_file() and path.suffix != ".py"):
+            continue
         with contextlib.suppress(OSError):
-            if now - path.stat().st_mtime > UNUSED_DAYS * 86400:
+            machine_code = _machine_code(path, match.group(1))
+            if now - max([path.stat().st_mtime, *(_used(p) for p in machine_code)]) > UNUSED_DAYS * 86400:
+                for p in machine_code:
+                    p.unlink()
                 shutil.rmtree(path) if path.is_dir() else path.unlink()
                 removed.append(path)
     return removed
+
+
+#: a copy of the kernels: ``kernels[_partitioned]_<key>`` (a package) or the same with ``.py`` (a single file)
+_COPY = re.compile(r"^(kernels(?:_partitioned)?_[0-9a-f]{24})(?:\.py)?$")
+
+
+def _machine_code(copy: Path, name: str) -> list[Path]:
+    """numba's files of a copy: in its own ``__pycache__`` (a package), or ``<folder>/__pycache__/<name>.*``."""
+    if copy.is_dir():
+        return sorted((copy / "__pycache__").glob("*.nb[ic]"))
+    return sorted((copy.parent / "__pycache__").glob(f"{name}.*"))
+
+
+def _used(path: Path) -> float:
+    """When a file was last read or written [s since the epoch]."""
+    info = path.stat()
+    return max(info.st_mtime, info.st_atime)
 
 
 class _KernelsFinder:
@@ -448,7 +471,7 @@ def load_model(definition: MechanismDefinition, drives: Drives | None = None,
         raise ValueError("CSIM_MODEL_BACKEND=python: the compiled kernels call machine code; python is for "
                          "simulation.backend 'interpreted' only")
     # (the Python functions stand in for numba's cfuncs, where the interpreted kernels may not use numba)
-    python_ok = backend == "python" or (interpreted and backend == "auto" and not _numba_usable())
+    python_ok = backend == "python" or (interpreted and backend == "auto" and not numba_usable())
     memo_key = (id(definition), drives, backend, python_ok)
     known = _BY_DEFINITION.get(memo_key)
     if known is not None and known[0] is definition:
@@ -473,7 +496,7 @@ def load_model(definition: MechanismDefinition, drives: Drives | None = None,
     return _MODELS[memo]
 
 
-def _numba_usable() -> bool:
+def numba_usable() -> bool:
     """Whether numba may be used here: installed, and not ruled out by ``CSIM_PURE_PYTHON=1``."""
     from csim.physics.jit import pure_python
 

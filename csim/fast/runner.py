@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import signal
 import threading
+import traceback
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager, nullcontext, suppress
 
@@ -149,10 +150,8 @@ def integrate_compiled(system: ConstrainedSystem, y0: np.ndarray, settings: Inte
     args = _arguments(system, y0, settings, settings.max_steps, mod)
     try:
         n_rec, ts, ys, modes, n_ev, ev_t, ev_sw, nfev, nsteps, code, info, njev, nlu = _run_kernel(mod, args, progress)
-    except (ArithmeticError, ValueError) as exc:
-        if mod.COMPILED:
-            raise
-        return _raised(system, exc)
+    except _PythonArithmetic as exc:
+        return _raised(system, exc.__cause__)
     labels = system.loads.switch_labels
     status, message, failure = "success", f"reached t_end = {settings.t_end:g} s", ""
     if code != OK:
@@ -168,11 +167,30 @@ def integrate_compiled(system: ConstrainedSystem, y0: np.ndarray, settings: Inte
     )
 
 
-def _raised(system: ConstrainedSystem, exc: Exception) -> Trajectory:
-    """The failed run of an interpreted kernel that raised: Python raises where machine code goes on with
-    inf or NaN (a float divided by zero, a math function out of its domain), on the way to a blow-up."""
-    message = (f"simulation.backend 'interpreted': Python raised {type(exc).__name__} ({exc}) where compiled code "
-               f"goes on with inf or NaN, on the way to a blow-up; run it compiled to see where the motion fails")
+class _PythonArithmetic(Exception):
+    """The interpreted loop raised where machine code goes on with inf or NaN (its ``__cause__``)."""
+
+
+def _python_arithmetic(exc: BaseException) -> bool:
+    """Whether ``exc`` is what Python raises where machine code computes inf or NaN: a float divided by zero,
+    an overflow, a math function out of its domain, NaN made an integer. Anything else (a bug, a deliberate
+    check of the loop, a plug-in's own error) is raised as it is."""
+    if isinstance(exc, (ZeroDivisionError, OverflowError, FloatingPointError)):
+        return True
+    return isinstance(exc, ValueError) and str(exc) in ("math domain error", "cannot convert float NaN to integer")
+
+
+def _raised(system: ConstrainedSystem, exc: BaseException) -> Trajectory:
+    """The failed run of an interpreted kernel that raised where machine code goes on with inf or NaN (on the
+    way to a blow-up), saying where."""
+    from csim.fast.module import numba_usable
+
+    frame = traceback.extract_tb(exc.__traceback__)[-1]
+    inside = frame.filename.partition("/csim/")[2]  # the file from the package's folder on
+    where = f"{'csim/' + inside if inside else frame.filename}:{frame.lineno} ({frame.name})"
+    hint = "; run it compiled to see where the motion fails" if numba_usable() else ""
+    message = (f"simulation.backend 'interpreted': Python raised {type(exc).__name__} ({exc}) at {where}, where "
+               f"compiled code goes on with inf or NaN, on the way to a blow-up{hint}")
     return Trajectory(t=np.zeros(0), y=np.zeros((0, system.n_state)), mode=np.zeros((0, system.loads.n_switches), bool),
                       status="failed", message=message, failure="backend")
 
@@ -188,6 +206,9 @@ def _run_kernel(mod, args: tuple, progress: Callable[[float], None] | None) -> t
                 out["value"] = mod.integrate(*args)
         except BaseException as exc:  # handed to the waiting thread
             out["error"] = exc
+            if not mod.COMPILED and _python_arithmetic(exc):  # (not the progress callback's: raised below)
+                out["error"] = _PythonArithmetic()
+                out["error"].__cause__ = exc
 
     worker = threading.Thread(target=target, name="csim-kernel", daemon=True)
     with _stop_on_ctrl_c(control):
