@@ -184,7 +184,7 @@ def load_kernels(partitioned: bool = False, compiled: bool = True) -> ModuleType
 
 def feval_address(kernels: ModuleType) -> int:
     """The address of the machine code of ``kernels.feval`` (the right-hand side its callers call by
-    address, :func:`csim.fast.kernels.calls.call_feval`), compiled for ``kernels.FEVAL_TYPES`` or loaded
+    address, :func:`csim.fast.kernels.addresses.call_feval`), compiled for ``kernels.FEVAL_TYPES`` or loaded
     from numba's cache on the first call in a process."""
     if not kernels.COMPILED:  # the interpreted package calls its feval from Python: an id stands for the address
         return id(kernels.feval)
