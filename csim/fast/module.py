@@ -52,6 +52,7 @@ from types import ModuleType, SimpleNamespace
 import numpy as np
 
 from csim.fast.layout import BUILTIN_GAMMA, EXTERNAL, MODEL_FUNCTIONS, c_symbol
+from csim.fast.support import numba_usable
 from csim.model.cache import cache_dir, definition_key, kernels_dir
 from csim.model.definition import MechanismDefinition
 from csim.solver.methods import STABILIZERS
@@ -325,7 +326,7 @@ def method_code(method) -> int:
 
 
 def _gamma_cfunc(kernel):
-    """A cfunc with the kernels' gamma* interface (csim.fast.kernels.calls._call_gamma) around ``kernel``."""
+    """A cfunc with the kernels' gamma* interface (csim.fast.kernels.addresses.call_gamma) around ``kernel``."""
     from numba import carray, cfunc, njit, types
 
     f8p, i8p, i8 = types.CPointer(types.float64), types.CPointer(types.int64), types.int64
@@ -494,13 +495,6 @@ def load_model(definition: MechanismDefinition, drives: Drives | None = None,
         _MODELS[memo] = model or _load_numba(definition, key, derived, reason)
     _BY_DEFINITION[memo_key] = (definition, _MODELS[memo])
     return _MODELS[memo]
-
-
-def numba_usable() -> bool:
-    """Whether numba may be used here: installed, and not ruled out by ``CSIM_PURE_PYTHON=1``."""
-    from csim.physics.jit import pure_python
-
-    return not pure_python() and importlib.util.find_spec("numba") is not None
 
 
 def _cfunc_source_path(definition, key: str, derived: _Derived) -> Path:

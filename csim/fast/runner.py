@@ -183,7 +183,7 @@ def _python_arithmetic(exc: BaseException) -> bool:
 def _raised(system: ConstrainedSystem, exc: BaseException) -> Trajectory:
     """The failed run of an interpreted kernel that raised where machine code goes on with inf or NaN (on the
     way to a blow-up), saying where."""
-    from csim.fast.module import numba_usable
+    from csim.fast.support import numba_usable
 
     frame = traceback.extract_tb(exc.__traceback__)[-1]
     inside = frame.filename.partition("/csim/")[2]  # the file from the package's folder on

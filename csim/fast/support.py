@@ -78,17 +78,22 @@ def numba_available() -> bool:
     return importlib.util.find_spec("numba") is not None
 
 
+def numba_usable() -> bool:
+    """Whether numba may be used here: installed, and not ruled out by ``CSIM_PURE_PYTHON=1``."""
+    from csim.physics.jit import pure_python
+
+    return not pure_python() and numba_available()
+
+
 def resolve_backend(case) -> str:
     """``"compiled"``, ``"interpreted"`` or ``"python"``: the backend that runs a validated case
     (:class:`csim.case.Case`)."""
-    from csim.physics.jit import pure_python
-
     backend = case.simulation.backend
     if backend in ("python", "interpreted"):
         return backend
     if backend == "auto" and unsupported(case):
         return "python"
-    return "compiled" if numba_available() and not pure_python() else "interpreted"
+    return "compiled" if numba_usable() else "interpreted"
 
 
 def why_not_compiled(case, backend: str) -> str:
