@@ -11,8 +11,9 @@ process (:func:`csim.fast.runner.integrate_compiled` runs it inside
   where there is neither (no C compiler, and no numba or ``CSIM_PURE_PYTHON=1``) it is the
   key of a Python function of the cfunc source in :data:`PYTHON_FUNCTIONS`
   (:func:`csim.fast.module.load_model`, model backend ``python``);
-- a method's gamma* outside the built-in dispatch likewise: a cfunc's address, or the key of
-  its Python kernel in :data:`PYTHON_FUNCTIONS`;
+- a method's gamma* outside the built-in dispatch is always the key of its Python kernel in
+  :data:`PYTHON_FUNCTIONS` (:func:`csim.fast.module.method_dispatch` registers it there for the
+  interpreted kernels instead of wrapping it in a cfunc);
 - ``feval`` is this package's own function (its address in ``pi`` is only checked to be set);
 - the model handle is a :class:`ModelHandle`, whose methods are the compiled overloads'
   bodies, for the core's :mod:`csim.physics.model`.
@@ -35,19 +36,18 @@ from csim.fast.layout import F_JAC, F_MASS, F_PHI, F_TERMS, PI_FN, W_GAM, W_J, W
 PYTHON_FUNCTIONS: dict[int, Callable] = {}
 
 _P = ctypes.c_void_p
+#: the model functions' C interface (csim.fast.layout)
 _MODEL = ctypes.CFUNCTYPE(None, ctypes.c_double, _P, _P, _P)
-_I8 = ctypes.c_int64
-_GAMMA = ctypes.CFUNCTYPE(None, _I8, _P, _P, _P, _P, _I8, _P, _I8, _P, _I8, _P)
 #: address -> its ctypes function (made once)
 _CTYPES: dict[int, Callable] = {}
 
 
-def _c_function(addr: int, prototype) -> Callable:
+def _c_function(addr: int) -> Callable:
     fn = _CTYPES.get(addr)
     if fn is None:
         if not addr:
             raise ValueError("a function's address in pi is 0")
-        fn = _CTYPES[addr] = prototype(int(addr))
+        fn = _CTYPES[addr] = _MODEL(int(addr))
     return fn
 
 
@@ -64,17 +64,12 @@ def call_model(addr, t, y, par, out):
     if fn is not None:
         fn(t, y, par, out)
     else:
-        _c_function(addr, _MODEL)(t, _data(y), _data(par), _data(out))
+        _c_function(addr)(t, _data(y), _data(par), _data(out))
 
 
 def call_gamma(addr, r, gamma, phi, phi_dot, gains, n_gains, fpar, n_fpar, ipar, n_ipar, out):
-    """A method's gamma* at ``addr`` (:func:`.addresses.call_gamma`'s interface), or its Python kernel."""
-    fn = PYTHON_FUNCTIONS.get(addr)
-    if fn is not None:
-        fn(r, gamma, phi, phi_dot, gains, fpar, ipar, out)
-    else:
-        _c_function(addr, _GAMMA)(r, _data(gamma), _data(phi), _data(phi_dot), _data(gains), n_gains, _data(fpar),
-                                  n_fpar, _data(ipar), n_ipar, _data(out))
+    """A method's gamma* (:func:`.addresses.call_gamma`'s interface): its Python kernel, registered under ``addr``."""
+    PYTHON_FUNCTIONS[addr](r, gamma, phi, phi_dot, gains, fpar, ipar, out)
 
 
 def call_feval(addr, t, y, mode, located, par, pf, pi, w, piv, f, info):
