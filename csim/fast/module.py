@@ -111,7 +111,7 @@ def _kernels_snapshot() -> tuple[str, dict[str, str]]:
     Python path until the cache was cleared.
     """
     sources = {p.name: p.read_text() for p in _sources(KERNELS)}
-    deps = [HERE / "layout.py", *_sources(PHYSICS), *_sources(METHODS)]
+    deps = [HERE / "layout.py", HERE / "linking.py", *_sources(PHYSICS), *_sources(METHODS)]
     parts = [FAST_VERSION, *(f"{name}\n{text}" for name, text in sources.items()), *(p.read_text() for p in deps)]
     return _hash([*parts, _versions()]), sources
 
@@ -172,9 +172,10 @@ def load_kernels(partitioned: bool = False, compiled: bool = True) -> ModuleType
         return importlib.import_module("csim.fast.kernels")
     if partitioned in _KERNELS:
         return _KERNELS[partitioned]
-    from csim.fast.cache_load import install
+    from csim.fast import cache_load, linking
 
-    install()  # a warm run loads the machine code without loading all of numba's target (csim.fast.cache_load)
+    cache_load.install()  # a warm run loads the machine code without loading all of numba's target
+    linking.install()  # a cold one optimizes each entry point's call tree once, not once per function
     if _KernelsFinder not in sys.meta_path:
         sys.meta_path.append(_KernelsFinder)
     # numba's cache locates functions through their module, imported by name (the finder)
