@@ -4,8 +4,11 @@
 
 ``support``  which cases it runs (no numba import)
 ``codegen``  njit model functions generated from the symbolic derivation
+``ccodegen``  the same model functions as C, for ``cc``
 ``kernels``  the loop, steppers and event location, compiled (a copy in the cache) or interpreted
 ``module``   generated module: cache on disk, load
+``cache_load``  numba's cache lookup without refreshing its whole target (warm runs)
+``linking``  each entry point's call tree optimized and emitted once (cold compiles)
 ``runner``   pack a system into arrays, call the loop, build the Trajectory
 """
 from csim.fast.support import BACKENDS, KERNEL_BACKENDS, resolve_backend, unsupported

@@ -118,7 +118,7 @@ def prepare(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSett
     mod = _kernels_for(system)
     copy = "minimal's copy of the kernels" if isinstance(system, PartitionedSystem) else "the kernels"
     text = ("loading the compiled kernels" if kernels_compiled(mod) else
-            f"compiling {copy} (once per csim installation, 2-4 min on 2 cores; python -m csim.warmup "
+            f"compiling {copy} (once per csim installation, 1-2 min on 2 cores; python -m csim.warmup "
             f"compiles both ahead)")
     with status(text), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         mod.integrate(*_arguments(system, y0, settings, 0, mod))  # (_arguments compiles feval)
