@@ -119,18 +119,119 @@ def test_functions_of_other_modules_link_as_numba_links_them(tmp_path):
     assert (out["value"], out["middle"], out["leaf"]) == (ENTRY, MIDDLE, LEAF)
 
 
-@pytest.mark.parametrize("change", ["signature", "source"])
-def test_another_numba_compiles_as_it_does(change):
-    """install() wraps numba's methods only where they are the ones it was written for."""
+DEAD_BRANCH = '''
+from numba import njit
+
+
+@njit(cache=True)
+def leaf(x):
+    return 2.0 * x + 1.0
+
+
+@njit(cache=True)
+def unused(x):
+    return leaf(x) + 3.0
+
+
+@njit(cache=True)
+def used(x):
+    return leaf(x) * 5.0
+
+
+@njit(cache=True)
+def entry(x):
+    n = 0.0
+    if x * 0 == 1:  # never true: numba keeps the branch, LLVM's function passes remove it before linking
+        n = unused(x)
+    return used(x) + n
+'''
+
+LOAD = """
+import json, sys
+sys.path.insert(0, sys.argv[1])
+from csim.fast import linking
+linking.install()
+import csim_fast_kernels_tree as tree
+value = tree.entry(3.0)
+library = tree.entry.overloads[tree.entry.signatures[0]].library
+linkages = {} if library._disable_inspection else {  # what the entry's module makes of each csim function
+    fn.name: "declared" if fn.is_declaration else fn.linkage.name for fn in library._final_module.functions
+    if "csim_fast_kernels_tree" in fn.name and "cpython" not in fn.name and not fn.name.startswith("cfunc.")}
+print(json.dumps(dict(value=value, hits=sum(tree.entry.stats.cache_hits.values()), linkages=linkages)))
+"""
+
+
+def _load(folder) -> dict:
+    done = subprocess.run([sys.executable, "-c", LOAD, str(folder)], capture_output=True, text=True, timeout=300,
+                          env=dict(os.environ))
+    # -11: the cached entry point calls a symbol that nothing defines
+    assert done.returncode == 0, f"exit {done.returncode}: {done.stderr}"
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def test_a_callee_whose_only_caller_llvm_removed_is_linked_for_its_other_callers(tmp_path):
+    """leaf's first caller in the tree (unused) is gone from the entry's module by the time it is linked:
+    leaf is still linked for used, and the cached entry point runs in a later process (it crashed there)."""
+    (tmp_path / "csim_fast_kernels_tree.py").write_text(DEAD_BRANCH)
+    first = _load(tmp_path)
+    assert first["value"] == 35.0 and first["hits"] == 0
+    assert "declared" not in first["linkages"].values(), first["linkages"]
+    second = _load(tmp_path)
+    assert second == dict(value=35.0, hits=1, linkages={})
+
+
+#: a callee too large to inline at each of its 16 calls
+NOT_INLINED = "from numba import njit\n\n\n@njit(cache=True)\ndef middle(x):\n    total = 0.0\n" + "".join(
+    f"    for i in range(int(x) + {k}):\n        total += math.sin(total + {k}.5 * i) / (1.0 + i)\n" for k in range(12)
+) + "    return total\n\n\n@njit(cache=True)\ndef entry(x):\n    return " + " + ".join(
+    f"middle(x + {k})" for k in range(16)) + "\n"
+
+
+def test_the_entry_point_runs_its_own_copies_in_the_compiling_process_too(tmp_path):
+    """The entry's copy of a callee it calls (not inlined) is private: a weak copy would bind to the callee's
+    own library, already in the JIT engine, and the compiling process would run that one."""
+    (tmp_path / "csim_fast_kernels_tree.py").write_text("import math\n" + NOT_INLINED)
+    first = _load(tmp_path)
+    middle = {name: linkage for name, linkage in first["linkages"].items() if "6middle" in name}
+    assert middle and set(middle.values()) == {"private"}, first["linkages"]
+    assert _load(tmp_path)["value"] == first["value"]
+
+
+def test_install_leaves_another_numba_as_it_is():
+    """Where numba's methods are not those it was written for, install() changes nothing and says so."""
+    code = """
+import json
+from numba.core import caching, codegen, cpu
+from csim.fast import linking
+before = (cpu.CPUContext.get_executable, codegen.CPUCodeLibrary.finalize, caching.Cache.save_overload)
+linking._expected = lambda *methods: False
+installed = linking.install()
+after = (cpu.CPUContext.get_executable, codegen.CPUCodeLibrary.finalize, caching.Cache.save_overload)
+print(json.dumps(dict(installed=installed, same=before == after)))
+"""
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout) == dict(installed=False, same=True)
+
+
+@pytest.mark.parametrize("change", ["signature", "source", "order"])
+def test_another_numba_is_recognised(change):
+    """_expected: numba's methods as install() wraps them, and three ways another numba could differ."""
     from numba.core import caching, codegen, cpu
 
+    numbas = [inspect.unwrap(method) for method in (  # install() may have wrapped them in this process
+        cpu.CPUContext.get_executable, codegen.CPUCodeLibrary.finalize, codegen.CPUCodeLibrary._optimize_final_module,
+        caching.Cache.save_overload)]
     if change == "signature":
         def finalize(self, strict=True):  # a numba whose finalize takes an argument
             return None
-    else:
+    elif change == "source":
         def finalize(self):  # a numba that links otherwise
             return self._link_everything()
-    numbas = [inspect.unwrap(method) for method in (cpu.CPUContext.get_executable, codegen.CPUCodeLibrary.finalize,
-                                                    caching.Cache.save_overload)]  # install() may have wrapped them
+    else:
+        def finalize(self):  # a numba that optimizes before it links
+            self._optimize_final_module()
+            for library in self._linking_libraries:
+                self._final_module.link_in(library._get_module_for_linking())
     assert linking._expected(*numbas)
-    assert not linking._expected(numbas[0], finalize, numbas[2])
+    assert not linking._expected(numbas[0], finalize, *numbas[2:])

@@ -15,9 +15,11 @@ Its callees stay declarations in its module, which its machine code calls throug
 symbols (the JIT engine resolves them: each callee was finalized, and so emitted, before it).
 A function compiled at the outermost level (an entry point that Python calls or whose
 address is taken: ``integrate``, ``feval``, ``evaluate_samples``, ...) links in the IR of its
-whole call tree, collected through those callees, and optimizes and emits it once: the
-machine code the kernels run is, as before, one module per entry point with its callees
-inlined where LLVM finds it pays.
+whole call tree, collected through those callees, as private copies, and optimizes and emits
+it once: the machine code the kernels run, in the compiling process as in every later one,
+is as before one module per entry point with its callees inlined where LLVM finds it pays
+(:func:`_link_tree` says why the copies are private, and why it links until nothing of the
+tree is left declared).
 
 A callee finalized so is not written to numba's cache: its machine code needs its callees'
 symbols, which a later process that loads it alone would not have. A later process that needs
@@ -47,28 +49,31 @@ def install() -> bool:
     _STATE["tried"] = True
     from numba.core import caching, codegen, cpu, event
 
-    if not _expected(cpu.CPUContext.get_executable, codegen.CPUCodeLibrary.finalize, caching.Cache.save_overload):
+    if not _expected(cpu.CPUContext.get_executable, codegen.CPUCodeLibrary.finalize,
+                     codegen.CPUCodeLibrary._optimize_final_module, caching.Cache.save_overload):
         return False
     event.register("numba:compile", _depth_listener())
     _wrap(cpu.CPUContext, "get_executable", _get_executable)
     _wrap(codegen.CPUCodeLibrary, "finalize", _finalize)
+    _wrap(codegen.CPUCodeLibrary, "_optimize_final_module", _optimize_final_module)
     _wrap(caching.Cache, "save_overload", _save_overload)
     _STATE["installed"] = True
     return True
 
 
-def _expected(get_executable, finalize, save_overload) -> bool:
+def _expected(get_executable, finalize, optimize, save_overload) -> bool:
     """Whether numba's methods take the arguments the wrappers pass, and ``finalize`` links
-    ``self._linking_libraries`` and then optimizes, as numba 0.68's does."""
+    ``self._linking_libraries`` and then calls ``self._optimize_final_module()``, as numba 0.68's does."""
     def parameters(fn):
         return list(inspect.signature(fn).parameters)
     try:
         source = inspect.getsource(finalize)
     except (OSError, TypeError):
         return False
-    return (parameters(get_executable) == ["self", "library", "fndesc", "env"]
-            and parameters(finalize) == ["self"] and parameters(save_overload)[:2] == ["self", "sig"]
-            and "in self._linking_libraries" in source and "self._optimize_final_module()" in source)
+    links, optimizes = source.find("in self._linking_libraries"), source.find("self._optimize_final_module()")
+    return (parameters(get_executable) == ["self", "library", "fndesc", "env"] and parameters(finalize) == ["self"]
+            and parameters(optimize) == ["self"] and parameters(save_overload)[:2] == ["self", "sig"]
+            and 0 <= links < optimizes)
 
 
 def _wrap(cls, name, replacement):
@@ -90,35 +95,87 @@ def _depth_listener():
             _DEPTH.n = getattr(_DEPTH, "n", 0) + 1
 
         def on_end(self, event):
-            _DEPTH.n -= 1
+            _DEPTH.n = max(getattr(_DEPTH, "n", 0) - 1, 0)
     return DepthListener()
 
 
 def own_code_only(library) -> bool:
-    """Whether ``library`` was (or is to be) finalized with its own code only: a csim callee."""
+    """Whether ``library`` is a csim callee finalized (or to be finalized) with its own code only."""
     return getattr(library, "_csim_own_code", False)
 
 
 def _get_executable(original, context, library, fndesc, env):
     """numba's ``CPUContext.get_executable`` (which finalizes ``library``), the library of a csim function
-    compiled inside another compile marked to be finalized with its own code only."""
-    if getattr(_DEPTH, "n", 0) > 1 and fndesc.modname.startswith(_CSIM_MODULES):
+    compiled inside another compile marked to be finalized with its own code only (not a library numba's
+    cache loaded: that one is finalized already, whole)."""
+    if (getattr(_DEPTH, "n", 0) > 1 and fndesc.modname.startswith(_CSIM_MODULES)
+            and not getattr(library, "_finalized", True)):
         library._csim_own_code = True
     return original(context, library, fndesc, env)
 
 
 def _finalize(original, library):
-    """numba's ``CPUCodeLibrary.finalize``: a csim callee links only the libraries of other packages (its csim
-    callees stay declarations); any other library links every csim callee of its call tree too."""
+    """numba's ``CPUCodeLibrary.finalize``, which links ``_linking_libraries`` and then optimizes: a csim
+    callee links only the libraries of other packages (its csim callees stay declarations); any other
+    library is given its tree of csim callees, linked in by :func:`_optimize_final_module`."""
     own, other = [], []
     for linked in dict.fromkeys(library._linking_libraries):  # in order, once each
         (own if own_code_only(linked) else other).append(linked)
+    library._linking_libraries = other
     if own_code_only(library):
         library._csim_callees = own
-        library._linking_libraries = other
     elif own:
-        library._linking_libraries = other + _call_tree(own)
+        library._csim_tree = _call_tree(own)
     return original(library)
+
+
+def _optimize_final_module(original, library):
+    """numba's ``CPUCodeLibrary._optimize_final_module``, after linking in the library's tree of csim
+    callees (:func:`_link_tree`), where it has one."""
+    tree = getattr(library, "_csim_tree", None)
+    if tree:
+        _link_tree(library, tree)
+    return original(library)
+
+
+def _link_tree(library, tree: list) -> None:
+    """Link the modules of the csim callees ``tree`` into ``library``'s final module, until none of their
+    functions is left declared there, and make the copies private.
+
+    Again and again: LLVM links a ``linkonce_odr`` function (each callee's functions are, in
+    the module numba gives for linking) only where the module already refers to it, so a
+    callee linked before its first caller, or one whose only caller LLVM's function passes
+    removed from a module linked earlier, is left out. Private: in the JIT engine each
+    callee's own library defines the same names, and the engine binds a weak
+    (``linkonce_odr``) symbol to the definition it already has, which would have this
+    process run the callees' own code (their callees not inlined) instead of these copies.
+    Not internal: LLVM's machine code loader files an internal function's symbol among the
+    global ones, and a library loaded later (a core function from numba's cache, with its own
+    weak copy of the same callee) was bound to this copy, whose arguments LLVM had changed
+    (it may drop or specialize those of a function nothing outside the module calls): a
+    crash. A private function has no symbol in the machine code at all.
+    A name left declared (none is expected) keeps the library out of numba's cache: in a later
+    process nothing would define it.
+    """
+    module = library._final_module
+    owner = {}  # the functions the tree defines -> the callee whose module defines them
+    for callee in tree:
+        for fn in callee._get_module_for_linking().functions:
+            if not fn.is_declaration:
+                owner.setdefault(fn.name, callee)
+    pending, missing = tree, None
+    while pending:
+        for callee in pending:
+            module.link_in(callee._get_module_for_linking(), preserve=True)
+            library._reload_init.update(callee._reload_init)
+        still = {fn.name for fn in module.functions if fn.is_declaration and fn.name in owner}
+        if still == missing:  # linking their callees again defined nothing more
+            library._csim_incomplete = True
+            break
+        missing, pending = still, list(dict.fromkeys(owner[name] for name in sorted(still)))
+    for fn in module.functions:
+        if not fn.is_declaration and fn.name in owner:
+            fn.linkage = "private"
 
 
 def _call_tree(callees: list) -> list:
@@ -134,7 +191,8 @@ def _call_tree(callees: list) -> list:
 
 
 def _save_overload(original, cache, sig, cres):
-    """numba's ``Cache.save_overload``, except for a csim callee finalized with its own code only."""
-    if own_code_only(cres.library):
+    """numba's ``Cache.save_overload``, except for a csim callee finalized with its own code only (and for
+    a library :func:`_link_tree` could not complete)."""
+    if own_code_only(cres.library) or getattr(cres.library, "_csim_incomplete", False):
         return None
     return original(cache, sig, cres)
