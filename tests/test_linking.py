@@ -20,14 +20,17 @@ import pytest
 
 from csim.fast import linking
 
-TREE = '''
+#: the call tree's leaf, and its import
+LEAF_SOURCE = '''
 from numba import njit
 
 
 @njit(cache=True)
 def leaf(x):
     return 2.0 * x + 1.0
+'''
 
+TREE = LEAF_SOURCE + '''
 
 @njit(cache=True)
 def middle(x):
@@ -109,24 +112,16 @@ def test_without_install_numba_links_each_callee_into_its_caller(tmp_path):
 
 def test_functions_of_other_modules_link_as_numba_links_them(tmp_path):
     """The rule is for csim's functions: a leaf from a module of another name is linked into its csim caller."""
-    head, tail = TREE.split("@njit(cache=True)\ndef middle")  # (the import and leaf, middle and entry)
-    (tmp_path / "other_tree.py").write_text(head)
+    (tmp_path / "other_tree.py").write_text(LEAF_SOURCE)
     (tmp_path / "csim_fast_kernels_tree.py").write_text(
-        "from numba import njit\n\nfrom other_tree import leaf\n\n\n@njit(cache=True)\ndef middle" + tail)
+        "from numba import njit\n\nfrom other_tree import leaf\n" + TREE[len(LEAF_SOURCE):])
     out = _compile(tmp_path, "install")
     assert out["own"] == {"entry": False, "middle": True, "leaf": False}
     assert out["declared"]["middle"] == [], "other_tree.leaf is linked into middle"
     assert (out["value"], out["middle"], out["leaf"]) == (ENTRY, MIDDLE, LEAF)
 
 
-DEAD_BRANCH = '''
-from numba import njit
-
-
-@njit(cache=True)
-def leaf(x):
-    return 2.0 * x + 1.0
-
+DEAD_BRANCH = LEAF_SOURCE + '''
 
 @njit(cache=True)
 def unused(x):
