@@ -20,15 +20,22 @@ METHODS = ("none", "minimal")
 
 
 def compile_for(method: str) -> str:
-    """Run the default case briefly, compiled, with ``method``; "" or why it did not run compiled."""
+    """Run the default case briefly, compiled, with ``method``; "" or why it did not run compiled.
+
+    Then once more on the Python path, whose calls of the core functions (:mod:`csim.physics`)
+    compile them on their own, into numba's cache beside their sources: compiled inside the
+    kernels they are not cached (:mod:`csim.fast.linking`), and a test session's workers would
+    each compile them again (about 15 s for three methods on the 2-core machine).
+    """
     from csim.case import load_case
     from csim.io.examples import examples_dir
     from csim.pipeline import run_case
 
-    settings = ["simulation.t_end=0.01", "simulation.backend=compiled", f"stabilization.method={method}"]
-    result = run_case(load_case(examples_dir() / "quick_return.yaml", settings))
+    settings = ["simulation.t_end=0.01", f"stabilization.method={method}"]
+    result = run_case(load_case(examples_dir() / "quick_return.yaml", [*settings, "simulation.backend=compiled"]))
     if result.backend != "compiled" or not result.ok:
         return f"the compiled backend did not run ({method}): {result.message}"
+    run_case(load_case(examples_dir() / "quick_return.yaml", [*settings, "simulation.backend=python"]))
     return ""
 
 

@@ -230,3 +230,37 @@ def test_another_numba_is_recognised(change):
                 self._final_module.link_in(library._get_module_for_linking())
     assert linking._expected(*numbas)
     assert not linking._expected(numbas[0], finalize, *numbas[2:])
+
+
+RECURSIVE = '''
+from numba import njit
+
+
+@njit(cache=True)
+def even(n):
+    if n == 0:
+        return 1
+    return odd(n - 1)
+
+
+@njit(cache=True)
+def odd(n):
+    if n == 0:
+        return 0
+    return even(n - 1)
+
+
+@njit(cache=True)
+def entry(x):
+    n = int(x)
+    return float(even(n) + 10 * odd(n))
+'''
+
+
+def test_a_recursive_tree_is_not_cached(tmp_path):
+    """numba calls a recursive function through a global that only the compiling process resolves: the entry
+    point is left out of the cache (numba's own linking cached it, and a later process crashed)."""
+    (tmp_path / "csim_fast_kernels_tree.py").write_text(RECURSIVE)
+    assert _load(tmp_path)["value"] == 10.0  # entry(3.0): even(3) = 0, odd(3) = 1
+    assert _cached(tmp_path) == []
+    assert _load(tmp_path)["value"] == 10.0

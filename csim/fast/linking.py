@@ -14,7 +14,8 @@ Where :func:`install` has run, a csim function compiled *inside the compile of a
 Its callees stay declarations in its module, which its machine code calls through their
 symbols (the JIT engine resolves them: each callee was finalized, and so emitted, before it).
 A function compiled at the outermost level (an entry point that Python calls or whose
-address is taken: ``integrate``, ``feval``, ``evaluate_samples``, ...) links in the IR of its
+address is taken: ``integrate``, ``feval``, ``evaluate_samples``, ...; a function compiled
+first as a callee stays so in that process, where Python may call it too) links in the IR of its
 whole call tree, collected through those callees, as private copies, and optimizes and emits
 it once: the machine code the kernels run, in the compiling process as in every later one,
 is as before one module per entry point with its callees inlined where LLVM finds it pays
@@ -35,6 +36,8 @@ import threading
 #: where a library's function comes from for the rule: a csim module, or a compiled copy of the kernels
 _CSIM_MODULES = ("csim.", "csim_fast_kernels")
 
+#: the globals through which numba calls a recursive function, which only the compiling process resolves
+_UNRESOLVED = ".numba.unresolved$"
 #: whether install() changed numba (False: not yet, or a numba whose methods differ from those it wraps)
 _STATE = {"installed": False, "tried": False}
 #: how many numba:compile events are open in this thread (1: a function compiled from the outermost level)
@@ -154,14 +157,15 @@ def _link_tree(library, tree: list) -> None:
     weak copy of the same callee) was bound to this copy, whose arguments LLVM had changed
     (it may drop or specialize those of a function nothing outside the module calls): a
     crash. A private function has no symbol in the machine code at all.
-    A name left declared (none is expected) keeps the library out of numba's cache: in a later
-    process nothing would define it.
+    A name left declared (none is expected), or a recursive call (which numba resolves in the
+    compiling process only, for any function), keeps the library out of numba's cache: in a
+    later process nothing would define it.
     """
     module = library._final_module
     owner = {}  # the functions the tree defines -> the callee whose module defines them
     for callee in tree:
         for fn in callee._get_module_for_linking().functions:
-            if not fn.is_declaration:
+            if not fn.is_declaration and fn.linkage.name not in ("private", "internal"):  # (local ones link along)
                 owner.setdefault(fn.name, callee)
     pending, missing = tree, None
     while pending:
@@ -176,6 +180,8 @@ def _link_tree(library, tree: list) -> None:
     for fn in module.functions:
         if not fn.is_declaration and fn.name in owner:
             fn.linkage = "private"
+    if any(gv.name.startswith(_UNRESOLVED) for gv in module.global_variables):
+        library._csim_incomplete = True  # recursion: numba resolves the call in this process only
 
 
 def _call_tree(callees: list) -> list:
