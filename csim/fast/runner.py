@@ -124,6 +124,20 @@ def prepare(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSett
         mod.integrate(*_arguments(system, y0, settings, 0, mod))  # (_arguments compiles feval)
 
 
+def compile_entries(system: ConstrainedSystem, y0: np.ndarray) -> None:
+    """Compile (or load) the kernels' one-state entry points for ``system`` by calling each once: the
+    right-hand side (``rhs_entry``, ``rhs_repeat``, of the tests and ``make bench``) and the projection
+    (``project_entry``). What an entry point calls is compiled with it and never cached on its own
+    (:mod:`csim.fast.linking`), so each one compiled later would type the loop's core again."""
+    mod = _kernels_for(system)
+    par, pf, pi = pack_problem(system)
+    mode = system.mode_at(y0)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        mod.rhs_entry(0.0, y0, mode, par, pf, pi)
+        mod.rhs_repeat(y0, mode, par, pf, pi, 1)
+        mod.project_entry(y0.copy(), par, pf, pi)
+
+
 def _plain_core(kernels):
     """For the interpreted package, :func:`csim.physics.jit.plain`: the core functions not compiled in this
     process run as Python (compiling each on its own would take minutes); nothing for a compiled copy."""
