@@ -207,11 +207,13 @@ def _refine(ratios: Callable[[np.ndarray], np.ndarray], t, q, qd, i: int) -> tup
         j = int(np.nanargmin(grid))
         candidate = (t[a] + taus[j] * h, float(grid[j]))
         if candidate[1] < 10 * SINGULAR:
+            # minimise the square: sigma_k is a V |s(t)| about a loss of rank, sigma_k^2 = s(t)^2
+            # is smooth, on which Brent's parabolic steps converge in a few evaluations
             lo, hi = taus[max(j - 1, 0)], taus[min(j + 1, GRID - 1)]
-            res = minimize_scalar(lambda tau, ends=ends: float(ratios(hermite(*ends, tau)[None])[0]),
+            res = minimize_scalar(lambda tau, ends=ends: float(ratios(hermite(*ends, tau)[None])[0]) ** 2,
                                   bounds=(lo, hi), method="bounded", options=dict(xatol=1e-7))
-            if res.fun < candidate[1]:
-                candidate = (t[a] + res.x * h, float(res.fun))
+            if np.sqrt(res.fun) < candidate[1]:
+                candidate = (t[a] + res.x * h, float(np.sqrt(res.fun)))
         if candidate[1] < best[1]:
             best = candidate
     return best
