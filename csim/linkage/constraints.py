@@ -18,7 +18,6 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.linalg
 import sympy as sp
 
 from csim.errors import CaseError
@@ -280,6 +279,8 @@ def reduce_equations(equations: list[Equation], variables: list[JointVariable], 
     notes = []
     # 4. an independent subset, by pivoted QR of Phi_q^T at a generic point
     if live:
+        import scipy.linalg  # here: a cached linkage never gets this far (0.2 s of a warm run)
+
         Jb = phi_q(best)
         _, _, piv = scipy.linalg.qr(Jb.T, pivoting=True, mode="economic")
         chosen = set(piv[:generic].tolist())

@@ -186,14 +186,84 @@ def hermite(qa, qda, qb, qdb, h: float, tau):
 GRID = 17
 
 
+#: the golden section's smaller part, (3 - sqrt 5) / 2
+GOLDEN = 0.5 * (3.0 - 5.0 ** 0.5)
+#: sqrt of the double precision's epsilon
+SQRT_EPS = float(np.sqrt(np.finfo(float).eps))
+
+
+def bounded_minimum(f: Callable[[float], float], a: float, b: float, xatol: float,
+                    max_evaluations: int = 200) -> tuple[float, float]:
+    """A local minimum of f on [a, b] by Brent's method: golden-section steps, parabolic ones
+    where the parabola through the last three points is trusted (R. P. Brent, Algorithms for
+    Minimization without Derivatives, 1973, ch. 5; scipy's ``minimize_scalar(method="bounded")``
+    runs the same, and importing scipy.optimize costs 0.4 s of a run).
+
+    Parameters
+    ----------
+    f : callable float -> float
+    a, b : float
+        The bracket, a < b.
+    xatol : float
+        Absolute tolerance on the minimiser (relative sqrt(eps) |x| added).
+    max_evaluations : int
+        A bound on the evaluations of f.
+
+    Returns
+    -------
+    (x, f(x)) : tuple of float
+    """
+    x = w = v = a + GOLDEN * (b - a)
+    fx = fw = fv = f(x)
+    d = e = 0.0
+    for _ in range(max_evaluations - 1):
+        m = 0.5 * (a + b)
+        tol = SQRT_EPS * abs(x) + xatol / 3.0
+        if abs(x - m) <= 2.0 * tol - 0.5 * (b - a):  # [a, b] within 4 tol around x
+            break
+        golden = True
+        if abs(e) > tol:  # the parabola through (v, fv), (w, fw), (x, fx): its vertex at x + p / q
+            r = (x - w) * (fx - fv)
+            q = (x - v) * (fx - fw)
+            p = (x - v) * q - (x - w) * r
+            q = 2.0 * (q - r)
+            p, q = (-p, q) if q > 0.0 else (p, -q)
+            r, e = e, d
+            # accepted when inside (a, b) and shorter than half the step before last
+            if abs(p) < abs(0.5 * q * r) and q * (a - x) < p < q * (b - x):
+                d = p / q
+                if (x + d) - a < 2.0 * tol or b - (x + d) < 2.0 * tol:
+                    d = tol if x < m else -tol
+                golden = False
+        if golden:  # into the larger of the two parts
+            e = (b - x) if x < m else (a - x)
+            d = GOLDEN * e
+        u = x + (d if abs(d) >= tol else (tol if d > 0.0 else -tol))
+        fu = f(u)
+        if fu <= fx:  # u the new best: the bracket shrinks to u's side of x
+            if u < x:
+                b = x
+            else:
+                a = x
+            v, w, x, fv, fw, fx = w, x, u, fw, fx, fu
+        else:
+            if u < x:
+                a = u
+            else:
+                b = u
+            if fu <= fw or w == x:
+                v, w, fv, fw = w, u, fw, fu
+            elif fu <= fv or v in (x, w):
+                v, fv = u, fu
+    return x, fx
+
+
 def _refine(ratios: Callable[[np.ndarray], np.ndarray], t, q, qd, i: int) -> tuple[float, float]:
     """The smallest ratio on the interpolants of the intervals beside sample i: (t, ratio).
 
     A grid of :data:`GRID` points per interval first (one batched SVD); the bounded scalar
     minimisation only where the grid comes within ten times :data:`SINGULAR`.
     """
-    from scipy.optimize import minimize_scalar
-
     best = (t[i], float(ratios(q[i][None])[0]))
     taus = np.linspace(0.0, 1.0, GRID)
     for a in (i - 1, i):
@@ -210,10 +280,10 @@ def _refine(ratios: Callable[[np.ndarray], np.ndarray], t, q, qd, i: int) -> tup
             # minimise the square: sigma_k is a V |s(t)| about a loss of rank, sigma_k^2 = s(t)^2
             # is smooth, on which Brent's parabolic steps converge in a few evaluations
             lo, hi = taus[max(j - 1, 0)], taus[min(j + 1, GRID - 1)]
-            res = minimize_scalar(lambda tau, ends=ends: float(ratios(hermite(*ends, tau)[None])[0]) ** 2,
-                                  bounds=(lo, hi), method="bounded", options=dict(xatol=1e-7))
-            if np.sqrt(res.fun) < candidate[1]:
-                candidate = (t[a] + res.x * h, float(np.sqrt(res.fun)))
+            tau, square = bounded_minimum(lambda tau, ends=ends: float(ratios(hermite(*ends, tau)[None])[0]) ** 2,
+                                          lo, hi, xatol=1e-7)
+            if np.sqrt(square) < candidate[1]:
+                candidate = (t[a] + tau * h, float(np.sqrt(square)))
         if candidate[1] < best[1]:
             best = candidate
     return best
