@@ -124,7 +124,15 @@ class CaseLoader(yaml.composer.Composer, _EventParser, yaml.constructor.SafeCons
             self._depth -= 1
 
     def get_single_data(self):
-        node = self.get_single_node()
+        try:
+            node = self.get_single_node()
+        except yaml.MarkedYAMLError as exc:
+            # libyaml scans a flow collection to its end before the composer sees its first
+            # event, and stops at its own bound (1,000 levels) before the composer at this one
+            if exc.problem != "exceeded maximum nesting depth":
+                raise
+            raise YamlTooLarge(f"nested more than {MAX_YAML_DEPTH} lists or mappings deep (line "
+                               f"{exc.problem_mark.line + 1}); expected at most {MAX_YAML_DEPTH}") from None
         if node is None:
             return None
         measure_node(node)
