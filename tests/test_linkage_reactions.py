@@ -305,3 +305,16 @@ def test_a_subtree_sum_leaves_out_the_links_outside_the_subtree():
     sums = _subtree_sums(weights, wrenches)
     assert np.array_equal(sums[:2], [wrenches[0] + wrenches[1], -wrenches[1]])
     assert np.isnan(sums[2]).all()
+
+
+def test_a_linkage_that_has_run_still_pickles():
+    # the reactions keep their lambdified functions on the linkage (closures); a sweep's
+    # process pool or the linkage cache pickles it after a run, and gets it back without them
+    import pickle
+
+    case = load_case(CONFIG.parent / "fourbar_gravity.yaml", ["simulation.t_end=0.05"])
+    assert run_case(case).ok
+    assert any(k.startswith("_reaction_") for k in vars(case.linkage))
+    again = pickle.loads(pickle.dumps(case.linkage))
+    assert not any(k.startswith("_reaction_") for k in vars(again))
+    assert again.cache_key == case.linkage.cache_key and again.dof == case.linkage.dof

@@ -102,6 +102,11 @@ class Linkage:
     build_key: str = ""
     definition_key: str = ""
 
+    def __getstate__(self) -> dict:
+        """The fields, less the numeric functions the reactions keep on it (``_reaction_*``,
+        closures: a linkage that has run is sent to a worker process or filed again without them)."""
+        return {k: v for k, v in vars(self).items() if not k.startswith("_reaction_")}
+
     @property
     def variable_names(self) -> list[str]:
         return [v.name for v in self.topology.variables]
