@@ -235,6 +235,18 @@ def test_a_parameter_beyond_the_float_range_is_rejected(tmp_path):
     assert problems[0].startswith("mechanism.links[1].joints[1][1][0]: got ")
 
 
+@pytest.mark.parametrize("value", [1e308, "l * 1e200", 2e100])
+def test_a_finite_value_whose_products_overflow_is_rejected(tmp_path, value):
+    # 1e308 is a finite float, but the closure equations' Jacobian multiplies positions: the
+    # rocker's U joint placed there raised OverflowError in the lambdified code (long fuzz profile)
+    data = config("rsur_spatial")
+    data["mechanism"]["parameters"]["l"] = 1.0
+    data["mechanism"]["links"][3]["joints"][1][1][0] = value
+    problems = failed(tmp_path, data)
+    assert problems[0].startswith("mechanism.links[3].joints[1][1][0]: got "), problems
+    assert "magnitude" in problems[0] and "1e+100" in problems[0]
+
+
 def test_a_coupling_name_that_is_a_list_is_rejected(tmp_path):
     data = config("fourbar")
     data["mechanism"]["couplings"][2]["name"] = [1, 2]

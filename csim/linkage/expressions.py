@@ -57,6 +57,11 @@ MAX_EXACT_DIGITS = 4_000
 MAX_NESTING = 50
 #: the largest |exponent| of a number written 1e-5 (floats reach 1e308; below 1e-324 they are 0)
 MAX_DECIMAL_EXPONENT = 400
+#: the largest magnitude of a table entry's value [SI]: the model multiplies entries (a
+#: position in a dot product with another, a mass with a length squared), and products of
+#: three such values stay within the float range (1e308); a finite 1e308 written for a
+#: joint's position overflowed in the closure equations' Jacobian
+MAX_MAGNITUDE = 1e100
 _EXPONENT = re.compile(r"[0-9.][eE]([-+]?[0-9]+)")
 
 _BINARY = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul, ast.Div: operator.truediv,
@@ -251,6 +256,8 @@ def value_problem(expr: sp.Expr, values: dict[sp.Symbol, float]) -> str | None:
         return None
     if not (math.isfinite(value.real) and math.isfinite(value.imag)):
         return "not finite"
+    if abs(value) > MAX_MAGNITUDE:
+        return f"{value.real:.6g}, above the largest magnitude {MAX_MAGNITUDE:g} (products of such values overflow)"
     if abs(value.imag) > 1e-12 * max(1.0, abs(value.real)):
         return f"complex ({value:.6g})"
     return None
@@ -306,6 +313,9 @@ def _parse(path: str, value: Any, symbols: dict[str, sp.Symbol], problems: list[
         return None
     if isinstance(value, (int, float)) and not finite_number(value):  # .nan, .inf, 10**400
         problems.append(f"{path}: got {describe(value)}; expected a finite number")
+        return None
+    if isinstance(value, (int, float)) and abs(value) > MAX_MAGNITUDE:
+        problems.append(f"{path}: got {describe(value)}; expected a number of magnitude at most {MAX_MAGNITUDE:g}")
         return None
     if isinstance(value, int):
         return sp.Integer(value)
