@@ -146,3 +146,26 @@ def test_the_linkage_cache_keeps_the_newest(tmp_path):
     _evict(tmp_path, "*_linkage.pickle", 2)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["k0_watch_phi.py", "k3_linkage.pickle",
                                                           "k4_linkage.pickle"]
+
+
+def test_a_cached_linkage_keeps_its_transforms_pickled_until_they_are_read(cache):
+    # a warm run reads its linkage back from the cache and never its symbolic transforms (its
+    # functions are cached too): they stay one blob of bytes until something reads them
+    import pickle
+    from pathlib import Path
+
+    from csim.case import load_case
+
+    path = Path(__file__).resolve().parents[1] / "configs" / "fourbar_gravity.yaml"
+    built = load_case(path).linkage
+    assert "_pickled" not in vars(built.frames)
+    read = load_case(path).linkage  # from the cache
+    assert "_pickled" in vars(read.frames) and "links" not in vars(read.frames)
+    assert pickle.dumps(read.frames) == pickle.dumps(read.frames)  # passed on as the same bytes, still unread
+    assert read.frames.links.keys() == built.frames.links.keys()  # read: unpickled
+    assert "_pickled" not in vars(read.frames)
+    for key, T in built.frames.links.items():
+        assert sp.simplify(read.frames.links[key] - T) == sp.zeros(4, 4)
+    assert read.frames.joint_frame(1, 1) == built.frames.joint_frame(1, 1)
+    with pytest.raises(AttributeError, match="no attribute 'nothing'"):
+        read.frames.nothing  # noqa: B018
