@@ -148,24 +148,35 @@ def test_the_linkage_cache_keeps_the_newest(tmp_path):
                                                           "k4_linkage.pickle"]
 
 
-def test_a_cached_linkage_keeps_its_transforms_pickled_until_they_are_read(cache):
-    # a warm run reads its linkage back from the cache and never its symbolic transforms (its
-    # functions are cached too): they stay one blob of bytes until something reads them
-    import pickle
+#: a short run on the Python path (no model compiled into the test's own cache)
+QUICK = ["simulation.t_end=0.05", "simulation.backend=python"]
+
+
+def test_a_cached_linkage_keeps_its_symbolic_parts_pickled_until_they_are_read(cache):
+    # a warm run reads its linkage back from the cache and never its transforms, closure
+    # equations or energies (its functions are cached too): they stay blobs of bytes
     from pathlib import Path
 
     from csim.case import load_case
+    from csim.pipeline import run_case
 
     path = Path(__file__).resolve().parents[1] / "configs" / "fourbar_gravity.yaml"
-    built = load_case(path).linkage
-    assert "_pickled" not in vars(built.frames)
-    read = load_case(path).linkage  # from the cache
-    assert "_pickled" in vars(read.frames) and "links" not in vars(read.frames)
-    assert pickle.dumps(read.frames) == pickle.dumps(read.frames)  # passed on as the same bytes, still unread
-    assert read.frames.links.keys() == built.frames.links.keys()  # read: unpickled
-    assert "_pickled" not in vars(read.frames)
+    first = load_case(path, QUICK)
+    assert run_case(first).ok  # every function derived and cached
+    built = first.linkage
+    assert "_deferred" not in vars(built.frames)
+    case = load_case(path, QUICK)  # read back from the cache
+    read = case.linkage
+    deferred = [read.frames, read.definition, *read.reduction.equations]
+    assert all("_deferred" in vars(x) for x in deferred)
+    assert "links" not in vars(read.frames) and "kinetic_energy" not in vars(read.definition)
+    assert run_case(case).ok
+    assert all("_deferred" in vars(x) for x in deferred), "a warm run read a symbolic part"
+    # read: unpickled, the same expressions
+    assert read.frames.links.keys() == built.frames.links.keys()
     for key, T in built.frames.links.items():
         assert sp.simplify(read.frames.links[key] - T) == sp.zeros(4, 4)
     assert read.frames.joint_frame(1, 1) == built.frames.joint_frame(1, 1)
-    with pytest.raises(AttributeError, match="no attribute 'nothing'"):
-        read.frames.nothing  # noqa: B018
+    assert sp.simplify(read.definition.kinetic_energy - built.definition.kinetic_energy) == 0
+    assert [str(e.expression) for e in read.reduction.equations] == \
+        [str(e.expression) for e in built.reduction.equations]

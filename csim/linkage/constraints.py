@@ -14,7 +14,7 @@ linkage) loses its dependent rows this way.
 """
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -28,14 +28,16 @@ from csim.linkage.lambdacache import cached_lambdify
 from csim.linkage.tables import Coupling, Tables
 from csim.linkage.topology import JointVariable
 from csim.linkage.transforms import simplify_entry
+from csim.model.deferred import DeferredFields
 from csim.model.recursive import sparse_jacobian
 
 KEPT, ZERO, DEPENDENT = "kept", "identically zero", "dependent"
 
 
 @dataclass
-class Equation:
-    """One cut-joint equation.
+class Equation(DeferredFields):
+    """One cut-joint equation (its expression pickled apart, unpickled where first read:
+    :class:`csim.model.deferred.DeferredFields`).
 
     Attributes
     ----------
@@ -54,6 +56,8 @@ class Equation:
     reaction: str
     expression: sp.Expr
     status: str = KEPT
+
+    DEFERRED = ("expression",)
 
     @property
     def label(self) -> str:
@@ -106,7 +110,23 @@ class Reduction:
         return [e for e in self.equations if e.status == KEPT]
 
 
-def _numeric(exprs: list[sp.Expr], q_syms: list[sp.Symbol], parameters: dict[sp.Symbol, float],
+class _Expressions(Sequence):
+    """The expressions of equations, read only where indexed (a function read back from the
+    cache needs their count alone, and an unread expression stays pickled:
+    :class:`csim.model.deferred.DeferredFields`)."""
+
+    def __init__(self, equations: list[Equation]):
+        self._equations = equations
+
+    def __len__(self) -> int:
+        return len(self._equations)
+
+    def __getitem__(self, index):
+        return [e.expression for e in self._equations][index] if isinstance(index, slice) else \
+            self._equations[index].expression
+
+
+def _numeric(exprs: Sequence[sp.Expr], q_syms: list[sp.Symbol], parameters: dict[sp.Symbol, float],
              key: str = ""):
     """phi(q) (r,) and phi_q(q) (r, n) as numpy functions at the given parameter values (their
     source filed in the cache under ``key``, :func:`csim.linkage.lambdacache.cached_lambdify`;
@@ -124,7 +144,7 @@ def _numeric(exprs: list[sp.Expr], q_syms: list[sp.Symbol], parameters: dict[sp.
             derived["jac"], derived["at"] = jac, [(i, j) for i in range(r) for j in range(n) if jac[i, j] != 0]
         return derived["jac"], derived["at"]
 
-    f = cached_lambdify(key, "watch_phi", lambda: ([q_syms, p_syms], sp.Matrix(exprs) if exprs else sp.zeros(0, 1)))
+    f = cached_lambdify(key, "watch_phi", lambda: ([q_syms, p_syms], sp.Matrix(list(exprs)) if r else sp.zeros(0, 1)))
     pattern = cached_lambdify(key, "watch_pattern", lambda: ([], [[i for i, _ in nonzero()[1]],
                                                                   [j for _, j in nonzero()[1]]]))
     g = cached_lambdify(key, "watch_jac", lambda: ([q_syms, p_syms], [nonzero()[0][i, j] for i, j in nonzero()[1]]))
@@ -352,17 +372,17 @@ def constraint_watch(reduction: Reduction, variables: list[JointVariable], value
 
     live = [e for e in reduction.equations if e.status != ZERO]
     q_syms = [v.symbol for v in variables]
-    phi, phi_q = _numeric([e.expression for e in live], q_syms, values, key)
+    phi, phi_q = _numeric(_Expressions(live), q_syms, values, key)
     removed = [e for e in live if e.status == DEPENDENT]
     return ConstraintWatch(phi=phi, phi_q=phi_q, labels=[e.label for e in live],
                            kept=np.array([i for i, e in enumerate(live) if e.status == KEPT], dtype=int),
                            removed=np.array([i for i, e in enumerate(live) if e.status == DEPENDENT], dtype=int),
                            rank=reduction.generic_rank,
-                           gamma_removed=_numeric_gamma([e.expression for e in removed], variables, values, key),
+                           gamma_removed=_numeric_gamma(_Expressions(removed), variables, values, key),
                            units=[e.unit for e in live])
 
 
-def _numeric_gamma(exprs: list[sp.Expr], variables: list[JointVariable], parameters: dict[sp.Symbol, float],
+def _numeric_gamma(exprs: Sequence[sp.Expr], variables: list[JointVariable], parameters: dict[sp.Symbol, float],
                    key: str = ""):
     """gamma(q, qd) (len(exprs),) = -(d(Phi_q qd)/dq) qd of ``exprs``, as a numpy function (filed
     under ``key`` as :func:`_numeric`'s)."""

@@ -7,7 +7,6 @@ variables and the parameters.
 """
 from __future__ import annotations
 
-import pickle
 from dataclasses import dataclass, field
 
 import sympy as sp
@@ -15,11 +14,13 @@ import sympy as sp
 from csim.linkage.tables import Tables
 from csim.linkage.topology import Topology
 from csim.linkage.transforms import frame_transform, inverse, joint_transform, link_to_link, simplify_matrix
+from csim.model.deferred import DeferredFields
 
 
 @dataclass
-class Frames:
-    """Symbolic transforms.
+class Frames(DeferredFields):
+    """Symbolic transforms (pickled as one blob, unpickled where first read:
+    :class:`csim.model.deferred.DeferredFields`).
 
     Attributes
     ----------
@@ -39,25 +40,7 @@ class Frames:
     links: dict[int, sp.Matrix]
     _global: dict[tuple[int, int], sp.Matrix] = field(default_factory=dict, repr=False)
 
-    # Pickled as one blob of bytes, unpickled where a transform is first read: a linkage read
-    # back from the cache (csim.linkage.lambdacache.cached_build) runs on functions derived from
-    # its transforms and cached too, and rebuilding the transforms' sympy expressions was most of
-    # its unpickling (the 81-link N-four-bar: 0.58 s -> 0.16 s).
-    def __getstate__(self) -> dict:
-        if "_pickled" in self.__dict__:  # never read since it was unpickled: the same bytes
-            return {"_pickled": self.__dict__["_pickled"]}
-        return {"_pickled": pickle.dumps(dict(self.__dict__), protocol=pickle.HIGHEST_PROTOCOL)}
-
-    def __setstate__(self, state: dict) -> None:
-        self.__dict__.update(state)
-
-    def __getattr__(self, name: str):
-        # called only for a name the instance does not hold: its fields, while still pickled
-        pickled = self.__dict__.pop("_pickled", None)
-        if pickled is None:
-            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
-        self.__dict__.update(pickle.loads(pickled))
-        return getattr(self, name)
+    DEFERRED = ("local", "joints", "relative", "links", "_global")
 
     def joint_frame(self, link: int, index: int) -> sp.Matrix:
         """T_ik^(0) = T_i^(0) T_ik^(i), (4, 4)."""

@@ -12,6 +12,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
+from csim.model.deferred import DeferredFields
+
 if TYPE_CHECKING:  # sympy is imported where expressions are built, not by reading this module
     import sympy as sp
 
@@ -309,8 +311,12 @@ class DeclaredFigure:
 
 
 @dataclass
-class MechanismDefinition:
+class MechanismDefinition(DeferredFields):
     """A holonomic, scleronomic mechanism in redundant coordinates.
+
+    Its energies, constraints, drawing and force-element sites pickle as one blob, unpickled
+    where first read (:class:`csim.model.deferred.DeferredFields`): a cached linkage's warm
+    run reads none of them.
 
     Parameters
     ----------
@@ -370,6 +376,8 @@ class MechanismDefinition:
     sites: Sites | None = None
     recursive: Callable | None = field(default=None, repr=False, compare=False)
 
+    DEFERRED = ("kinetic_energy", "potential_energy", "constraints", "drawing", "sites")
+
     @property
     def coordinate_names(self) -> list[str]:
         return [str(s) for s in self.coordinates]
@@ -380,7 +388,10 @@ class MechanismDefinition:
 
     @property
     def n_constraints(self) -> int:
-        return len(self.constraints)
+        return self._n_constraints
+
+    def __post_init__(self):
+        self._n_constraints = len(self.constraints)  # kept apart: read without the deferred constraints
 
     @property
     def parameter_symbols(self) -> list[sp.Symbol]:
