@@ -318,3 +318,19 @@ def test_a_linkage_that_has_run_still_pickles():
     again = pickle.loads(pickle.dumps(case.linkage))
     assert not any(k.startswith("_reaction_") for k in vars(again))
     assert again.cache_key == case.linkage.cache_key and again.dof == case.linkage.dof
+
+
+def test_reactions_in_blocks_of_samples_equal_those_at_once(monkeypatch):
+    # the samples go through the lambdified functions a block at a time (memory: each
+    # subexpression is an array of a block's samples); the block edges change no value
+    import csim.linkage.reactions as reactions
+
+    case = load_case(CONFIG.parent / "quick_return_tables.yaml", ["simulation.backend=python", "simulation.t_end=0.05"])
+    whole = run_case(case)
+    monkeypatch.setattr(reactions, "BLOCK", 3)
+    blocks = run_case(load_case(CONFIG.parent / "quick_return_tables.yaml",
+                                ["simulation.backend=python", "simulation.t_end=0.05"]))
+    assert whole.t.size > 3 * 3 and [r.name for r in whole.reactions] == [r.name for r in blocks.reactions]
+    for a, b in zip(whole.reactions, blocks.reactions):
+        for name in ("force_global", "torque_global", "force_joint", "torque_joint"):
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=f"{a.name} {name}")

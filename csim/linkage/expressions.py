@@ -230,7 +230,7 @@ def parse_expression(path: str, value: Any, symbols: dict[str, sp.Symbol], probl
     what = value_problem(expr, values)
     if what is not None:
         problems.append(f"{path}: got {describe(value)}; at the parameter values it is {what}; expected a finite "
-                        f"real value")
+                        f"real value of magnitude at most {MAX_MAGNITUDE:g}")
         return None
     return expr
 
@@ -257,7 +257,7 @@ def value_problem(expr: sp.Expr, values: dict[sp.Symbol, float]) -> str | None:
     if not (math.isfinite(value.real) and math.isfinite(value.imag)):
         return "not finite"
     if abs(value) > MAX_MAGNITUDE:
-        return f"{value.real:.6g}, above the largest magnitude {MAX_MAGNITUDE:g} (products of such values overflow)"
+        return f"{value.real:.6g} (products of such values overflow the float range)"
     if abs(value.imag) > 1e-12 * max(1.0, abs(value.real)):
         return f"complex ({value:.6g})"
     return None

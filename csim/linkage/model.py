@@ -33,7 +33,7 @@ from csim.linkage.constraints import (
     plane_of_motion,
     reduce_equations,
 )
-from csim.linkage.expressions import evaluate, parse_expression, value_problem
+from csim.linkage.expressions import MAX_MAGNITUDE, evaluate, parse_expression, value_problem
 from csim.linkage.forces import Contribution, Geometry, build_forces
 from csim.linkage.frames import Frames, build_frames
 from csim.linkage.inertia import check_inertia
@@ -422,7 +422,7 @@ def _start(tables: Tables, names: list[str], drive: dict[str, sp.Expr], drive_so
         what = value_problem(expr, at_zero)
         if what is not None:
             problems.append(f"mechanism.drive.{key}: got {drive_source[key]!r}; at t = 0 it is {what}; expected a "
-                            f"finite real value")
+                            f"finite real value of magnitude at most {MAX_MAGNITUDE:g}")
         else:
             start[key] = evaluate(expr, at_zero).real
     free = [k for k in (initial.get("q") or {}) if partial and k in names and k not in drive]

@@ -43,6 +43,9 @@ from csim.result import JointReaction
 
 #: units of the recorded reactions
 FORCE_UNIT, TORQUE_UNIT = "N", "N m"
+#: samples evaluated at once: each subexpression of the generated code is an array of a
+#: block's samples (the 81-link N-four-bar's kinematics: about 86 kB a sample)
+BLOCK = 1024
 
 
 def _skew(w: sp.Matrix) -> sp.Matrix:
@@ -210,7 +213,9 @@ def joint_reactions(linkage, definition, par: np.ndarray, q: np.ndarray, lam: np
     rows = np.flatnonzero(np.all(np.isfinite(q), axis=1))
     if not cuts or not rows.size:
         return [_cut_reaction(linkage, c, values[c.number], equations[c.number]) for c in cuts]
-    T_ik, T_jm = frames(q[rows], par)  # the cut joints' frames at the evaluated samples: (n, C, 4, 4) each
+    # the cut joints' frames at the evaluated samples, (n, C, 4, 4) each, a block at a time
+    T_ik, T_jm = (np.concatenate(parts) for parts in zip(*(frames(q[rows[a:a + BLOCK]], par)
+                                                            for a in range(0, rows.size, BLOCK))))
     for n, c in enumerate(cuts):
         # the multipliers of the joint's equations (0 for a removed one): (n, n_eq)
         lam_eq = np.column_stack([lam[rows, column[id(eq)]] if id(eq) in column else np.zeros(rows.size)
@@ -542,8 +547,9 @@ def tree_reactions(linkage, definition, raw_forces, par, run, cut_reactions) -> 
         cut_M = np.stack([reaction.torque_global for reaction in cut_reactions], axis=1)
     N = q.shape[0]
     values = np.full((len(tree), 4, N, 3), np.nan)  # per joint: F, M global; in frame ik
-    rows = np.flatnonzero(np.all(np.isfinite(q), axis=1) & np.all(np.isfinite(qdd), axis=1))
-    if rows.size:
+    evaluated = np.flatnonzero(np.all(np.isfinite(q), axis=1) & np.all(np.isfinite(qdd), axis=1))
+    for start in range(0, evaluated.size, BLOCK):  # in blocks: each subexpression is an array of a block's samples
+        rows = evaluated[start:start + BLOCK]
         values[:, :, rows] = _subtree_wrenches(
             kinematics(q[rows], qd[rows], qdd[rows], par), frames(q[rows], par),
             (cut_F[rows], cut_M[rows], cut_frames(q[rows], par)[1][:, :, :3, 3]) if cuts else None,

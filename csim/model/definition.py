@@ -388,10 +388,11 @@ class MechanismDefinition(DeferredFields):
 
     @property
     def n_constraints(self) -> int:
-        return self._n_constraints
+        # counted at construction where the constraints are still pickled (a cached linkage's)
+        return self._n_constraints if "_deferred" in self.__dict__ else len(self.constraints)
 
     def __post_init__(self):
-        self._n_constraints = len(self.constraints)  # kept apart: read without the deferred constraints
+        self._n_constraints = len(self.constraints)
 
     @property
     def parameter_symbols(self) -> list[sp.Symbol]:
