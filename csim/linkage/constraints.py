@@ -122,8 +122,9 @@ class _Expressions(Sequence):
         return len(self._equations)
 
     def __getitem__(self, index):
-        return [e.expression for e in self._equations][index] if isinstance(index, slice) else \
-            self._equations[index].expression
+        if isinstance(index, slice):
+            return [e.expression for e in self._equations[index]]
+        return self._equations[index].expression
 
 
 def _numeric(exprs: Sequence[sp.Expr], q_syms: list[sp.Symbol], parameters: dict[sp.Symbol, float],

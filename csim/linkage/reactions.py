@@ -68,14 +68,19 @@ def _at_samples(f, samples: list[np.ndarray], par: np.ndarray | None = None) -> 
     -------
     ndarray (S, E)
         The entries at each sample (an entry that does not depend on the samples is
-        broadcast).
+        broadcast), evaluated :data:`BLOCK` samples at a time (each subexpression of the
+        generated code is an array of a block's samples).
     """
     S = samples[0].shape[0]
-    args = [list(np.asarray(a, dtype=float).T) for a in samples] + ([list(par)] if par is not None else [])
-    values = f(*args)
-    if not len(values):
-        return np.zeros((S, 0))
-    return np.stack([np.broadcast_to(np.asarray(v, dtype=float), (S,)) for v in values], axis=1)
+    out = None
+    for start in range(0, max(S, 1), BLOCK):  # (once for S = 0: the count of entries)
+        block = [list(np.asarray(a[start:start + BLOCK], dtype=float).T) for a in samples]
+        values = f(*block, *([list(par)] if par is not None else []))
+        if out is None:
+            out = np.empty((S, len(values)))
+        for e, v in enumerate(values):
+            out[start:start + BLOCK, e] = v  # a constant entry comes back as a scalar: broadcast
+    return out
 
 
 def _entries(matrices) -> list:
@@ -213,9 +218,7 @@ def joint_reactions(linkage, definition, par: np.ndarray, q: np.ndarray, lam: np
     rows = np.flatnonzero(np.all(np.isfinite(q), axis=1))
     if not cuts or not rows.size:
         return [_cut_reaction(linkage, c, values[c.number], equations[c.number]) for c in cuts]
-    # the cut joints' frames at the evaluated samples, (n, C, 4, 4) each, a block at a time
-    T_ik, T_jm = (np.concatenate(parts) for parts in zip(*(frames(q[rows[a:a + BLOCK]], par)
-                                                            for a in range(0, rows.size, BLOCK))))
+    T_ik, T_jm = frames(q[rows], par)  # the cut joints' frames at the evaluated samples: (n, C, 4, 4) each
     for n, c in enumerate(cuts):
         # the multipliers of the joint's equations (0 for a removed one): (n, n_eq)
         lam_eq = np.column_stack([lam[rows, column[id(eq)]] if id(eq) in column else np.zeros(rows.size)
@@ -548,7 +551,7 @@ def tree_reactions(linkage, definition, raw_forces, par, run, cut_reactions) -> 
     N = q.shape[0]
     values = np.full((len(tree), 4, N, 3), np.nan)  # per joint: F, M global; in frame ik
     evaluated = np.flatnonzero(np.all(np.isfinite(q), axis=1) & np.all(np.isfinite(qdd), axis=1))
-    for start in range(0, evaluated.size, BLOCK):  # in blocks: each subexpression is an array of a block's samples
+    for start in range(0, evaluated.size, BLOCK):  # in blocks: the kinematics alone are E values a sample
         rows = evaluated[start:start + BLOCK]
         values[:, :, rows] = _subtree_wrenches(
             kinematics(q[rows], qd[rows], qdd[rows], par), frames(q[rows], par),

@@ -282,8 +282,9 @@ def _refine(ratios: Callable[[np.ndarray], np.ndarray], t, q, qd, i: int) -> tup
             lo, hi = taus[max(j - 1, 0)], taus[min(j + 1, GRID - 1)]
             tau, square = bounded_minimum(lambda tau, ends=ends: float(ratios(hermite(*ends, tau)[None])[0]) ** 2,
                                           lo, hi, xatol=1e-7)
-            if np.sqrt(square) < candidate[1]:
-                candidate = (t[a] + tau * h, float(np.sqrt(square)))
+            ratio = float(np.sqrt(square))
+            if ratio < candidate[1]:
+                candidate = (t[a] + tau * h, ratio)
         if candidate[1] < best[1]:
             best = candidate
     return best
