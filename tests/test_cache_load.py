@@ -92,3 +92,66 @@ def test_another_numba_keeps_its_own_method(monkeypatch):
     monkeypatch.setattr(cache_load, "_STATE", {"installed": False, "tried": False})
     assert cache_load.install() is False
     assert caching.Cache.load_overload is load_overload
+
+
+LINK_LATER = """
+import json, sys
+sys.path.insert(0, sys.argv[1])
+from csim.fast import cache_load
+installed = cache_load.install()
+import numpy as np
+from probe import norm, outer
+x = np.array([3.0, 4.0])
+first = float(norm(x))  # compiled on the first run; on the second loaded, its bitcode not parsed
+library = norm.overloads[norm.signatures[0]].library
+deferred = "_csim_bitcode" in vars(library)
+value = float(outer(x))  # never cached: compiled in every process, linking in norm's library
+print(json.dumps(dict(installed=installed, deferred_bitcode=cache_load._STATE["deferred"], first=first,
+                      value=value, deferred=deferred, parsed_after_link=library._shared_module is not None,
+                      hits=sum(norm.stats.cache_hits.values()))))
+"""
+
+LINKED_PROBE = PROBE + '''
+
+@njit(cache=False)
+def outer(x):
+    return 2.0 * norm(x)
+'''
+
+
+def test_a_cached_library_is_parsed_only_when_a_later_compile_links_it(tmp_path):
+    """The second process loads ``norm`` without parsing its bitcode, then compiles ``outer``, which
+    links norm's library: the bitcode is parsed then, and ``outer`` computes 2 |x|."""
+    (tmp_path / "probe.py").write_text(textwrap.dedent(LINKED_PROBE))
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    cold = _run(LINK_LATER, str(tmp_path), env=env)
+    warm = _run(LINK_LATER, str(tmp_path), env=env)
+    assert cold["installed"] and cold["deferred_bitcode"] and cold["hits"] == 0 and not cold["deferred"]
+    assert warm["hits"] == 1 and warm["deferred"] and warm["parsed_after_link"]
+    assert cold["value"] == warm["value"] == 10.0 and warm["first"] == 5.0
+
+
+def test_the_filed_bitcode_pickles_with_its_names():
+    import pickle
+
+    shared = cache_load.SharedBitcode(b"BC\xc0\xde", ["b", "a"])
+    again = pickle.loads(pickle.dumps(shared, protocol=-1))
+    assert type(again) is cache_load.SharedBitcode and bytes(again) == b"BC\xc0\xde"
+    assert again.symbols == frozenset({"a", "b"})
+
+
+def test_another_numba_keeps_its_own_unserialize(monkeypatch):
+    """A ``CPUCodeLibrary._unserialize`` other than the one deferred (another numba version) is left as it is,
+    and so are the methods that go with it."""
+    from numba.core import codegen
+
+    def _unserialize(cls, codegen, state):
+        raise ValueError("another numba")
+
+    library = codegen.CPUCodeLibrary
+    replaced = classmethod(_unserialize)
+    monkeypatch.setattr(library, "_unserialize", replaced)
+    serialize, linking = library.serialize_using_object_code, library._get_module_for_linking
+    assert cache_load._defer_bitcode() is False
+    assert library.__dict__["_unserialize"] is replaced
+    assert library.serialize_using_object_code is serialize and library._get_module_for_linking is linking

@@ -1,6 +1,7 @@
 """csim.physics.jit: core functions compiled on first use, and commands that never import numba."""
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -93,3 +94,37 @@ def test_plain_runs_a_core_function_not_yet_compiled_as_python(monkeypatch):
     with jit.plain():
         assert lazy(1) == 2
     assert calls == [1] and jit._PLAIN["depth"] == 0
+
+
+#: a compiled run twice (the first fills the cache), then a compile of a new function: whether the
+#: core's and the kernels' functions were dispatchers after the warm run, and after that compile
+BIND = """
+import json, sys
+from numba import njit
+from csim.case import load_case
+from csim.fast.module import load_kernels
+from csim.physics import jit
+from csim.pipeline import run_case
+case = load_case(sys.argv[1], ["simulation.t_end=0.05", "simulation.backend=compiled"])
+result = run_case(case)
+kernels = sys.modules[load_kernels().integrate.py_func.__module__.rsplit(".", 1)[0] + ".system"]
+def state():
+    from csim.physics import kkt
+    return dict(bound=jit._NUMBA["bound"], rhs=type(kernels.rhs).__name__, kkt=type(kkt.kkt_solve).__name__)
+warm = state()
+njit(lambda x: x + 1.0)(1.0)
+print(json.dumps(dict(ok=result.ok, warm=warm, compiled=state())))
+"""
+
+
+def test_the_dispatchers_are_made_at_the_first_compile_not_by_a_warm_run():
+    """A warm run loads the entry points from the cache and makes no dispatcher of the functions they call;
+    the first compile in the process makes them all (numba types and inlines callees it sees as dispatchers)."""
+    run = [sys.executable, "-c", BIND, str(CONFIGS / "pendulum.yaml")]
+    subprocess.run(run, cwd=ROOT, env=dict(os.environ), capture_output=True, check=True)  # fills the cache
+    done = subprocess.run(run, cwd=ROOT, env=dict(os.environ), capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr[-2000:]
+    out = json.loads(done.stdout.splitlines()[-1])
+    assert out["ok"]
+    assert out["warm"] == dict(bound=False, rhs="LazyKernel", kkt="LazyKernel"), out
+    assert out["compiled"] == dict(bound=True, rhs="CPUDispatcher", kkt="CPUDispatcher"), out

@@ -16,6 +16,15 @@ nothing is ever compiled without its registries.
 the runtime, then numba's own lookup. It checks that numba's method is still the one it
 replaces (numba 0.60 to 0.68: the refresh, then ``_load_overload`` under the guard against
 spurious I/O errors), and leaves numba as it is otherwise.
+
+It also keeps a cached library's bitcode unparsed until something links it. numba caches a
+function as its machine code and, for linking it into a later caller, the LLVM bitcode of
+its module (for an entry point of the kernels: its whole call tree, :mod:`csim.fast.linking`),
+and on every load it parses that bitcode only to read the names the module defines (38 of
+the 0.6 s of a warm quick-return run, 2026-11-27). :func:`_serialize` files those names with
+the bitcode (:class:`SharedBitcode`, still bytes to numba's own loader); :func:`_unserialize`
+registers them and keeps the bitcode, which :func:`_module_for_linking` parses on the first
+link (none in a warm run: nothing calls the entry points from compiled code).
 """
 from __future__ import annotations
 
@@ -24,11 +33,25 @@ import inspect
 import textwrap
 
 #: whether install() replaced numba's method (False: numba's own, e.g. a numba whose method differs)
-_STATE = {"installed": False, "tried": False}
+_STATE = {"installed": False, "tried": False, "deferred": False}
 
 #: numba's load_overload, the statements this replacement is equivalent to (ast.unparse of its body, less the docstring)
 _EXPECTED = ("target_context.refresh()",
              "with self._guard_against_spurious_io_errors():\n    return self._load_overload(sig, target_context)")
+#: the statements of numba's methods that the bitcode's deferral relies on (numba 0.60 to 0.68): the object
+#: branch of ``_unserialize``, how ``serialize_using_object_code`` makes the bitcode, and the first two of
+#: ``_get_module_for_linking`` (a module parsed already is the one it returns)
+_EXPECTED_UNSERIALIZE = (
+    "elif kind == 'object':\n    object_code, shared_bitcode = data\n    self.enable_object_caching()\n"
+    "    self._set_compiled_object(object_code)\n    self._shared_module = ll.parse_bitcode(shared_bitcode)\n"
+    "    self._finalize_final_module()\n    self._codegen._engine._load_defined_symbols(self._shared_module)\n"
+    "    return self\n")
+_EXPECTED_SERIALIZE = ("self._ensure_finalized()",
+                       "data = (self._get_compiled_object(), self._get_module_for_linking().as_bitcode())",
+                       "return (self.name, 'object', data)")
+_EXPECTED_LINKING = ("self._ensure_finalized()", "if self._shared_module is not None:\n    return self._shared_module")
+_EXPECTED_SYMBOLS = ("for gsets in (mod.functions, mod.global_variables):\n"
+                     "    self._defined_symbols |= {gv.name for gv in gsets if not gv.is_declaration}",)
 
 
 def install() -> bool:
@@ -42,6 +65,29 @@ def install() -> bool:
         return False
     caching.Cache.load_overload = _load_overload
     _STATE["installed"] = True
+    _STATE["deferred"] = _defer_bitcode()
+    return True
+
+
+def _defer_bitcode() -> bool:
+    """Install :func:`_serialize`, :func:`_unserialize` and :func:`_module_for_linking` where numba's
+    methods are those they stand in for; returns whether it did."""
+    from numba.core import codegen
+
+    library = codegen.CPUCodeLibrary
+    unserialize = _statements(library._unserialize.__func__) or ()
+    if not (len(unserialize) == 4 and unserialize[3].startswith("if kind == 'bitcode':")
+            and _EXPECTED_UNSERIALIZE in unserialize[3]
+            and _statements(library.serialize_using_object_code) == _EXPECTED_SERIALIZE
+            and (_statements(library._get_module_for_linking) or ())[:2] == _EXPECTED_LINKING
+            and _statements(codegen.JitEngine._load_defined_symbols) == _EXPECTED_SYMBOLS):
+        return False
+    from csim.fast.linking import _wrap
+
+    original = library._unserialize.__func__
+    library._unserialize = classmethod(lambda cls, codegen, state: _unserialize(original, cls, codegen, state))
+    _wrap(library, "serialize_using_object_code", _serialize)
+    _wrap(library, "_get_module_for_linking", _module_for_linking)
     return True
 
 
@@ -64,3 +110,59 @@ def _load_overload(self, sig, target_context):
     rtsys.initialize(target_context)
     with self._guard_against_spurious_io_errors():
         return self._load_overload(sig, target_context)
+
+
+class SharedBitcode(bytes):
+    """A cached library's bitcode for linking (numba's bytes), with the names of what its module defines.
+
+    Parameters
+    ----------
+    data : bytes
+        The bitcode numba filed (``CPUCodeLibrary._get_module_for_linking().as_bitcode()``).
+    symbols : iterable of str
+        The functions and global variables the module defines (not those it only declares): what
+        numba's ``JitEngine._load_defined_symbols`` reads from it when it loads the library.
+    """
+
+    def __new__(cls, data: bytes, symbols=()):
+        shared = super().__new__(cls, data)
+        shared.symbols = frozenset(symbols)
+        return shared
+
+    def __reduce__(self):
+        return SharedBitcode, (bytes(self), sorted(self.symbols))
+
+
+def _serialize(original, library):
+    """numba's ``serialize_using_object_code``, the bitcode filed with the names its module defines."""
+    name, kind, (object_code, bitcode) = original(library)
+    module = library._get_module_for_linking()  # the module that bitcode was written from
+    symbols = [gv.name for gvs in (module.functions, module.global_variables) for gv in gvs if not gv.is_declaration]
+    return name, kind, (object_code, SharedBitcode(bitcode, symbols))
+
+
+def _unserialize(original, cls, codegen, state):
+    """numba's ``CPUCodeLibrary._unserialize``, except that a library whose bitcode came with its names
+    (:class:`SharedBitcode`) registers those names and keeps the bitcode for :func:`_module_for_linking`."""
+    name, kind, data = state
+    if kind != "object" or not isinstance(data[1], SharedBitcode):
+        return original(cls, codegen, state)
+    object_code, shared = data
+    library = codegen.create_library(name)
+    assert isinstance(library, cls)
+    library.enable_object_caching()
+    library._set_compiled_object(object_code)
+    library._csim_bitcode = shared
+    library._finalize_final_module()
+    library._codegen._engine._defined_symbols |= shared.symbols  # what _load_defined_symbols would read
+    return library
+
+
+def _module_for_linking(original, library):
+    """numba's ``_get_module_for_linking``, the deferred bitcode parsed first where there is one."""
+    bitcode = library.__dict__.pop("_csim_bitcode", None)
+    if bitcode is not None and library._shared_module is None:
+        import llvmlite.binding as ll
+
+        library._shared_module = ll.parse_bitcode(bitcode)
+    return original(library)

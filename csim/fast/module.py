@@ -111,7 +111,7 @@ def _kernels_snapshot() -> tuple[str, dict[str, str]]:
     Python path until the cache was cleared.
     """
     sources = {p.name: p.read_text() for p in _sources(KERNELS)}
-    deps = [HERE / "layout.py", HERE / "linking.py", *_sources(PHYSICS), *_sources(METHODS)]
+    deps = [HERE / "layout.py", HERE / "linking.py", HERE / "cache_load.py", *_sources(PHYSICS), *_sources(METHODS)]
     parts = [FAST_VERSION, *(f"{name}\n{text}" for name, text in sources.items()), *(p.read_text() for p in deps)]
     return _hash([*parts, _versions()]), sources
 
@@ -363,7 +363,9 @@ class CompiledModel:
 def model_key(definition: MechanismDefinition, drives: Drives | None = None) -> str:
     """Hash of everything a mechanism's model functions depend on (with ``drives``: its drive rows too)."""
     model_dir = HERE.parent / "model"  # read, not imported: importing derive imports sympy
-    sources = [HERE / "codegen.py", HERE / "ccodegen.py", HERE / "layout.py", model_dir / "derive.py"]
+    # (cache_load.py: how numba files a cfunc's machine code, for the numba backend)
+    sources = [HERE / "codegen.py", HERE / "ccodegen.py", HERE / "layout.py", HERE / "cache_load.py",
+               model_dir / "derive.py"]
     extra = [] if drives is None else [repr(drives)]
     return _hash([FAST_VERSION, definition_key(definition), *(p.read_text() for p in sources), *extra])
 

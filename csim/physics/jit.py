@@ -10,6 +10,12 @@ numba is imported on the first call of a core function, or when the compiled ker
 (:func:`activate`), never at import: a command that only reads a case (``csim describe``,
 ``csim schema``, ``csim plot``, the validation) does not pay its 0.3 s. Until then a core
 function is a :class:`LazyKernel`, which numba types as the dispatcher it becomes.
+
+Nor does numba make a dispatcher of each of them before it compiles something: a warm run
+loads the kernels' entry points from numba's cache, whose machine code holds everything they
+call, and making the hundred-odd dispatchers of the core and of the kernels took 20 ms of its
+0.47 s (2026-11-27). The first compile in a process binds them all (:func:`_bind_dispatchers`),
+before numba types anything.
 """
 from __future__ import annotations
 
@@ -21,8 +27,9 @@ import os
 #: it a call costs no atomic operations per array argument or slice (half of an evaluation's time)
 NJIT_OPTIONS = dict(cache=True, error_model="numpy", _nrt=False)
 
-#: numba's njit once imported (None: not yet, or pure Python), and whether the import was tried
-_NUMBA = {"njit": None, "tried": False}
+#: numba's njit once imported (None: not yet, or pure Python), whether the import was tried, and whether the
+#: LazyKernels bound in csim's modules were replaced by their dispatchers (at the first compile)
+_NUMBA = {"njit": None, "tried": False, "bound": False}
 #: the :func:`jitable` functions, registered with numba when it loads
 _JITABLES: list = []
 #: how many :func:`plain` blocks are open
@@ -55,15 +62,32 @@ def activate():
     _NUMBA["njit"] = njit
     for fn in _JITABLES:
         _register_jitable(fn)
-    _bind_dispatchers()
+    _bind_at_first_compile()
     return njit
+
+
+def _bind_at_first_compile():
+    """Have the first compile of this process (numba's ``numba:compile`` event, which numba broadcasts
+    before it types a function, and never for a function it loads from its cache) bind the dispatchers."""
+    from numba.core import event
+
+    class BindListener(event.Listener):
+        def on_start(self, ev):
+            if not _NUMBA["bound"]:
+                _bind_dispatchers()
+
+        def on_end(self, ev):
+            pass
+    event.register("numba:compile", BindListener())
 
 
 def _bind_dispatchers():
     """Replace every LazyKernel bound in a loaded csim module by its dispatcher: numba inlines an
-    ``inline_kernel`` (and resolves a call statically) only where the global it sees is a dispatcher."""
+    ``inline_kernel`` (and resolves a call statically) only where the global it sees is a dispatcher.
+    From then on a new core function is its dispatcher at once (:func:`_lazy`)."""
     import sys
 
+    _NUMBA["bound"] = True
     for name, module in list(sys.modules.items()):
         if not name.startswith("csim") or module is None:
             continue
@@ -129,9 +153,9 @@ def kernel(fn):
 
 
 def _lazy(fn, options, python=None):
-    """A LazyKernel, or the dispatcher itself once numba is loaded."""
+    """A LazyKernel, or the dispatcher itself once the dispatchers are bound (:func:`_bind_dispatchers`)."""
     lazy = LazyKernel(fn, options, python)
-    return lazy.compiled() if _NUMBA["njit"] is not None else lazy
+    return lazy.compiled() if _NUMBA["bound"] else lazy
 
 
 def inline_kernel(fn=None, *, python=None):

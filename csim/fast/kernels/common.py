@@ -13,17 +13,22 @@ from .variant import COMPILED
 if COMPILED:
     from numba import njit
 
-    from csim.physics.jit import NJIT_OPTIONS, activate
+    from csim.physics.jit import NJIT_OPTIONS, activate, inline_kernel, kernel
 
     activate()  # the core functions compile, and numba types them, from here on
 
     #: the decorator of every loop function that allocates nothing: compiled without numba's
     #: reference counting of arrays (NRT), which would cost two atomic operations per array
-    #: argument and per slice at every call; the arrays live as long as ``integrate`` holds them
-    hot = njit(**NJIT_OPTIONS)
+    #: argument and per slice at every call; the arrays live as long as ``integrate`` holds them.
+    #: A core function's decorator: a dispatcher from the first compile on, which a warm run never
+    #: makes (it loads the entry points below, whose machine code holds what they call)
+    hot = kernel
     #: the same, inlined into its callers in numba's IR: a call passes every array argument as a
     #: struct of seven words, which for the small functions of every step costs more than their body
-    inlined = njit(inline="always", **NJIT_OPTIONS)
+    inlined = inline_kernel
+    #: a function that allocates nothing and is compiled on its own, whose address the loop calls
+    #: (``feval``): a dispatcher at once, as the entry points below
+    addressed = njit(**NJIT_OPTIONS)
     #: a function that allocates (numba's allocator and reference counting: the entry points, the event records)
     allocating = njit(cache=True, error_model="numpy")
     #: the loop itself: allocates, and runs without the GIL (:func:`csim.fast.runner.integrate_compiled`)
@@ -32,7 +37,7 @@ else:
     def hot(fn):
         """The interpreted package: the function itself."""
         return fn
-    inlined = allocating = loop = hot
+    inlined = addressed = allocating = loop = hot
 #: inlined, for functions whose callers pass their sizes as constants (the copy's loops have fixed lengths)
 sized = inlined
 #: the (m, r) whose right-hand side has a copy with constant sizes: the planar one-loop linkages

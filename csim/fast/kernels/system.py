@@ -62,7 +62,7 @@ from csim.physics.status import NONFINITE_RHS, OK, SINGULAR_KKT
 from csim.physics.steps import all_finite
 
 from .calls import call_feval, loads_, method_gamma_star, model_handle, phi_at, terms
-from .common import hot, inlined, sized
+from .common import addressed, hot, inlined, sized
 from .variant import WITH_PARTITION
 
 
@@ -251,7 +251,7 @@ def rhs(t, y, mode, located, par, pf, pi, w, piv, f):
 # side's closure (the cold compile 286 s -> 206 s on 2 cores, 2026-11-26, the steps' times unchanged).
 # (Not inlined by numba either: that changed the register allocation of rhs itself and made the RK4 row
 # 15 % slower, measured alternately.)
-@hot
+@addressed
 def feval(t, y, mode, located, par, pf, pi, w, piv, f, info):
     """rhs plus the driver's check of a non-finite result (info = [t, max |y|] then)."""
     if WITH_PARTITION and pi[PI_SYS] == PARTITIONED:
