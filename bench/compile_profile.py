@@ -1,13 +1,13 @@
 """Where the kernels' cold compile goes: numba's compile time of each function, and of each file.
 
-Compiles one copy of the kernels (:mod:`csim.fast.kernels`) into a new, empty cache, by a short
-compiled run of the quick-return, and records numba's ``numba:compile`` events: the time of
+Compiles the copy of the kernels (:mod:`csim.fast.kernels`) into a new, empty cache, by a short
+compiled run of the quick-return (its loop, right-hand side and samples' evaluation), and records numba's ``numba:compile`` events: the time of
 each function's compile less the compiles nested in it (exclusive), summed by function and by
 the kernels' file (``system``, ``radau``, ...; the core's functions under their module's
 name). Also the time spent holding LLVM's lock (optimization and machine code)::
 
-    python bench/compile_profile.py                 # the plain copy (every method but minimal)
-    python bench/compile_profile.py --minimal       # the partitioned copy
+    python bench/compile_profile.py                 # a run with the method none
+    python bench/compile_profile.py --minimal       # a run with minimal (the same copy, the same functions)
 
 The core's own functions (:mod:`csim.physics`, the method files) are cached beside their
 sources, where an earlier run may have left them: compiled already, they are not in the
@@ -56,7 +56,7 @@ def exclusive_times(buffer) -> dict[str, float]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--minimal", action="store_true", help="the partitioned copy (minimal), not the plain one")
+    parser.add_argument("--minimal", action="store_true", help="run with minimal instead of none")
     parser.add_argument("--top", type=int, default=25, help="functions to list")
     options = parser.parse_args()
     cache = tempfile.mkdtemp(prefix="csim-compile-profile-")

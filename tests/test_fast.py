@@ -343,33 +343,26 @@ def test_auto_runs_minimal_compiled():
     assert resolve_backend(qr_case("stabilization.method=ggl", "simulation.integrator=Radau")) == "python"
 
 
-def test_the_common_kernels_leave_the_partitioned_path_to_minimals_copy():
-    """Two copies of one source (csim.fast.module): minimal's carries the partitioned system, the
-    other one has it pruned and refuses a partitioned problem rather than integrate it wrongly."""
+def test_one_copy_of_the_kernels_is_the_source_unchanged_and_runs_every_method():
+    """One copy in the cache (csim.fast.module), file for file the source: imported under its own name it
+    is the compiled one, and the package's own source the interpreted backend. Every method runs it."""
     from csim.fast import module
-    from csim.fast.runner import _arguments, _kernels_for
+    from csim.fast.runner import _kernels_for
 
-    plain, partitioned = module.kernels_source(), module.kernels_source(partitioned=True)
-    assert "WITH_PARTITION = False\n" in plain["variant.py"] and "WITH_PARTITION = True\n" in partitioned["variant.py"]
-    # both copies are compiled; the package's own source is the interpreted backend (csim.fast.kernels.interpreted)
-    assert all("COMPILED = True\n" in copy["variant.py"] for copy in (plain, partitioned))
-    assert importlib.import_module("csim.fast.kernels").COMPILED is False
-    assert {name for name in plain if plain[name] != partitioned[name]} == {"variant.py"}
-    assert module.kernels_path() != module.kernels_path(partitioned=True)
-    common = module.load_kernels()
-    assert common.WITH_PARTITION is False and module.load_kernels(partitioned=True).WITH_PARTITION is True
-    # every file of each copy reads the flag of its own copy (a file that read it elsewhere would
-    # compile the partitioned path into the plain copy): relative imports only
-    for copy, flag in ((common, False), (module.load_kernels(partitioned=True), True)):
-        files = {name: mod for name, mod in sys.modules.items() if name.startswith(copy.__name__ + ".")}
-        # every file but __init__.py, imported; the interpreted package's calls are not
-        assert len(files) == len(plain) - 2 and copy.__name__ + ".interpreted" not in files, sorted(files)
-        assert {name for name, mod in files.items() if getattr(mod, "WITH_PARTITION", flag) is not flag} == set()
-    assert not [name for name, text in plain.items() if re.search(r"^\s*(from|import) csim\.fast\.kernels", text, re.M)]
-    case, system, y0 = _system("stabilization.method=minimal", "simulation.t_end=0.1")
-    args = _arguments(system, y0, case.integration_settings(), 10, _kernels_for(system))
-    with pytest.raises(ValueError, match="WITH_PARTITION"):
-        common.integrate(*args)
+    source = {path.name: path.read_text() for path in module._sources(module.KERNELS)}
+    assert module.kernels_source() == source
+    copy = module.load_kernels()
+    assert copy.COMPILED is True and importlib.import_module("csim.fast.kernels").COMPILED is False
+    assert {path.name: path.read_text() for path in module._sources(module.kernels_path())} == source
+    # every file of the copy is the copy's own (a file that imported csim.fast.kernels would run the
+    # interpreted source inside the compiled copy): relative imports only
+    files = {name: mod for name, mod in sys.modules.items() if name.startswith(copy.__name__ + ".")}
+    assert len(files) == len(source) - 2 and copy.__name__ + ".interpreted" not in files, sorted(files)
+    assert all(mod.__file__.startswith(str(module.kernels_path())) for mod in files.values())
+    absolute = re.compile(r"^\s*(from|import) csim\.fast\.kernels", re.M)
+    assert not [name for name, text in source.items() if absolute.search(text)]
+    systems = [_system(f"stabilization.method={method}", "simulation.t_end=0.1")[1] for method in ("none", "minimal")]
+    assert all(_kernels_for(system) is copy for system in systems)
 
 
 def test_the_loop_refuses_to_run_without_the_address_of_its_right_hand_side():

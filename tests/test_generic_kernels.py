@@ -56,13 +56,12 @@ def test_a_second_mechanism_in_a_fresh_process_loads_the_kernels_from_the_cache(
     assert probe["backend"] == "compiled" and probe["ok"]
     assert probe["misses"] == {"integrate": 0, "evaluate_samples": 0}, probe
     assert probe["hits"]["integrate"] >= 1 and probe["hits"]["evaluate_samples"] >= 1, probe
-    # one copy of the kernels for every method but minimal (whose copy, kernels_partitioned_*, its tests compile);
-    # a cache kept across test sessions (CSIM_TEST_CACHE_DIR) may also hold copies of earlier sources
+    # one copy of the kernels for every method; a cache kept across test sessions (CSIM_TEST_CACHE_DIR) may
+    # also hold copies of earlier sources
     from csim.fast.module import kernels_key
 
-    plain = [name for name in probe["models"] if name.startswith("kernels_")
-             and not name.startswith("kernels_partitioned_") and kernels_key() in name]
-    assert len(plain) == 1, plain
+    copies = [name for name in probe["models"] if name.startswith("kernels") and kernels_key() in name]
+    assert copies == [f"kernels_{kernels_key()}"], copies
     if any(name.startswith("pendulum_") and name.endswith(".so") for name in probe["models"]):
         return  # built by the C compiler
     assert any(name.startswith("pendulum_") and name.endswith("_cfunc.py") for name in probe["models"])
@@ -136,38 +135,38 @@ def test_integers_beyond_64_bits_are_printed_as_doubles_in_c():
     assert _Printer().doprint(12 * x) == "12*s_x"
 
 
-def test_either_copy_of_the_kernels_is_importable_by_name(monkeypatch):
-    """numba rebuilds a cached core function by importing the copy that compiled it first: a
-    process that loaded only the common copy must find the partitioned one by its name."""
+def test_the_copy_of_the_kernels_is_importable_by_name(monkeypatch):
+    """numba rebuilds a cached function's environment by importing its module by name: a process
+    that has not loaded the kernels yet must find the copy and its files by their names."""
     import importlib
     import sys
 
     from csim.fast import module
 
-    module.load_kernels(False)
-    name = f"csim_fast_{module.kernels_path(True).name}"
+    module.load_kernels()
+    name = f"csim_fast_{module.kernels_path().name}"
     for loaded in [m for m in sys.modules if m == name or m.startswith(name + ".")]:
         monkeypatch.delitem(sys.modules, loaded)
     imported = importlib.import_module(name)
-    assert Path(imported.__file__).parent == module.kernels_path(True)
-    assert imported.WITH_PARTITION is True
-    assert importlib.import_module(f"{name}.driver").WITH_PARTITION is True  # its files, from the copy
+    assert Path(imported.__file__).parent == module.kernels_path() and imported.COMPILED is True
+    driver = importlib.import_module(f"{name}.driver")  # its files, from the copy
+    assert Path(driver.__file__).parent == module.kernels_path() and driver.COMPILED is True
 
 
 def test_the_kernels_key_is_fixed_for_the_process(monkeypatch, tmp_path):
-    # both copies a process writes carry one key, even if a source file changes under the
-    # process: numba's cache of one copy refers to the other one's functions by module name
+    # the copy a process writes carries the key it loaded with, and the text that key hashed, even if a
+    # source file changes under the process
     from csim.fast import module
 
-    key, text = module.kernels_key(), module.kernels_source(partitioned=True)
+    key, text = module.kernels_key(), module.kernels_source()
     edited = tmp_path / "kernels"
     shutil.copytree(module.KERNELS, edited, ignore=shutil.ignore_patterns("__pycache__"))
     (edited / "driver.py").write_text((edited / "driver.py").read_text() + "\n# edited while a process runs\n")
     monkeypatch.setattr(module, "KERNELS", edited)
     assert module._kernels_snapshot.__wrapped__()[0] != key  # the edit is a new key for a new process
     assert module.kernels_key() == key
-    assert {module.kernels_path(p).name.rsplit("_", 1)[1] for p in (False, True)} == {key}
-    assert module.kernels_source(partitioned=True) == text  # and the copies hold the text the key hashed
+    assert module.kernels_path().name == f"kernels_{key}"
+    assert module.kernels_source() == text  # and the copy holds the text the key hashed
 
 
 def test_a_copy_of_the_kernels_is_written_whole_and_never_replaced(tmp_path):
@@ -177,9 +176,9 @@ def test_a_copy_of_the_kernels_is_written_whole_and_never_replaced(tmp_path):
     from csim.fast import module
 
     path = tmp_path / "kernels_k"
-    module._write_package(path, {"__init__.py": "A = 1\n", "variant.py": "WITH_PARTITION = True\n"})
+    module._write_package(path, {"__init__.py": "A = 1\n", "variant.py": "COMPILED = True\n"})
     stamp = (path / "__init__.py").stat().st_mtime_ns
-    module._write_package(path, {"__init__.py": "A = 2\n", "variant.py": "WITH_PARTITION = True\n"})  # a loser
+    module._write_package(path, {"__init__.py": "A = 2\n", "variant.py": "COMPILED = True\n"})  # a loser
     assert (path / "__init__.py").read_text() == "A = 1\n" and (path / "__init__.py").stat().st_mtime_ns == stamp
     assert sorted(p.name for p in tmp_path.iterdir()) == ["kernels_k"]
     assert oct(path.stat().st_mode & 0o777) == "0o755" and oct((path / "variant.py").stat().st_mode & 0o777) == "0o644"
@@ -203,7 +202,7 @@ def test_copies_of_other_keys_unused_for_a_month_are_removed(tmp_path):
     key = {c: c * 24 for c in "abcdef"}
     pycache = tmp_path / "__pycache__"
     pycache.mkdir()
-    files = {tmp_path / module.kernels_path().name: old, tmp_path / module.kernels_path(True).name: old,
+    files = {tmp_path / module.kernels_path().name: old, tmp_path / f"kernels_partitioned_{key['f']}": recent,
              tmp_path / f"kernels_{key['a']}": old, tmp_path / f"kernels_partitioned_{key['b']}": recent,
              tmp_path / f"kernels_{key['e']}": old, tmp_path / f"kernels_{key['e']}" / "__pycache__": old,
              tmp_path / f"kernels_{key['c']}.py": old, pycache / f"kernels_{key['c']}.integrate-300.py311.nbi": old,
@@ -232,10 +231,10 @@ def test_a_new_copy_prunes_and_a_load_stamps_its_copy(tmp_path, monkeypatch):
     stale = tmp_path / f"kernels_{'a' * 24}"
     stale.mkdir()
     os.utime(stale, (0, 0))
-    copy = module._kernels_copy(False)
+    copy = module._kernels_copy()
     assert copy.parent == tmp_path and not stale.exists()
     os.utime(copy, (0, 0))
-    assert module._kernels_copy(False) == copy and time.time() - copy.stat().st_mtime < 60
+    assert module._kernels_copy() == copy and time.time() - copy.stat().st_mtime < 60
 
 
 def test_an_editors_lock_file_beside_the_kernels_is_not_a_source(tmp_path):

@@ -1,4 +1,4 @@
-"""The installation's warm-up (csim.warmup): both copies of the kernels compiled, and Ctrl-C."""
+"""The installation's warm-up (csim.warmup): both halves of the kernels compiled, and Ctrl-C."""
 from __future__ import annotations
 
 import os
@@ -11,21 +11,26 @@ from pathlib import Path
 import pytest
 
 from csim import warmup
-from csim.fast.module import kernels_compiled, load_kernels
+from csim.fast.module import kernels_compiled, kernels_path, load_kernels
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def test_the_warm_up_leaves_both_copies_compiled(capsys):
+def test_the_warm_up_leaves_every_entry_point_compiled(capsys):
     assert warmup.main([]) == 0  # (in this session's cache: compiled here, or loaded)
     assert "kernels ready" in capsys.readouterr().out
-    assert kernels_compiled(load_kernels(partitioned=False)) and kernels_compiled(load_kernels(partitioned=True))
+    kernels = load_kernels()
+    assert kernels_compiled(kernels)
+    cache = kernels_path() / "__pycache__"
+    for entry in ("driver.integrate", "system.feval", "entries.evaluate_samples", "entries.rhs_entry",
+                  "entries.rhs_repeat", "entries.project_entry"):
+        assert list(cache.glob(f"{entry}-*.nbi")), entry
 
 
 @pytest.mark.slow
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 def test_ctrl_c_ends_the_warm_up_and_its_compiling_children_without_a_traceback(tmp_path):
-    # Ctrl-C at a terminal reaches the whole process group: the children compiling each copy
+    # Ctrl-C at a terminal reaches the whole process group: the children compiling each half
     # end quietly, the parent says what it means and exits 130, and no compiler is left running
     env = dict(os.environ, CSIM_CACHE_DIR=str(tmp_path), PYTHONPATH=str(ROOT))
     env.pop("CSIM_KERNELS_DIR", None)  # the session's compiled kernels (conftest): the children would be done at once
@@ -34,7 +39,7 @@ def test_ctrl_c_ends_the_warm_up_and_its_compiling_children_without_a_traceback(
     time.sleep(8)  # the children are compiling (a cold cache takes minutes)
     children = [int(pid) for pid in subprocess.run(["pgrep", "-P", str(process.pid)], capture_output=True,
                                                    text=True).stdout.split()]
-    assert len(children) == 2  # one per copy of the kernels
+    assert len(children) == 2  # one per half of the kernels
     os.killpg(process.pid, signal.SIGINT)
     out, err = process.communicate(timeout=60)
     assert process.returncode == 130, (out, err)

@@ -9,12 +9,11 @@ built-in methods' files, and the numba, numpy, scipy and Python versions. numba 
 them on first use and keeps the machine code next to the copy (``__pycache__``); every
 later process, for any mechanism, loads it from there. (numba's own cache check looks at
 one file's time stamp only; the key in the name makes an edit of any dependency a new
-package instead of stale machine code.) There are two copies, two variants of one source:
-``kernels_partitioned_<key>/`` for the partitioned system of ``minimal``, and
-``kernels_<key>/``, whose ``variant.py`` says ``WITH_PARTITION = False``, for every other method: that
-one neither compiles the partitioned path nor carries it through the loop. Each compiles on
-the first run that needs it. Copies of other keys (an upgrade, an edit) that no process has
-loaded for 30 days are removed when a new copy is written (:func:`prune_kernels`).
+package instead of stale machine code.) One copy serves every method, ``minimal``'s
+partitioned system included, and its files are the source's, unchanged: imported under the
+name ``csim_fast_kernels_<key>``, outside the package ``csim``, it knows it is the compiled
+one (:mod:`csim.fast.kernels.variant`). Copies of other keys (an upgrade, an edit) that no
+process has loaded for 30 days are removed when a new copy is written (:func:`prune_kernels`).
 
 A mechanism's model functions (:mod:`csim.fast.codegen`) are built into
 ``<cache>/fast/<mechanism>_<key>.so`` by the system's C compiler (:mod:`csim.fast.ccodegen`,
@@ -63,17 +62,13 @@ FAST_VERSION = "4"
 HERE = Path(__file__).parent
 #: the kernels' package, copied whole into the cache
 KERNELS = HERE / "kernels"
-VARIANT_FILE = "variant.py"
 PHYSICS = HERE.parent / "physics"
 METHODS = HERE.parent / "solver" / "methods"
 #: model backends (CSIM_MODEL_BACKEND; python: the cfunc source run by Python, for the interpreted kernels only)
 MODEL_BACKENDS = ("auto", "c", "numba", "python")
 
-#: the loaded kernels, by variant (True: with the partitioned system)
-_KERNELS: dict[bool, ModuleType] = {}
-#: the lines of the kernels' variant.py that a copy sets (csim.fast.kernels.variant)
-_VARIANT_LINE = "WITH_PARTITION = True\n"
-_COMPILED_LINE = "COMPILED = False\n"
+#: the loaded copy of the kernels (one a process)
+_KERNELS: dict[str, ModuleType] = {}
 #: the loaded kernels -> the address of their feval (feval_address)
 _FEVAL: dict[ModuleType, int] = {}
 #: (id(definition), drives) -> (definition, model): hashing a definition takes milliseconds
@@ -103,12 +98,11 @@ def _kernels_snapshot() -> tuple[str, dict[str, str]]:
     """(key, sources): the hash of everything the kernels' machine code depends on, and the
     kernels' files it hashed (file name -> text), read once per process.
 
-    Once: the two copies a process compiles refer to each other's functions in numba's cache
-    (:class:`_KernelsFinder`), so they must carry one key, and each copy must hold the text
-    that key hashed. A key computed again after a source file changed under a running
-    process named the second copy with a new key while its machine code referred to the
-    first one's, which no later process could import: every ``minimal`` run fell back to the
-    Python path until the cache was cleared.
+    Once: the copy must hold the text its key hashed, and the process's key must not change
+    under it. (When there were two copies, a key computed again after a source file changed
+    under a running process named the second copy with a new key while its machine code
+    referred to the first one's, which no later process could import: every ``minimal`` run
+    fell back to the Python path until the cache was cleared.)
     """
     sources = {p.name: p.read_text() for p in _sources(KERNELS)}
     deps = [HERE / "layout.py", HERE / "linking.py", HERE / "cache_load.py", *_sources(PHYSICS), *_sources(METHODS)]
@@ -126,25 +120,14 @@ def kernels_key() -> str:
     return _kernels_snapshot()[0]
 
 
-def kernels_path(partitioned: bool = False) -> Path:
-    """The kernels' copy in the cache, a package: ``kernels_<key>/``, or ``kernels_partitioned_<key>/``."""
-    return kernels_dir() / f"kernels{'_partitioned' if partitioned else ''}_{kernels_key()}"
+def kernels_path() -> Path:
+    """The kernels' copy in the cache, a package: ``kernels_<key>/``."""
+    return kernels_dir() / f"kernels_{kernels_key()}"
 
 
-def kernels_source(partitioned: bool = False) -> dict[str, str]:
-    """The files of a compiled copy of the kernels (name -> text): ``variant.py`` with ``COMPILED = True``,
-    and for every method but ``minimal`` (not ``partitioned``) ``WITH_PARTITION = False`` (numba then prunes
-    those branches)."""
-    sources = dict(_kernels_snapshot()[1])
-    variant = sources[VARIANT_FILE]
-    for line in (_VARIANT_LINE, _COMPILED_LINE):
-        if variant.count(line) != 1:
-            raise RuntimeError(f"{KERNELS / VARIANT_FILE} must set {line.strip()} on one line of its own")
-    variant = variant.replace(_COMPILED_LINE, "COMPILED = True\n")
-    if not partitioned:
-        variant = variant.replace(_VARIANT_LINE, "WITH_PARTITION = False\n")
-    sources[VARIANT_FILE] = variant
-    return sources
+def kernels_source() -> dict[str, str]:
+    """The files of the compiled copy of the kernels (name -> text): the source's, as the key hashed them."""
+    return dict(_kernels_snapshot()[1])
 
 
 def kernels_compiled(module: ModuleType) -> bool:
@@ -156,22 +139,18 @@ def kernels_compiled(module: ModuleType) -> bool:
     return cached(module.integrate) and cached(module.feval)
 
 
-def load_kernels(partitioned: bool = False, compiled: bool = True) -> ModuleType:
+def load_kernels(compiled: bool = True) -> ModuleType:
     """The kernels package (imported once per process; compiled on first use once per installation).
 
     Parameters
     ----------
-    partitioned : bool
-        The variant with the partitioned system (:class:`csim.solver.partitioned.PartitionedSystem`,
-        ``minimal``); the other one, for every other method, neither compiles nor runs that path.
     compiled : bool
-        False: the package's own source, run by Python (the interpreted backend, one package for
-        every method; numba is not imported).
+        False: the package's own source, run by Python (the interpreted backend; numba is not imported).
     """
     if not compiled:
         return importlib.import_module("csim.fast.kernels")
-    if partitioned in _KERNELS:
-        return _KERNELS[partitioned]
+    if "compiled" in _KERNELS:
+        return _KERNELS["compiled"]
     from csim.fast import cache_load, linking
 
     cache_load.install()  # a warm run loads the machine code without loading all of numba's target
@@ -179,8 +158,8 @@ def load_kernels(partitioned: bool = False, compiled: bool = True) -> ModuleType
     if _KernelsFinder not in sys.meta_path:
         sys.meta_path.append(_KernelsFinder)
     # numba's cache locates functions through their module, imported by name (the finder)
-    module = importlib.import_module(f"csim_fast_{_kernels_copy(partitioned).name}")
-    _KERNELS[partitioned] = module
+    module = importlib.import_module(f"csim_fast_{_kernels_copy().name}")
+    _KERNELS["compiled"] = module
     return module
 
 
@@ -205,15 +184,15 @@ def feval_address(kernels: ModuleType) -> int:
     return _FEVAL[kernels]
 
 
-def _kernels_copy(partitioned: bool) -> Path:
-    """The kernels' copy for a variant, written into the cache if it is not there yet (and then the copies
-    of other keys that no process has used for :data:`UNUSED_DAYS` removed: :func:`prune_kernels`); its
-    time stamp says when a process last loaded it."""
-    path = kernels_path(partitioned)
+def _kernels_copy() -> Path:
+    """The kernels' copy, written into the cache if it is not there yet (and then the copies of other keys
+    that no process has used for :data:`UNUSED_DAYS` removed: :func:`prune_kernels`); its time stamp says
+    when a process last loaded it."""
+    path = kernels_path()
     if not path.is_dir():
         path = _writable(path)
         if not path.is_dir():
-            _write_package(path, kernels_source(partitioned))
+            _write_package(path, kernels_source())
             prune_kernels(path.parent)
     with contextlib.suppress(OSError):
         os.utime(path)  # used now (a copy's own files keep their stamps: numba's cache checks them)
@@ -221,20 +200,21 @@ def _kernels_copy(partitioned: bool) -> Path:
 
 
 #: a copy of the kernels of another key (an earlier csim, numba or edit) that no process has loaded for
-#: this many days is removed when a new copy is written (27 MB a key; the machine code of both copies)
+#: this many days is removed when a new copy is written (about 15 MB a key with its machine code)
 UNUSED_DAYS = 30
 
 
 def prune_kernels(folder: Path, now: float | None = None) -> list[Path]:
     """Remove from ``folder`` the kernels' copies of other keys than this process's, unused for
-    :data:`UNUSED_DAYS`: package copies ``kernels[_partitioned]_<key>/`` and the single-file copies
-    of csim before the package (``kernels_<key>.py``), with their machine code in ``__pycache__``.
+    :data:`UNUSED_DAYS`: package copies ``kernels_<key>/`` (and ``kernels_partitioned_<key>/``, the
+    second copy of csim before one served every method) and the single-file copies of csim before
+    the package (``kernels_<key>.py``), with their machine code in ``__pycache__``.
     A copy's last use is the newest stamp of its folder or file (:func:`_kernels_copy` sets it at
     each load) and of its machine code's files (numba reads their index at each load: the access
     time, where the file system keeps it, tells of an older csim that sets no stamp). Returns what
     was removed."""
     now = time.time() if now is None else now
-    current = {kernels_path(False).name, kernels_path(True).name}
+    current = {kernels_path().name}
     removed = []
     for path in sorted(folder.iterdir()) if folder.is_dir() else ():
         match = _COPY.match(path.name)
@@ -268,25 +248,21 @@ def _used(path: Path) -> float:
 
 
 class _KernelsFinder:
-    """Imports either copy of the kernels by its package name (last on ``sys.meta_path``).
+    """Imports the copy of the kernels by its package name (last on ``sys.meta_path``).
 
-    numba caches a core function compiled from one copy with a reference to that copy's
-    module, and rebuilds it by importing that module by name: a process that runs only the
-    other copy (``none`` after ``minimal`` filled the cache) must still find it. Importing a
-    copy only defines its functions; nothing is compiled until one is called. (A copy's
-    files are found through the package's path, as any package's.)
+    numba rebuilds a cached function's environment by importing its module by name
+    (``csim_fast_kernels_<key>.system``). Importing the copy only defines its functions;
+    nothing is compiled until one is called. (Its files are found through the package's
+    path, as any package's.)
     """
 
     @staticmethod
     def find_spec(name, path=None, target=None):
-        if not name.startswith("csim_fast_kernels") or "." in name:
+        if name != f"csim_fast_{kernels_path().name}":
             return None
-        for partitioned in (False, True):
-            if name == f"csim_fast_{kernels_path(partitioned).name}":
-                copy = _kernels_copy(partitioned)
-                return importlib.util.spec_from_file_location(name, copy / "__init__.py",
-                                                              submodule_search_locations=[str(copy)])
-        return None
+        copy = _kernels_copy()
+        return importlib.util.spec_from_file_location(name, copy / "__init__.py",
+                                                      submodule_search_locations=[str(copy)])
 
 
 # ---------------------------------------------------------------------------------------

@@ -75,7 +75,7 @@ def _drives(system: ConstrainedSystem) -> Drives | None:
 
 
 def _arguments(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSettings, max_steps: int,
-               kernels) -> tuple:
+               kernels, feval: bool = True) -> tuple:
     """The arguments of the kernel ``integrate`` (see its docstring) in ``kernels``, the copy that runs ``system``
     (whose ``feval`` is compiled, or loaded from numba's cache, here: the loop calls it by its address), or the
     interpreted package."""
@@ -87,15 +87,14 @@ def _arguments(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationS
                      np.nan if settings.first_step is None else settings.first_step, settings.max_phi,
                      settings.min_step], dtype=float)
     par, pf, pi = pack_problem(system, interpreted=not kernels.COMPILED)
-    pi[PI_FEVAL] = feval_address(kernels)
+    pi[PI_FEVAL] = feval_address(kernels) if feval else 0  # (0: for compiling integrate, never to run it)
     return (INTEGRATOR_CODES[settings.integrator], np.ascontiguousarray(y0, dtype=float), t_out,
             par, pf, pi, system.stabilizer.projects, iset, fset, np.zeros(2))
 
 
 def _kernels_for(system: ConstrainedSystem, interpreted: bool = False):
-    """The kernels' variant that integrates ``system`` (:func:`csim.fast.module.load_kernels`), or the
-    interpreted package."""
-    return load_kernels(partitioned=isinstance(system, PartitionedSystem), compiled=not interpreted)
+    """The compiled kernels (:func:`csim.fast.module.load_kernels`), or the interpreted package."""
+    return load_kernels(compiled=not interpreted)
 
 
 def _chattering_labels(ev_sw: np.ndarray, n_ev: int, n_chatter: int, labels: list[str]) -> list[str]:
@@ -116,12 +115,32 @@ def prepare(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSett
 
     load_model(system.model.definition, _drives(system))  # built first, with a status line of their own
     mod = _kernels_for(system)
-    copy = "minimal's copy of the kernels" if isinstance(system, PartitionedSystem) else "the kernels"
     text = ("loading the compiled kernels" if kernels_compiled(mod) else
-            f"compiling {copy} (once per csim installation, 1-2 min on 2 cores; python -m csim.warmup "
-            f"compiles both ahead)")
+            "compiling the kernels (once per csim installation, 1-2 min on 2 cores; python -m csim.warmup "
+            "compiles them ahead, on two cores in half the time)")
     with status(text), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         mod.integrate(*_arguments(system, y0, settings, 0, mod))  # (_arguments compiles feval)
+
+
+def compile_loop(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSettings) -> None:
+    """Compile (or load) the kernels' loop, ``integrate``, for the types of its arguments, without calling it
+    and without compiling the right-hand side it calls by address (``feval``: :func:`compile_rhs`), which
+    another process may compile at the same time (:mod:`csim.warmup`)."""
+    from numba import typeof
+
+    mod = _kernels_for(system)
+    mod.integrate.compile(tuple(typeof(value) for value in _arguments(system, y0, settings, 0, mod, feval=False)))
+
+
+def compile_rhs(system: ConstrainedSystem, y0: np.ndarray) -> None:
+    """Compile (or load) what a run calls besides the loop: the right-hand side the loop calls by address
+    (``feval``), the samples' evaluation (``evaluate_samples``) and the one-state entry points
+    (:func:`compile_entries`)."""
+    mod = _kernels_for(system)
+    feval_address(mod)
+    compile_entries(system, y0)
+    n_sw = system.loads.n_switches
+    evaluate_compiled(system, np.zeros(1), np.asarray(y0, dtype=float)[None], np.zeros((1, n_sw), dtype=bool))
 
 
 def compile_entries(system: ConstrainedSystem, y0: np.ndarray) -> None:

@@ -3,9 +3,9 @@ with event location, over the shared core; compiled by numba, or run by Python.
 
 One package for every mechanism, compiled once per installation: :mod:`csim.fast.module`
 loads it through a copy named by the hash of everything it depends on, so that numba's
-on-disk cache is never stale (two copies, with and without the partitioned system of
-``minimal``, see :mod:`.variant`), and numba compiles it on first use, then loads the machine
-code from its cache in every later process. The package's own source, imported as
+on-disk cache is never stale (one copy for every method, the source's files unchanged, see
+:mod:`.variant`), and numba compiles it on first use, then loads the machine code from its
+cache in every later process. The package's own source, imported as
 ``csim.fast.kernels``, is never compiled: it is the interpreted backend, the same loop run by
 Python (:mod:`.interpreted`; ``simulation.backend: interpreted``, and what ``CSIM_PURE_PYTHON=1``
 runs), so that both backends take the same steps from one source. Nothing about a mechanism
@@ -23,7 +23,7 @@ the same ones the Python driver calls. What is here is what must be compiled, on
 file, from the bottom up:
 
 ================  ===========================================================================
-``variant``       whether this copy is compiled (``COMPILED``), and carries the partitioned system
+``variant``       whether this package is compiled (``COMPILED``): the cache's copy, not the source
 ``common``        the decorators, the integrators' codes, the loop's scalar slots
 ``tableaus``      the explicit pairs' coefficients (scipy's DOP853, :mod:`csim.physics.tableaus`)
 ``addresses``     compiled-only: model functions, gamma* and ``feval`` called by address; the model handle
@@ -57,12 +57,12 @@ The files import each other relatively: a copy in the cache is a package of its 
 from .driver import integrate
 from .entries import evaluate_samples, project_entry, rhs_entry, rhs_repeat
 from .system import feval
-from .variant import COMPILED, WITH_PARTITION
+from .variant import COMPILED
 
 if COMPILED:
     from .addresses import FEVAL_TYPES
 else:
     FEVAL_TYPES = None  # the interpreted package calls its feval from Python
 
-__all__ = ["COMPILED", "FEVAL_TYPES", "WITH_PARTITION", "evaluate_samples", "feval", "integrate", "project_entry",
+__all__ = ["COMPILED", "FEVAL_TYPES", "evaluate_samples", "feval", "integrate", "project_entry",
            "rhs_entry", "rhs_repeat"]

@@ -56,7 +56,7 @@ from .system import (
     project,
 )
 from .tableaus import DOP_NX, DOP_POWER
-from .variant import COMPILED, WITH_PARTITION
+from .variant import COMPILED
 
 
 @hot
@@ -99,7 +99,7 @@ def _sample(ts_, t_out, dense_kind, y_old, y, f_new, mode, rmode, locate, projec
 def _start(y0, y, yp, mode, projects, par, pf, pi, w, piv, tr, ys, modes, info):
     """The integrated state y from the full initial state y0: projected (projection), partitioned and reduced
     (minimal), else y0 itself; then its mode, and the record of it. Returns the status."""
-    if WITH_PARTITION and pi[PI_SYS] == PARTITIONED:
+    if pi[PI_SYS] == PARTITIONED:
         model, P, r, m, k, tol, max_iter, _ = _partition_call(par, pf, pi, w, piv)
         code = branch.start(model, P, y0, y, r, m, k, tol, max_iter)
         if code != OK:
@@ -191,7 +191,7 @@ def _take_step(method, ts_, t_end, rtol, tolv, fixed_h, max_step, y, f, K, F, y_
 def _after_step(ts_, y, f, f_new, yp, projects, par, pf, pi, rmode, locate, w, piv, cs, info):
     """Go on from the accepted step: project and hand the state back (projection); anchor the branch and
     maybe choose the partition again (minimal); else keep f_new. Returns (status, restart)."""
-    if WITH_PARTITION and pi[PI_SYS] == PARTITIONED:
+    if pi[PI_SYS] == PARTITIONED:
         code, restart = _partition_after_step(y, par, pf, pi, w, piv)
         if code != OK or restart:
             return code, restart
@@ -240,7 +240,7 @@ def _after_event(ts_, y, ev_t, ev_sw, n_chatter, max_events, min_step, par, pf, 
     """After an event recorded at index cs[N_EV]: anchor the partitioned system at the event state (maybe in a
     new partition; on a failure the event is not counted, its conditions stay flipped, as the Python driver
     leaves them), count the event, and check for chatter and too many events. Returns the status."""
-    if WITH_PARTITION and pi[PI_SYS] == PARTITIONED:
+    if pi[PI_SYS] == PARTITIONED:
         status, _ = _partition_after_step(y, par, pf, pi, w, piv)
         if status != OK:
             for jj in range(ev_sw.shape[1]):
@@ -325,11 +325,7 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset, control):
     locate, n_interior, max_events, max_steps, n_chatter = iset[0] != 0, iset[1], iset[2], iset[3], iset[4]
     t_end, rtol, atol, fixed_h, max_step, first_step, max_phi, min_step = fset[0], fset[1], fset[2], fset[3], \
         fset[4], fset[5], fset[6], fset[7]
-    # (`partitioned` is a run-time value: the branches below test WITH_PARTITION as well, so that
-    # numba prunes them in the copy without the partitioned system)
-    partitioned = WITH_PARTITION and pi[PI_SYS] == PARTITIONED
-    if pi[PI_SYS] == PARTITIONED and not WITH_PARTITION:
-        raise ValueError("the partitioned system needs the kernels built with WITH_PARTITION")
+    partitioned = pi[PI_SYS] == PARTITIONED
     if pi[PI_FEVAL] == 0:
         raise ValueError("pi[PI_FEVAL], the address of feval, is not set (csim.fast.runner._arguments sets it)")
     n_free = pi[PI_NQ] - pi[PI_NC] if partitioned else pi[PI_NQ]  # the integrated state: 2 n_free + k
@@ -403,13 +399,13 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset, control):
                 break
             if t_new >= t_end:
                 break
-        if WITH_PARTITION and partitioned and branch.is_breakdown(status):
+        if partitioned and branch.is_breakdown(status):
             # a stage left the region of the partition: restart from the last accepted state
             ts_[T] = t_a
             status = _repartition(ya, y, par, pf, pi, w, piv)
             restarted = status == OK
         if not restarted:
             break
-    if WITH_PARTITION and partitioned and status != OK:
+    if partitioned and status != OK:
         _failure_details(pi, w, piv, info)
     return cs[N_REC], tr, ys, modes, cs[N_EV], ev_t, ev_sw, cs[NFEV], cs[NSTEPS], status, info, cs[NJEV], cs[NLU]

@@ -10,7 +10,6 @@ from .calls import loads_
 from .common import EPS, RK4, T_OLD, T_STOP, T, allocating, hot
 from .dense import _ensure_dense, dense_eval
 from .system import _pending, _set_pending, full_state, mode_at, project, switching_from
-from .variant import WITH_PARTITION
 
 
 @hot
@@ -18,7 +17,7 @@ def _g_at(j, tau, kind, t_old, h, y_old, F, par, pf, pi, w, piv, ytmp):
     """Switching function j on the dense output at tau (NaN, and the code pending, where the full state fails)."""
     dense_eval(kind, tau, t_old, h, y_old, F, ytmp)
     code, yv = full_state(ytmp, par, pf, pi, w, piv)
-    if WITH_PARTITION and code != OK:  # (only the partitioned system's full state can fail)
+    if code != OK:  # (only the partitioned system's full state can fail)
         _set_pending(pi, w, piv, code)
         return np.nan
     loads_(yv, par, pi, w)

@@ -63,7 +63,6 @@ from csim.physics.steps import all_finite
 
 from .calls import call_feval, loads_, method_gamma_star, model_handle, phi_at, terms
 from .common import addressed, hot, inlined, sized
-from .variant import WITH_PARTITION
 
 
 # ---------------------------------------------------------------------------------------
@@ -94,7 +93,7 @@ def _partition_call(par, pf, pi, w, piv):
 def full_state(y, par, pf, pi, w, piv):
     """(code, the full state [q, qd, W] of the integrated state y): y itself, or for the partitioned
     system its dependent coordinates solved on the branch (csim.physics.branch.to_full), in P.yf."""
-    if WITH_PARTITION and pi[PI_SYS] == PARTITIONED:
+    if pi[PI_SYS] == PARTITIONED:
         return _partitioned_full_state(y, par, pf, pi, w, piv)
     return OK, y
 
@@ -147,7 +146,7 @@ def _failure_details(pi, w, piv, info):
 @inlined
 def _pending(pi, w, piv):
     """The breakdown of a full state met where no code could be returned (a switching function's value), cleared."""
-    if WITH_PARTITION and pi[PI_SYS] == PARTITIONED:
+    if pi[PI_SYS] == PARTITIONED:
         return _set_pending(pi, w, piv, OK)
     return OK
 
@@ -254,7 +253,7 @@ def rhs(t, y, mode, located, par, pf, pi, w, piv, f):
 @addressed
 def feval(t, y, mode, located, par, pf, pi, w, piv, f, info):
     """rhs plus the driver's check of a non-finite result (info = [t, max |y|] then)."""
-    if WITH_PARTITION and pi[PI_SYS] == PARTITIONED:
+    if pi[PI_SYS] == PARTITIONED:
         code = _partitioned_rhs(t, y, mode, located, par, pf, pi, w, piv, f)
     else:
         code = rhs(t, y, mode, located, par, pf, pi, w, piv, f)
