@@ -1,10 +1,11 @@
 """Where the kernels' cold compile goes: numba's compile time of each function, and of each file.
 
 Compiles the copy of the kernels (:mod:`csim.fast.kernels`) into a new, empty cache, by a short
-compiled run of the quick-return (its loop, right-hand side and samples' evaluation), and records numba's ``numba:compile`` events: the time of
-each function's compile less the compiles nested in it (exclusive), summed by function and by
-the kernels' file (``system``, ``radau``, ...; the core's functions under their module's
-name). Also the time spent holding LLVM's lock (optimization and machine code)::
+compiled run of the quick-return (its loop, right-hand side and samples' evaluation), and
+records numba's ``numba:compile`` events: the time of each function's compile less the
+compiles nested in it (exclusive), summed by function and by the kernels' file (``system``,
+``radau``, ...; the core's functions under their module's name). Also the time spent holding
+LLVM's lock (optimization and machine code)::
 
     python bench/compile_profile.py                 # a run with the method none
     python bench/compile_profile.py --minimal       # a run with minimal (the same copy, the same functions)
