@@ -100,7 +100,7 @@ sys.path.insert(0, sys.argv[1])
 from csim.fast import cache_load
 installed = cache_load.install()
 import numpy as np
-from probe import norm, outer
+from csim_fast_kernels_probe import norm, outer   # a module named as the kernels' copy: its bitcode deferred
 x = np.array([3.0, 4.0])
 first = float(norm(x))  # compiled on the first run; on the second loaded, its bitcode not parsed
 library = norm.overloads[norm.signatures[0]].library
@@ -122,13 +122,45 @@ def outer(x):
 def test_a_cached_library_is_parsed_only_when_a_later_compile_links_it(tmp_path):
     """The second process loads ``norm`` without parsing its bitcode, then compiles ``outer``, which
     links norm's library: the bitcode is parsed then, and ``outer`` computes 2 |x|."""
-    (tmp_path / "probe.py").write_text(textwrap.dedent(LINKED_PROBE))
+    (tmp_path / f"{cache_load.KERNELS_PREFIX}probe.py").write_text(textwrap.dedent(LINKED_PROBE))
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
     cold = _run(LINK_LATER, str(tmp_path), env=env)
     warm = _run(LINK_LATER, str(tmp_path), env=env)
     assert cold["installed"] and cold["deferred_bitcode"] and cold["hits"] == 0 and not cold["deferred"]
     assert warm["hits"] == 1 and warm["deferred"] and warm["parsed_after_link"]
     assert cold["value"] == warm["value"] == 10.0 and warm["first"] == 5.0
+
+
+#: a function cached in a process where csim deferred the bitcode, loaded in one that cannot import csim
+FILED_BY_CSIM = """
+import sys
+sys.path.insert(0, sys.argv[1])
+from csim.fast import cache_load
+assert cache_load.install() and cache_load._STATE["deferred"]
+import numpy as np
+from probe import norm
+print(float(norm(np.array([3.0, 4.0]))))
+"""
+LOADED_WITHOUT_CSIM = """
+import sys
+sys.path.insert(0, sys.argv[1])
+sys.modules["csim"] = None  # csim uninstalled
+import numpy as np
+from probe import norm
+print(float(norm(np.array([3.0, 4.0]))), sum(norm.stats.cache_hits.values()))
+"""
+
+
+def test_only_the_kernels_copy_is_filed_in_csims_format(tmp_path):
+    """A function of any other module cached in a csim process (a user's own, the core's) is in numba's own
+    format: a process without csim loads it from the cache."""
+    (tmp_path / "probe.py").write_text(textwrap.dedent(PROBE))
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    for code in (FILED_BY_CSIM, LOADED_WITHOUT_CSIM):
+        done = subprocess.run([sys.executable, "-c", code, str(tmp_path)], capture_output=True, text=True,
+                              timeout=600, env=env)
+        assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["5.0", "1"]
 
 
 def test_the_filed_bitcode_pickles_with_its_names():

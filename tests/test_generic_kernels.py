@@ -191,9 +191,9 @@ def test_a_copy_of_the_kernels_is_written_whole_and_never_replaced(tmp_path):
 
 
 def test_copies_of_other_keys_unused_for_a_month_are_removed(tmp_path):
-    """An upgrade leaves the copies of the old key (27 MB) behind: they go once no process has loaded them
+    """An upgrade leaves the copy of the old key (about 15 MB) behind: it goes once no process has loaded it
     for UNUSED_DAYS, with the single-file copies of older csims and their machine code. This process's
-    copies, recent ones (another installation sharing the cache), a copy whose machine code was read
+    copy, recent ones (another installation sharing the cache), a copy whose machine code was read
     lately (an older csim, which sets no stamp), the models' files and other names stay."""
     from csim.fast import module
 
@@ -204,6 +204,7 @@ def test_copies_of_other_keys_unused_for_a_month_are_removed(tmp_path):
     pycache.mkdir()
     files = {tmp_path / module.kernels_path().name: old, tmp_path / f"kernels_partitioned_{key['f']}": recent,
              tmp_path / f"kernels_{key['a']}": old, tmp_path / f"kernels_partitioned_{key['b']}": recent,
+             tmp_path / f"kernels_partitioned_{key['a']}": old,
              tmp_path / f"kernels_{key['e']}": old, tmp_path / f"kernels_{key['e']}" / "__pycache__": old,
              tmp_path / f"kernels_{key['c']}.py": old, pycache / f"kernels_{key['c']}.integrate-300.py311.nbi": old,
              tmp_path / f"kernels_{key['d']}.py": old, pycache / f"kernels_{key['d']}.integrate-300.py311.nbi": recent,
@@ -217,7 +218,8 @@ def test_copies_of_other_keys_unused_for_a_month_are_removed(tmp_path):
     os.utime(used, (recent, old))  # read five days ago: an older csim still loads this copy
     os.utime(tmp_path / f"kernels_{key['e']}", (old, old))
     removed = module.prune_kernels(tmp_path, now=now)
-    assert sorted(p.name for p in removed) == [f"kernels_{key['a']}", f"kernels_{key['c']}.py"]
+    assert sorted(p.name for p in removed) == [f"kernels_{key['a']}", f"kernels_{key['c']}.py",
+                                               f"kernels_partitioned_{key['a']}"]
     assert not (pycache / f"kernels_{key['c']}.integrate-300.py311.nbi").exists()
     kept = set(files) - set(removed) - {pycache / f"kernels_{key['c']}.integrate-300.py311.nbi"}
     assert all(p.exists() for p in kept), sorted(p.name for p in kept if not p.exists())

@@ -1,6 +1,6 @@
 """The interpreted backend: the compiled kernels' own source, run by Python, takes the compiled loop's steps.
 
-``csim.fast.kernels`` is one source: numba compiles copies of it (:mod:`csim.fast.module`), and
+``csim.fast.kernels`` is one source: numba compiles a copy of it (:mod:`csim.fast.module`), and
 Python runs it as it is (``simulation.backend: interpreted``, and what ``CSIM_PURE_PYTHON=1``
 runs). Both call the same machine code of the model functions (C or cfuncs, through their
 addresses). So every step, event and sample agrees to the last bit, for every integrator and

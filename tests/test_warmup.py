@@ -1,6 +1,7 @@
 """The installation's warm-up (csim.warmup): both halves of the kernels compiled, and Ctrl-C."""
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -25,6 +26,29 @@ def test_the_warm_up_leaves_every_entry_point_compiled(capsys):
     for entry in ("driver.integrate", "system.feval", "entries.evaluate_samples", "entries.rhs_entry",
                   "entries.rhs_repeat", "entries.project_entry"):
         assert list(cache.glob(f"{entry}-*.nbi")), entry
+
+
+#: the warm-up's check in a fresh process: how many of the loaded kernels' functions numba had to compile
+CHECK = """
+import json
+from csim import warmup
+from csim.fast.module import load_kernels
+problem = warmup.check()
+kernels = load_kernels()
+print(json.dumps(dict(problem=problem, misses={name: sum(getattr(kernels, name).stats.cache_misses.values())
+                                                for name in ("integrate", "feval", "evaluate_samples")})))
+"""
+
+
+def test_runs_after_the_warm_up_compile_nothing():
+    """The loop was compiled from its arguments' types without being called (csim.fast.runner.compile_loop):
+    a run with minimal and one with none in a new process load every function from the cache."""
+    assert warmup.main([]) == 0
+    done = subprocess.run([sys.executable, "-c", CHECK], cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)),
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-2000:]
+    out = json.loads(done.stdout.splitlines()[-1])
+    assert out == dict(problem="", misses={"integrate": 0, "feval": 0, "evaluate_samples": 0}), out
 
 
 @pytest.mark.slow

@@ -21,10 +21,14 @@ It also keeps a cached library's bitcode unparsed until something links it. numb
 function as its machine code and, for linking it into a later caller, the LLVM bitcode of
 its module (for an entry point of the kernels: its whole call tree, :mod:`csim.fast.linking`),
 and on every load it parses that bitcode only to read the names the module defines (38 of
-the 0.6 s of a warm quick-return run, 2026-11-27). :func:`_serialize` files those names with
-the bitcode (:class:`SharedBitcode`, still bytes to numba's own loader); :func:`_unserialize`
-registers them and keeps the bitcode, which :func:`_module_for_linking` parses on the first
-link (none in a warm run: nothing calls the entry points from compiled code).
+the 0.6 s of a warm quick-return run, 2026-11-27). For the functions of the kernels' copy,
+:func:`_serialize` files those names with the bitcode (:class:`SharedBitcode`, still bytes to
+numba's own loader); :func:`_unserialize` registers them and keeps the bitcode, which
+:func:`_module_for_linking` parses on the first link (none in a warm run: nothing calls the
+entry points from compiled code). Only for the kernels' copy, whose cache is keyed by a hash
+of this file among others (:func:`csim.fast.module.kernels_key`): any other function numba
+caches in a csim process (the core's, beside its sources; a user's own) is filed in numba's
+own format, which loads in a process without csim and after any edit of this file.
 """
 from __future__ import annotations
 
@@ -32,20 +36,27 @@ import ast
 import inspect
 import textwrap
 
-#: whether install() replaced numba's method (False: numba's own, e.g. a numba whose method differs)
+#: whether install() replaced numba's method (False: numba's own, e.g. a numba whose method differs), whether
+#: it was tried, and whether it deferred the bitcode too (False: numba's methods differ from those expected)
 _STATE = {"installed": False, "tried": False, "deferred": False}
+#: the module-name prefix of the kernels' copy (csim.fast.module), the libraries whose bitcode is deferred
+KERNELS_PREFIX = "csim_fast_kernels_"
 
 #: numba's load_overload, the statements this replacement is equivalent to (ast.unparse of its body, less the docstring)
 _EXPECTED = ("target_context.refresh()",
              "with self._guard_against_spurious_io_errors():\n    return self._load_overload(sig, target_context)")
-#: the statements of numba's methods that the bitcode's deferral relies on (numba 0.60 to 0.68): the object
-#: branch of ``_unserialize``, how ``serialize_using_object_code`` makes the bitcode, and the first two of
-#: ``_get_module_for_linking`` (a module parsed already is the one it returns)
+#: the statements of numba's methods that the bitcode's deferral relies on (numba 0.60 to 0.68): those of
+#: ``_unserialize`` (its object branch is the one :func:`_unserialize` restates), how
+#: ``serialize_using_object_code`` makes the bitcode, and the first two of ``_get_module_for_linking`` (a
+#: module parsed already is the one it returns)
 _EXPECTED_UNSERIALIZE = (
-    "elif kind == 'object':\n    object_code, shared_bitcode = data\n    self.enable_object_caching()\n"
-    "    self._set_compiled_object(object_code)\n    self._shared_module = ll.parse_bitcode(shared_bitcode)\n"
-    "    self._finalize_final_module()\n    self._codegen._engine._load_defined_symbols(self._shared_module)\n"
-    "    return self\n")
+    "name, kind, data = state", "self = codegen.create_library(name)", "assert isinstance(self, cls)",
+    "if kind == 'bitcode':\n    self._final_module = ll.parse_bitcode(data)\n    self._finalize_final_module()\n"
+    "    return self\nelif kind == 'object':\n    object_code, shared_bitcode = data\n"
+    "    self.enable_object_caching()\n    self._set_compiled_object(object_code)\n"
+    "    self._shared_module = ll.parse_bitcode(shared_bitcode)\n    self._finalize_final_module()\n"
+    "    self._codegen._engine._load_defined_symbols(self._shared_module)\n    return self\n"
+    "else:\n    raise ValueError('unsupported serialization kind %r' % (kind,))")
 _EXPECTED_SERIALIZE = ("self._ensure_finalized()",
                        "data = (self._get_compiled_object(), self._get_module_for_linking().as_bitcode())",
                        "return (self.name, 'object', data)")
@@ -75,17 +86,20 @@ def _defer_bitcode() -> bool:
     from numba.core import codegen
 
     library = codegen.CPUCodeLibrary
-    unserialize = _statements(library._unserialize.__func__) or ()
-    if not (len(unserialize) == 4 and unserialize[3].startswith("if kind == 'bitcode':")
-            and _EXPECTED_UNSERIALIZE in unserialize[3]
-            and _statements(library.serialize_using_object_code) == _EXPECTED_SERIALIZE
-            and (_statements(library._get_module_for_linking) or ())[:2] == _EXPECTED_LINKING
-            and _statements(codegen.JitEngine._load_defined_symbols) == _EXPECTED_SYMBOLS):
+    methods = (library._unserialize.__func__, library.serialize_using_object_code, library._get_module_for_linking)
+    if (any(hasattr(method, "__wrapped__") for method in methods)  # wrapped already (by this or anything else)
+            or _statements(methods[0]) != _EXPECTED_UNSERIALIZE or _statements(methods[1]) != _EXPECTED_SERIALIZE
+            or (_statements(methods[2]) or ())[:2] != _EXPECTED_LINKING
+            or _statements(codegen.JitEngine._load_defined_symbols) != _EXPECTED_SYMBOLS):
         return False
     from csim.fast.linking import _wrap
 
     original = library._unserialize.__func__
-    library._unserialize = classmethod(lambda cls, codegen, state: _unserialize(original, cls, codegen, state))
+
+    def unserialize(cls, codegen, state):
+        return _unserialize(original, cls, codegen, state)
+    unserialize.__name__, unserialize.__doc__, unserialize.__wrapped__ = "_unserialize", _unserialize.__doc__, original
+    library._unserialize = classmethod(unserialize)
     _wrap(library, "serialize_using_object_code", _serialize)
     _wrap(library, "_get_module_for_linking", _module_for_linking)
     return True
@@ -97,6 +111,8 @@ def _statements(fn) -> tuple[str, ...] | None:
         tree = ast.parse(textwrap.dedent(inspect.getsource(fn)))
     except (OSError, TypeError, SyntaxError):
         return None
+    if not tree.body or not isinstance(tree.body[0], ast.FunctionDef | ast.AsyncFunctionDef):
+        return None  # (a lambda, say)
     body = tree.body[0].body
     if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant):
         body = body[1:]
@@ -134,11 +150,22 @@ class SharedBitcode(bytes):
 
 
 def _serialize(original, library):
-    """numba's ``serialize_using_object_code``, the bitcode filed with the names its module defines."""
-    name, kind, (object_code, bitcode) = original(library)
+    """numba's ``serialize_using_object_code``; for a function of the kernels' copy, the bitcode filed with
+    the names its module defines."""
+    state = original(library)
+    name, kind, (object_code, bitcode) = state
     module = library._get_module_for_linking()  # the module that bitcode was written from
+    if not _of_kernels(module):
+        return state
     symbols = [gv.name for gvs in (module.functions, module.global_variables) for gv in gvs if not gv.is_declaration]
     return name, kind, (object_code, SharedBitcode(bitcode, symbols))
+
+
+def _of_kernels(module) -> bool:
+    """Whether a library's module for linking is that of a function of the kernels' copy: the function it
+    exports (numba's for linking: ``linkonce_odr``, not private) is named for the copy's module."""
+    return any(KERNELS_PREFIX in fn.name for fn in module.functions
+               if not fn.is_declaration and fn.linkage.name == "linkonce_odr")
 
 
 def _unserialize(original, cls, codegen, state):
@@ -160,9 +187,10 @@ def _unserialize(original, cls, codegen, state):
 
 def _module_for_linking(original, library):
     """numba's ``_get_module_for_linking``, the deferred bitcode parsed first where there is one."""
-    bitcode = library.__dict__.pop("_csim_bitcode", None)
+    bitcode = library.__dict__.get("_csim_bitcode")
     if bitcode is not None and library._shared_module is None:
         import llvmlite.binding as ll
 
         library._shared_module = ll.parse_bitcode(bitcode)
+        del library._csim_bitcode
     return original(library)

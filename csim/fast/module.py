@@ -67,8 +67,8 @@ METHODS = HERE.parent / "solver" / "methods"
 #: model backends (CSIM_MODEL_BACKEND; python: the cfunc source run by Python, for the interpreted kernels only)
 MODEL_BACKENDS = ("auto", "c", "numba", "python")
 
-#: the loaded copy of the kernels (one a process)
-_KERNELS: dict[str, ModuleType] = {}
+#: the loaded copy of the kernels (one a process; None: not loaded yet)
+_KERNELS: ModuleType | None = None
 #: the loaded kernels -> the address of their feval (feval_address)
 _FEVAL: dict[ModuleType, int] = {}
 #: (id(definition), drives) -> (definition, model): hashing a definition takes milliseconds
@@ -147,10 +147,11 @@ def load_kernels(compiled: bool = True) -> ModuleType:
     compiled : bool
         False: the package's own source, run by Python (the interpreted backend; numba is not imported).
     """
+    global _KERNELS
     if not compiled:
         return importlib.import_module("csim.fast.kernels")
-    if "compiled" in _KERNELS:
-        return _KERNELS["compiled"]
+    if _KERNELS is not None:
+        return _KERNELS
     from csim.fast import cache_load, linking
 
     cache_load.install()  # a warm run loads the machine code without loading all of numba's target
@@ -158,9 +159,8 @@ def load_kernels(compiled: bool = True) -> ModuleType:
     if _KernelsFinder not in sys.meta_path:
         sys.meta_path.append(_KernelsFinder)
     # numba's cache locates functions through their module, imported by name (the finder)
-    module = importlib.import_module(f"csim_fast_{_kernels_copy().name}")
-    _KERNELS["compiled"] = module
-    return module
+    _KERNELS = importlib.import_module(f"csim_fast_{_kernels_copy().name}")
+    return _KERNELS
 
 
 def feval_address(kernels: ModuleType) -> int:
@@ -258,7 +258,7 @@ class _KernelsFinder:
 
     @staticmethod
     def find_spec(name, path=None, target=None):
-        if name != f"csim_fast_{kernels_path().name}":
+        if not name.startswith("csim_fast_kernels_") or name != f"csim_fast_{kernels_path().name}":
             return None
         copy = _kernels_copy()
         return importlib.util.spec_from_file_location(name, copy / "__init__.py",
@@ -339,9 +339,7 @@ class CompiledModel:
 def model_key(definition: MechanismDefinition, drives: Drives | None = None) -> str:
     """Hash of everything a mechanism's model functions depend on (with ``drives``: its drive rows too)."""
     model_dir = HERE.parent / "model"  # read, not imported: importing derive imports sympy
-    # (cache_load.py: how numba files a cfunc's machine code, for the numba backend)
-    sources = [HERE / "codegen.py", HERE / "ccodegen.py", HERE / "layout.py", HERE / "cache_load.py",
-               model_dir / "derive.py"]
+    sources = [HERE / "codegen.py", HERE / "ccodegen.py", HERE / "layout.py", model_dir / "derive.py"]
     extra = [] if drives is None else [repr(drives)]
     return _hash([FAST_VERSION, definition_key(definition), *(p.read_text() for p in sources), *extra])
 

@@ -76,9 +76,10 @@ def _drives(system: ConstrainedSystem) -> Drives | None:
 
 def _arguments(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSettings, max_steps: int,
                kernels, feval: bool = True) -> tuple:
-    """The arguments of the kernel ``integrate`` (see its docstring) in ``kernels``, the copy that runs ``system``
-    (whose ``feval`` is compiled, or loaded from numba's cache, here: the loop calls it by its address), or the
-    interpreted package."""
+    """The arguments of the kernel ``integrate`` (see its docstring) in ``kernels``, the compiled copy (whose
+    ``feval`` is compiled, or loaded from numba's cache, here: the loop calls it by its address) or the
+    interpreted package. ``feval`` False leaves the address 0, for compiling ``integrate`` from these
+    arguments' types without compiling ``feval`` (:func:`compile_loop`): such arguments must never run."""
     t_out = output_times(settings.t_end, settings.output_dt)
     locate = settings.events and system.loads.n_switches > 0
     iset = np.array([int(locate), settings.event_samples, settings.max_events, max_steps, settings.chatter_events],
@@ -133,21 +134,23 @@ def compile_loop(system: ConstrainedSystem, y0: np.ndarray, settings: Integratio
 
 
 def compile_rhs(system: ConstrainedSystem, y0: np.ndarray) -> None:
-    """Compile (or load) what a run calls besides the loop: the right-hand side the loop calls by address
+    """Compile (or load) what the kernels hold besides the loop, for the full state ``y0`` of a system that
+    is not partitioned (their types are every method's): the right-hand side the loop calls by address
     (``feval``), the samples' evaluation (``evaluate_samples``) and the one-state entry points
     (:func:`compile_entries`)."""
     mod = _kernels_for(system)
     feval_address(mod)
-    compile_entries(system, y0)
     n_sw = system.loads.n_switches
     evaluate_compiled(system, np.zeros(1), np.asarray(y0, dtype=float)[None], np.zeros((1, n_sw), dtype=bool))
+    compile_entries(system, y0)
 
 
 def compile_entries(system: ConstrainedSystem, y0: np.ndarray) -> None:
     """Compile (or load) the kernels' one-state entry points for ``system`` by calling each once: the
     right-hand side (``rhs_entry``, ``rhs_repeat``, of the tests and ``make bench``) and the projection
     (``project_entry``). What an entry point calls is compiled with it and never cached on its own
-    (:mod:`csim.fast.linking`), so each one compiled later would type the loop's core again."""
+    (:mod:`csim.fast.linking`), so each one links and optimizes the right-hand side's call tree anew
+    (5 s for the three on the 2-core machine)."""
     mod = _kernels_for(system)
     par, pf, pi = pack_problem(system)
     mode = system.mode_at(y0)
@@ -326,7 +329,7 @@ def evaluate_compiled(system: ConstrainedSystem, t: np.ndarray, y: np.ndarray,
         driven system's tau = -lambda_d (:meth:`csim.solver.driven.DrivenSystem.drive_forces`; d = 0 else).
     """
     par, pf, pi = pack_problem(system, interpreted)
-    mod = _kernels_for(system, interpreted)  # one copy per process for a run of one method
+    mod = _kernels_for(system, interpreted)
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"), _plain_core(mod):
         ok, x, phi, phi_dot, u, Q, energy, obs = mod.evaluate_samples(
             np.ascontiguousarray(t, dtype=float), np.ascontiguousarray(y, dtype=float),

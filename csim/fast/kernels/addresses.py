@@ -117,8 +117,9 @@ def call_feval(typingctx, addr, t, y, mode, located, par, pf, pi, w, piv, f, inf
 CALL_OPTIONS = dict(error_model="numpy", _nrt=False)
 
 
-# (A process that runs minimal and another method imports both copies of this module, and each
-# registers these overloads; numba takes the first one registered. They are the same source.)
+# (A process that imports both the compiled copy and the package's own source registers these overloads
+# once, from the copy: the source's addresses.py is never imported, the interpreted package's calls are
+# interpreted.py's.)
 def _is_handle(model):
     return isinstance(model, types.BaseTuple)
 

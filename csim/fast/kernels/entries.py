@@ -11,6 +11,11 @@ from .calls import kinetic, observe, potential
 from .common import allocating
 from .system import project, rhs
 
+#: ``located`` for the right-hand side at a recorded state (the load laws held in ``mode``): numpy's True,
+#: which numba types as ``boolean``, the type the loop's ``feval`` passes; a literal True is typed
+#: ``Literal[bool](True)``, and numba compiled the whole right-hand side a second time for it (10 s)
+LOCATED = np.bool_(True)
+
 
 # ---------------------------------------------------------------------------------------
 # the recorded quantities at the output samples (csim.pipeline.assemble_result)
@@ -62,7 +67,7 @@ def evaluate_samples(ts, ys, modes, par, pf, pi):
         if no > 0:
             observe(y, par, pi, obs[i])
         mode[:] = modes[i]
-        if rhs(ts[i], y, mode, True, par, pf, pi, w, piv, f) != OK:
+        if rhs(ts[i], y, mode, LOCATED, par, pf, pi, w, piv, f) != OK:
             ok[i] = False
             continue
         x[i] = w[pi[W_X]:pi[W_X] + nk]
@@ -88,7 +93,7 @@ def rhs_entry(t, y, mode, par, pf, pi):
     w = np.zeros(pi[W_END])
     piv = np.zeros(pi[PI_NQ] + pi[PI_NC], np.int64)
     f = np.empty(y.size)
-    code = rhs(t, y, mode.copy(), True, par, pf, pi, w, piv, f)
+    code = rhs(t, y, mode.copy(), LOCATED, par, pf, pi, w, piv, f)
     return code, f, w[pi[W_X]:pi[W_X] + pi[PI_NQ] + pi[PI_NC]].copy()
 
 
@@ -100,7 +105,7 @@ def rhs_repeat(y, mode, par, pf, pi, n_eval):
     f = np.empty(y.size)
     acc = 0.0
     for _ in range(n_eval):
-        rhs(0.0, y, mode, True, par, pf, pi, w, piv, f)
+        rhs(0.0, y, mode, LOCATED, par, pf, pi, w, piv, f)
         acc += f[pi[PI_NQ]]
     return acc
 

@@ -1,7 +1,7 @@
 """The interpreted package's calls: what :mod:`.addresses` does in machine code, done from Python.
 
 The package's own source (``csim.fast.kernels``, :data:`.variant.COMPILED` False) is the
-interpreted backend: the loop, the steppers and the event location the compiled copies run,
+interpreted backend: the loop, the steppers and the event location the compiled copy runs,
 run by Python, with the core functions as plain Python where they are not compiled in the
 process (:func:`csim.fast.runner.integrate_compiled` runs it inside
 :func:`csim.physics.jit.plain`). Only the calls differ, here:
@@ -73,7 +73,7 @@ def call_gamma(addr, r, gamma, phi, phi_dot, gains, n_gains, fpar, n_fpar, ipar,
 
 
 def call_feval(addr, t, y, mode, located, par, pf, pi, w, piv, f, info):
-    """This package's ``feval`` (the compiled copies call theirs through ``addr``)."""
+    """This package's ``feval`` (the compiled copy calls its own through ``addr``)."""
     from .system import feval  # (system imports this module)
 
     return feval(t, y, mode, located, par, pf, pi, w, piv, f, info)
@@ -113,5 +113,5 @@ class ModelHandle:
 
 
 def model_handle(par, pi, w, ym):
-    """The core's model handle (:class:`ModelHandle`; the compiled copies' is a tuple)."""
+    """The core's model handle (:class:`ModelHandle`; the compiled copy's is a tuple)."""
     return ModelHandle(par, pi, w, ym)
