@@ -6,8 +6,8 @@ copies it, file for file unchanged, into the cache and imports the copy under a 
 own (``csim_fast_kernels_<key>``): that copy numba compiles, for every method.
 """
 
-#: whether numba compiles this package: True in the cache's copy, imported outside the package ``csim``
-#: (:func:`csim.fast.module.load_kernels`); False in the source: every decorator of :mod:`.common` returns
-#: the function as it is, and the model functions, ``feval`` and gamma* are called from Python
-#: (:mod:`.interpreted`)
-COMPILED = __name__.split(".", 1)[0] != "csim"
+#: whether numba compiles this package: True in the cache's copy, imported as ``csim_fast_kernels_<key>``
+#: (:func:`csim.fast.module.load_kernels`); False in the source, imported as ``csim.fast.kernels`` (or
+#: under any other name): every decorator of :mod:`.common` returns the function as it is, and the model
+#: functions, ``feval`` and gamma* are called from Python (:mod:`.interpreted`)
+COMPILED = __name__.startswith("csim_fast_kernels_")
