@@ -9,10 +9,10 @@ job compiles the core functions that the Python path calls on their own. Each jo
 process of its own (numba compiles on one core; a process that has compiled the kernels has
 the core functions compiled inside them, as callees that are never cached, and its Python
 path would cache almost nothing), as many at once as there are CPUs (:func:`_slots`): on two,
-the loop then the core functions beside the right-hand side, about half the wait. Then a
+the loop beside the right-hand side and then the core functions, about half the wait. Then a
 short compiled run of the default case, with ``none`` and with ``minimal``, checks that both
-halves load and run. Exits 0 with a note when
-numba is not installed (csim then runs the kernels interpreted, or on the Python path).
+halves load and run. Exits 0 with a note when numba is not installed (csim then runs the
+kernels interpreted, or on the Python path).
 """
 from __future__ import annotations
 
@@ -78,23 +78,28 @@ def check() -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """``python -m csim.warmup``: every job (:func:`_all`); ``--part JOB``: one job (:func:`_part`). Returns the
+    exit status: 0, 1 (a job or the check failed), 2 (a command line it does not take), 130 (Ctrl-C)."""
     argv = sys.argv[1:] if argv is None else argv
     try:
-        return _part(argv[1]) if argv[:1] == ["--part"] and len(argv) == 2 else _all()
+        if not argv:
+            return _all()
+        if len(argv) == 2 and argv[0] == "--part" and argv[1] in PARTS:
+            return _part(argv[1])
+        print(f"usage: python -m csim.warmup [--part {{{','.join(PARTS)}}}] (got {' '.join(argv)!r})",
+              file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print("csim: warm-up interrupted; the kernels compile on the first run that needs them", file=sys.stderr)
         return 130
 
 
 def _part(part: str) -> int:
-    """One job, in a process of its own (:func:`_all`), which leaves Ctrl-C to its parent: a
-    KeyboardInterrupt raised inside numba's compiler can land in a ctypes callback, where
-    Python prints it and compiling goes on; the parent ends this process instead. Prints a
-    progress line when done (or why it failed, on stderr); returns 0, 1 (failed) or 2 (no such job)."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    if part not in PARTS:
-        print(f"csim.warmup: --part {part!r}: expected one of {', '.join(PARTS)}", file=sys.stderr)
-        return 2
+    """One job of :data:`PARTS`, in a process of its own (:func:`_run_slots` starts it in a process group of
+    its own, so a Ctrl-C at the terminal reaches only the parent, which ends it: a KeyboardInterrupt raised
+    inside numba's compiler can land in a ctypes callback, where Python prints it and compiling goes on).
+    Prints a progress line when done, or why it failed on stderr; returns 0 or 1 (failed)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # (and so when run by hand)
     start = time.perf_counter()
     try:
         compile_part(part)
@@ -106,8 +111,8 @@ def _part(part: str) -> int:
 
 
 def _all() -> int:
-    """Every job in a process of its own: all at once where there are two CPUs, else one after the other;
-    then :func:`check`."""
+    """Every job of :data:`PARTS`, each in a process of its own, as many at once as there are CPUs
+    (:func:`_slots`); then :func:`check`. Returns 0, or 1 where a job or the check failed."""
     from csim.fast.support import numba_available
     from csim.model.cache import kernels_dir
 
@@ -118,20 +123,42 @@ def _all() -> int:
     start = time.perf_counter()
     print(f"csim: compiling the kernels into {kernels_dir()} (once per installation; about 30 s on 2 cores, "
           f"a minute on one) ...", flush=True)
-    failed = _run_slots(_slots(os.cpu_count() or 1))
-    problem = "" if failed else check()
+    failed = _run_slots(_slots(_cpus()))
+    if failed:
+        print(f"csim: {failed} of {len(PARTS)} jobs of the warm-up failed (see above); the runs that need what "
+              f"they compile compile it on first use", file=sys.stderr)
+        return 1
+    problem = check()
     if problem:
         print(f"csim: {problem}", file=sys.stderr)
-    if failed or problem:
         return 1
     print(f"csim: kernels ready ({time.perf_counter() - start:.0f} s)")
     return 0
 
 
+def _cpus() -> int:
+    """The CPUs this process may run on (its affinity, where the system tells it; else all of them)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
 def _slots(cpus: int) -> list[list[str]]:
-    """The jobs of :data:`PARTS` as slots that run at once, each slot's jobs one after the other: a slot a
-    job on three CPUs or more; on two, the loop (about 30 s on the 2-core machine) beside the
-    right-hand side (24 s) then the core functions (4-8 s); on one, all in one slot."""
+    """The jobs of :data:`PARTS` as slots that run at once, each slot's jobs one after the other.
+
+    Parameters
+    ----------
+    cpus : int
+        The CPUs to use: a slot a job on three or more; on two, the loop (about 30 s on the 2-core
+        machine) beside the right-hand side (25-33 s) and then the core functions (4-8 s); on one,
+        every job in one slot.
+
+    Returns
+    -------
+    list of list of str
+        The slots, each a list of job names.
+    """
     if cpus >= 3:
         return [[part] for part in PARTS]
     if cpus == 2:
@@ -140,9 +167,16 @@ def _slots(cpus: int) -> list[list[str]]:
 
 
 def _run_slots(slots: list[list[str]]) -> int:
-    """Run each slot's jobs (:func:`_part`, a process each) one after the other, the slots at once; how
-    many jobs failed (a failed job ends its slot). After Ctrl-C (which the jobs ignore) none is left
-    running."""
+    """Run each slot's jobs one after the other (``python -m csim.warmup --part JOB``, a process each, in a
+    process group of its own), the slots at once, every job whatever the others do: they are independent.
+
+    Returns
+    -------
+    int
+        How many jobs failed. After Ctrl-C none is left running: the KeyboardInterrupt comes here (Ctrl-C
+        is held back while a process starts, so that each one started is one waited for) and every
+        running job is ended.
+    """
     pending = [list(slot) for slot in slots]
     running: dict[int, subprocess.Popen] = {}
     failed = 0
@@ -150,13 +184,16 @@ def _run_slots(slots: list[list[str]]) -> int:
         while any(pending) or running:
             for i, slot in enumerate(pending):
                 if i not in running and slot:
-                    running[i] = subprocess.Popen([sys.executable, "-m", "csim.warmup", "--part", slot.pop(0)])
+                    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+                    try:
+                        running[i] = subprocess.Popen([sys.executable, "-m", "csim.warmup", "--part", slot.pop(0)],
+                                                      process_group=0)
+                    finally:
+                        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
             for i, process in list(running.items()):
                 if process.poll() is not None:
                     del running[i]
-                    if process.returncode != 0:
-                        failed += 1
-                        pending[i].clear()
+                    failed += process.returncode != 0
             time.sleep(0.05)
     finally:
         for process in running.values():

@@ -1,8 +1,10 @@
-"""The installation's warm-up (csim.warmup): both halves of the kernels compiled, and Ctrl-C."""
+"""The installation's warm-up (csim.warmup): the kernels' halves and the core compiled, the jobs' schedule,
+its command line, and Ctrl-C."""
 from __future__ import annotations
 
 import json
 import os
+import pickle
 import signal
 import subprocess
 import sys
@@ -17,9 +19,17 @@ from csim.fast.module import kernels_compiled, kernels_path, load_kernels
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def test_the_warm_up_leaves_every_entry_point_compiled(capsys):
-    assert warmup.main([]) == 0  # (in this session's cache: compiled here, or loaded)
-    assert "kernels ready" in capsys.readouterr().out
+@pytest.fixture(scope="module")
+def warmed():
+    """One warm-up for the module's tests (in this session's cache: compiled here, or loaded); its output."""
+    done = subprocess.run([sys.executable, "-m", "csim.warmup"], cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)),
+                          capture_output=True, text=True, timeout=900)
+    assert done.returncode == 0, done.stderr[-2000:]
+    return done.stdout
+
+
+def test_the_warm_up_leaves_every_entry_point_compiled(warmed):
+    assert "kernels ready" in warmed and warmed.count("csim:   compiled ") == len(warmup.PARTS)
     kernels = load_kernels()
     assert kernels_compiled(kernels)
     cache = kernels_path() / "__pycache__"
@@ -28,42 +38,112 @@ def test_the_warm_up_leaves_every_entry_point_compiled(capsys):
         assert list(cache.glob(f"{entry}-*.nbi")), entry
 
 
-#: the warm-up's check in a fresh process: how many of the loaded kernels' functions numba had to compile
+def test_the_right_hand_side_is_compiled_once_for_its_every_caller(warmed):
+    """feval and the entry points call rhs with ``located`` typed ``boolean``: a literal True was typed
+    ``Literal[bool](True)``, for which numba compiled the whole right-hand side a second time (10 s)."""
+    from csim.fast.cache_load import SharedBitcode
+
+    load_kernels()  # (the finder numba's environments are rebuilt through)
+    files = sorted((kernels_path() / "__pycache__").glob("*.nbc"))
+    names = set()
+    for path in files:
+        shared = _shared_bitcode(pickle.loads(path.read_bytes()), SharedBitcode)
+        assert shared is not None, path.name  # every entry point of the kernels is filed with its names
+        names |= {name for name in shared.symbols if "6system3rhs" in name and "NumbaEnv" not in name}
+    assert names and not [name for name in names if "Literal" in name], sorted(names)
+
+
+def _shared_bitcode(data, kind):
+    """The SharedBitcode inside numba's pickled cache entry, or None."""
+    if isinstance(data, kind):
+        return data
+    for item in data if isinstance(data, tuple | list) else ():
+        found = _shared_bitcode(item, kind)
+        if found is not None:
+            return found
+    return None
+
+
+#: after the warm-up, in a fresh process: its check, then the Python path; what numba had to compile
 CHECK = """
 import json
+from numba.core import event
 from csim import warmup
 from csim.fast.module import load_kernels
-problem = warmup.check()
-kernels = load_kernels()
-print(json.dumps(dict(problem=problem, misses={name: sum(getattr(kernels, name).stats.cache_misses.values())
-                                                for name in ("integrate", "feval", "evaluate_samples")})))
+from csim.pipeline import run_case
+with event.install_recorder("numba:compile") as compiled:
+    problem = warmup.check()
+    kernels = load_kernels()
+    for method in warmup.METHODS:
+        assert run_case(warmup._case(method, "python")).ok
+print(json.dumps(dict(problem=problem, compiles=len(compiled.buffer),
+                      misses={name: sum(getattr(kernels, name).stats.cache_misses.values())
+                              for name in ("integrate", "feval", "evaluate_samples")})))
 """
 
 
-def test_runs_after_the_warm_up_compile_nothing():
-    """The loop was compiled from its arguments' types without being called (csim.fast.runner.compile_loop):
-    a run with minimal and one with none in a new process load every function from the cache."""
-    assert warmup.main([]) == 0
+def test_runs_after_the_warm_up_compile_nothing(warmed):
+    """The loop was compiled from its arguments' types without being called (csim.fast.runner.compile_loop),
+    and the core functions by a Python-path run in a process of their own: compiled runs with minimal and
+    none, and the same on the Python path, in a new process load every function from the cache."""
     done = subprocess.run([sys.executable, "-c", CHECK], cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)),
                           capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr[-2000:]
     out = json.loads(done.stdout.splitlines()[-1])
-    assert out == dict(problem="", misses={"integrate": 0, "feval": 0, "evaluate_samples": 0}), out
+    assert out == dict(problem="", compiles=0, misses={"integrate": 0, "feval": 0, "evaluate_samples": 0}), out
+
+
+def test_the_slots_use_the_cpus():
+    assert warmup._slots(1) == [["loop", "rhs", "core"]]
+    assert warmup._slots(2) == [["loop"], ["rhs", "core"]]
+    assert warmup._slots(16) == [["loop"], ["rhs"], ["core"]]
+
+
+class _FakeJob:
+    """A stand-in for subprocess.Popen: the job named last on the command line, done at once with its status."""
+
+    def __init__(self, command, process_group=None, log=None, codes=None):
+        self.job, self.returncode = command[-1], codes[command[-1]]
+        log.append((self.job, process_group))
+
+    def poll(self):
+        return self.returncode
+
+
+@pytest.mark.parametrize("cpus", [1, 2, 3])
+def test_every_job_runs_whatever_the_others_do(monkeypatch, cpus):
+    """The jobs are independent: a failed one is counted, the others all run (each in a process group of its
+    own, so that a Ctrl-C at the terminal reaches only the parent)."""
+    log, codes = [], {"loop": 0, "rhs": 1, "core": 0}
+    monkeypatch.setattr(warmup.subprocess, "Popen", lambda command, **kw: _FakeJob(command, log=log, codes=codes,
+                                                                                   **kw))
+    assert warmup._run_slots(warmup._slots(cpus)) == 1
+    assert sorted(log) == [("core", 0), ("loop", 0), ("rhs", 0)]
+
+
+@pytest.mark.parametrize("argv", [["--part"], ["--bogus"], ["--part", "loop", "extra"], ["--part", "nope"], ["-h"]])
+def test_a_command_line_it_does_not_take_is_refused(argv, capsys, monkeypatch):
+    monkeypatch.setattr(warmup, "_all", lambda: pytest.fail("ran the warm-up"))
+    monkeypatch.setattr(warmup, "_part", lambda part: pytest.fail("ran a job"))
+    assert warmup.main(argv) == 2
+    assert "usage: python -m csim.warmup [--part {loop,rhs,core}]" in capsys.readouterr().err
 
 
 @pytest.mark.slow
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
 def test_ctrl_c_ends_the_warm_up_and_its_compiling_children_without_a_traceback(tmp_path):
-    # Ctrl-C at a terminal reaches the whole process group: the children compiling each half
-    # end quietly, the parent says what it means and exits 130, and no compiler is left running
+    # Ctrl-C at a terminal reaches the parent's process group: the parent ends the jobs compiling in
+    # groups of their own, says what it means and exits 130, and no compiler is left running
     env = dict(os.environ, CSIM_CACHE_DIR=str(tmp_path), PYTHONPATH=str(ROOT))
     env.pop("CSIM_KERNELS_DIR", None)  # the session's compiled kernels (conftest): the children would be done at once
     process = subprocess.Popen([sys.executable, "-m", "csim.warmup"], env=env, cwd=tmp_path, start_new_session=True,
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    time.sleep(8)  # the children are compiling (a cold cache takes minutes)
+    time.sleep(8)  # the kernels' halves are compiling (a cold cache takes half a minute or more)
     children = [int(pid) for pid in subprocess.run(["pgrep", "-P", str(process.pid)], capture_output=True,
                                                    text=True).stdout.split()]
-    assert len(children) == len(warmup._slots(os.cpu_count() or 1))  # a job of each slot at a time
+    jobs = {Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")[-2].decode() for pid in children}
+    slots = warmup._slots(warmup._cpus())  # the first job of each slot runs (the core may be done already)
+    assert {slot[0] for slot in slots} - {"core"} <= jobs and len(children) <= len(slots), jobs
     os.killpg(process.pid, signal.SIGINT)
     out, err = process.communicate(timeout=60)
     assert process.returncode == 130, (out, err)

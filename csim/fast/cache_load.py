@@ -20,8 +20,8 @@ spurious I/O errors), and leaves numba as it is otherwise.
 It also keeps a cached library's bitcode unparsed until something links it. numba caches a
 function as its machine code and, for linking it into a later caller, the LLVM bitcode of
 its module (for an entry point of the kernels: its whole call tree, :mod:`csim.fast.linking`),
-and on every load it parses that bitcode only to read the names the module defines (38 of
-the 0.6 s of a warm quick-return run, 2026-11-27). For the functions of the kernels' copy,
+and on every load it parses that bitcode only to read the names the module defines (38 ms
+of the 0.6 s of a warm quick-return run, 2026-11-27). For the functions of the kernels' copy,
 :func:`_serialize` files those names with the bitcode (:class:`SharedBitcode`, still bytes to
 numba's own loader); :func:`_unserialize` registers them and keeps the bitcode, which
 :func:`_module_for_linking` parses on the first link (none in a warm run: nothing calls the
@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import ast
 import inspect
+import re
 import textwrap
 
 #: whether install() replaced numba's method (False: numba's own, e.g. a numba whose method differs), whether
@@ -86,20 +87,19 @@ def _defer_bitcode() -> bool:
     from numba.core import codegen
 
     library = codegen.CPUCodeLibrary
-    methods = (library._unserialize.__func__, library.serialize_using_object_code, library._get_module_for_linking)
-    if (any(hasattr(method, "__wrapped__") for method in methods)  # wrapped already (by this or anything else)
-            or _statements(methods[0]) != _EXPECTED_UNSERIALIZE or _statements(methods[1]) != _EXPECTED_SERIALIZE
-            or (_statements(methods[2]) or ())[:2] != _EXPECTED_LINKING
+    unserialize, serialize = library._unserialize.__func__, library.serialize_using_object_code
+    for_linking = library._get_module_for_linking
+    if (any(hasattr(method, "__wrapped__") for method in (unserialize, serialize, for_linking))  # wrapped already
+            or _statements(unserialize) != _EXPECTED_UNSERIALIZE or _statements(serialize) != _EXPECTED_SERIALIZE
+            or (_statements(for_linking) or ())[:2] != _EXPECTED_LINKING
             or _statements(codegen.JitEngine._load_defined_symbols) != _EXPECTED_SYMBOLS):
         return False
     from csim.fast.linking import _wrap
 
-    original = library._unserialize.__func__
-
-    def unserialize(cls, codegen, state):
-        return _unserialize(original, cls, codegen, state)
-    unserialize.__name__, unserialize.__doc__, unserialize.__wrapped__ = "_unserialize", _unserialize.__doc__, original
-    library._unserialize = classmethod(unserialize)
+    def wrapper(cls, codegen, state):
+        return _unserialize(unserialize, cls, codegen, state)
+    wrapper.__name__, wrapper.__doc__, wrapper.__wrapped__ = "_unserialize", _unserialize.__doc__, unserialize
+    library._unserialize = classmethod(wrapper)
     _wrap(library, "serialize_using_object_code", _serialize)
     _wrap(library, "_get_module_for_linking", _module_for_linking)
     return True
@@ -164,7 +164,8 @@ def _serialize(original, library):
 def _of_kernels(module) -> bool:
     """Whether a library's module for linking is that of a function of the kernels' copy: the function it
     exports (numba's for linking: ``linkonce_odr``, not private) is named for the copy's module."""
-    return any(KERNELS_PREFIX in fn.name for fn in module.functions
+    own = re.compile(rf"_ZN\d+{KERNELS_PREFIX}")  # numba's mangled name: _ZN<length><module>...
+    return any(own.match(fn.name) for fn in module.functions
                if not fn.is_declaration and fn.linkage.name == "linkonce_odr")
 
 

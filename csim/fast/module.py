@@ -50,6 +50,7 @@ from types import ModuleType, SimpleNamespace
 
 import numpy as np
 
+from csim.fast.cache_load import KERNELS_PREFIX
 from csim.fast.layout import BUILTIN_GAMMA, EXTERNAL, MODEL_FUNCTIONS, c_symbol
 from csim.fast.support import numba_usable
 from csim.model.cache import cache_dir, definition_key, kernels_dir
@@ -258,7 +259,7 @@ class _KernelsFinder:
 
     @staticmethod
     def find_spec(name, path=None, target=None):
-        if not name.startswith("csim_fast_kernels_") or name != f"csim_fast_{kernels_path().name}":
+        if not name.startswith(KERNELS_PREFIX) or name != f"csim_fast_{kernels_path().name}":
             return None
         copy = _kernels_copy()
         return importlib.util.spec_from_file_location(name, copy / "__init__.py",

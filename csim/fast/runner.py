@@ -117,7 +117,7 @@ def prepare(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSett
     load_model(system.model.definition, _drives(system))  # built first, with a status line of their own
     mod = _kernels_for(system)
     text = ("loading the compiled kernels" if kernels_compiled(mod) else
-            "compiling the kernels (once per csim installation, 1-2 min on 2 cores; python -m csim.warmup "
+            "compiling the kernels (once per csim installation, about a minute; python -m csim.warmup "
             "compiles them ahead, on two cores in half the time)")
     with status(text), np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         mod.integrate(*_arguments(system, y0, settings, 0, mod))  # (_arguments compiles feval)

@@ -12,8 +12,9 @@ from .common import allocating
 from .system import project, rhs
 
 #: ``located`` for the right-hand side at a recorded state (the load laws held in ``mode``): numpy's True,
-#: which numba types as ``boolean``, the type the loop's ``feval`` passes; a literal True is typed
-#: ``Literal[bool](True)``, and numba compiled the whole right-hand side a second time for it (10 s)
+#: which numba types as ``boolean``, the type the loop's ``feval`` passes; a literal True (or a global
+#: Python bool, which numba freezes as a constant of the same type) is typed ``Literal[bool](True)``, and
+#: numba compiled the whole right-hand side a second time for it (10 s)
 LOCATED = np.bool_(True)
 
 
