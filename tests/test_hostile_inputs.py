@@ -664,3 +664,34 @@ def test_comparison_and_sweep_files_whose_tables_expand_beyond_them_are_refused(
         table.create_dataset("wall_time", shape=(10**10, 2), dtype="f8", chunks=(10**6, 2), compression="gzip")
     with pytest.raises(ResultFileError, match="would hold 1.6e.11 bytes once read"):
         (read_comparison if kind == "comparison" else read_sweep)(path)
+
+
+def test_a_deadline_swallowed_in_a_weakref_callback_is_quiet_and_the_next_one_ends_the_block(monkeypatch):
+    """A rebuild's deadline that fires inside a weakref callback cannot be raised there: Python printed it as
+    "Exception ignored in ..." with a traceback. It is swallowed quietly, and the next one (0.5 s later)
+    ends the block."""
+    import gc
+    import weakref
+
+    from csim.plot.source import _Deadline, _deadline
+
+    class Thing:
+        pass
+
+    def linger(_):
+        end = time.monotonic() + 0.3
+        while time.monotonic() < end:  # the deadline fires in here
+            pass
+
+    reported = []  # what reaches Python's hook for exceptions it cannot raise (it prints them)
+    monkeypatch.setattr(sys, "unraisablehook", reported.append)
+    start = time.monotonic()
+    with pytest.raises(_Deadline), _deadline(0.1):
+        thing = Thing()
+        ref = weakref.ref(thing, linger)  # noqa: F841 (the callback runs when thing goes)
+        del thing
+        gc.collect()
+        while time.monotonic() - start < 5:
+            pass
+    assert time.monotonic() - start < 2
+    assert reported == [] and sys.unraisablehook == reported.append

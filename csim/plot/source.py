@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 import signal
+import sys
 import threading
 import time
 from collections.abc import Iterator
@@ -54,7 +55,11 @@ class _Deadline(BaseException):
 @contextmanager
 def _deadline(seconds: float) -> Iterator[None]:
     """Raise :class:`_Deadline` in the block after ``seconds`` (and every 0.5 s after that,
-    should one be swallowed); in the main thread with SIGALRM only (elsewhere: unbounded)."""
+    should one be swallowed); in the main thread with SIGALRM only (elsewhere: unbounded).
+
+    One raised where Python cannot pass it on (in a weakref callback or a ``__del__``) is
+    swallowed quietly: Python would print it as "Exception ignored in ..." with a traceback
+    (seen in a test session, 2026-11-27), and the next one ends the block all the same."""
     if seconds <= 0:
         raise _Deadline
     if not hasattr(signal, "setitimer") or threading.current_thread() is not threading.main_thread():
@@ -64,7 +69,14 @@ def _deadline(seconds: float) -> Iterator[None]:
     def expired(signum, frame):
         raise _Deadline
 
+    hook = sys.unraisablehook
+
+    def quiet(unraisable):
+        if not isinstance(unraisable.exc_value, _Deadline):
+            hook(unraisable)
+
     previous = signal.signal(signal.SIGALRM, expired)
+    sys.unraisablehook = quiet
     outer = signal.setitimer(signal.ITIMER_REAL, seconds, 0.5)  # a caller's own timer, restored after
     start = time.monotonic()
     try:
@@ -73,6 +85,7 @@ def _deadline(seconds: float) -> Iterator[None]:
         signal.signal(signal.SIGALRM, signal.SIG_IGN)  # no _Deadline from here on
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, previous)
+        sys.unraisablehook = hook
         if outer[0] > 0:  # what was left of it, less the time spent here (at least a moment)
             signal.setitimer(signal.ITIMER_REAL, max(outer[0] - (time.monotonic() - start), 1e-3), outer[1])
 
