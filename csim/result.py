@@ -285,6 +285,14 @@ class Result:
         return bool(moved <= TINY_ENERGY_SCALE * magnitude)  # False for NaN (a blow-up)
 
     @property
+    def stays_at_rest(self) -> bool:
+        """Whether no coordinate moved by more than 1e-9 (1 + its largest start value) over the run."""
+        if self.t.size == 0:
+            return True
+        moved = np.max(np.abs(self.q - self.q[0]), initial=0.0)
+        return bool(moved <= 1e-9 * (1.0 + np.max(np.abs(self.q[0]), initial=0.0)))
+
+    @property
     def energy_error_max(self) -> float:
         """max |energy_error| over the run [J] (NaN without samples)."""
         return float(np.max(np.abs(self.energy_error))) if self.t.size else float("nan")
@@ -342,8 +350,10 @@ class Result:
             if self.run_kind == "kinematic":
                 items.append(("energy balance", "- (a kinematic analysis of prescribed motion: no forces)"))
             elif self.energy_balance[1] == "J":
+                why = ("the mechanism stays at rest" if self.stays_at_rest else
+                       "the mechanism moves without kinetic or potential energy: its moving links have no mass")
                 items.append(("energy balance", f"{self.energy_balance[0]:.3e} J (max |T + V - T0 - V0 - W|, in J: "
-                                                f"the energy scale is zero, the mechanism stays at rest)"))
+                                                f"the energy scale is zero, {why})"))
             else:
                 items.append(("energy balance", f"{self.energy_balance[0]:.3e} (max |T + V - T0 - V0 - W|"
                                                 f" / {self.energy_scale:.4g} J)"))

@@ -319,3 +319,20 @@ def test_half_driven_projection_with_massless_links_and_the_minimum_norm_metric(
     assert result.max_phi < 1e-9
     crank = result.coordinate_names.index("q_A")
     assert np.max(np.abs(result.qd[:, crank] - 4.0)) < 1e-9
+
+
+def test_an_overconstrained_linkage_runs_driven_and_records_its_every_equation():
+    """Bricard's mechanism (six closure equations, one dependent, removed) with its drive as a rheonomic
+    constraint: the samples held the kept equations' four values where the result records the five
+    non-trivial ones, and the run stopped with a broadcast error. Now the recorded Phi and multipliers are
+    the full set's, and the removed equation is watched; its links are massless, which the summary says."""
+    from conftest import CONFIGS
+
+    from csim.case import load_case
+
+    case = load_case(CONFIGS / "bricard.yaml", ["mechanism.drive_mode=dynamic", "simulation.t_end=0.2"])
+    result = run_case(case)
+    assert result.ok, result.message
+    assert result.phi.shape == result.lam.shape == (result.t.size, 5) and result.removed_names
+    assert np.max(np.abs(result.phi)) < 1e-6 and np.all(np.isfinite(result.lam))
+    assert not result.stays_at_rest and "its moving links have no mass" in result.summary()

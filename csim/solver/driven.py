@@ -186,6 +186,7 @@ class DrivenSystem(ConstrainedSystem):
         q, qd, _ = self.split(y)
         u = self.load_values(t, q, qd, mode)
         qdd, lam, _, phi, phi_dot, Q, _ = self._solve_driven(t, q, qd, u)
+        phi, phi_dot, lam = self.recorded(q, qd, lam, phi, phi_dot)  # (an overconstrained linkage: its full set)
         return Evaluation(qdd=qdd, lam=lam, phi=phi, phi_dot=phi_dot, u=u, Q=Q,
                           kinetic=self.model.kinetic_energy(q, qd, self.par),
                           potential=self.model.potential_energy(q, self.par))

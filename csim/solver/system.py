@@ -195,13 +195,21 @@ class ConstrainedSystem:
         q, qd = self.stabilizer.project(self.model, self.par, q, qd)
         return np.concatenate((q, qd, y[2 * self.m:]))
 
+    def recorded(self, q: np.ndarray, qd: np.ndarray, lam: np.ndarray, phi: np.ndarray,
+                 phi_dot: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(Phi, Phi_q qd, multipliers) as a result records them (``r_recorded`` each) from the integrated
+        equations' (``r`` each): for a :class:`csim.solver.redundant.RedundantModel`, the full set's
+        residuals and its minimum-norm multipliers; else as they are."""
+        if hasattr(self.model, "recorded"):
+            return self.model.recorded(q, qd, lam)
+        return phi, phi_dot, lam
+
     def evaluate(self, t: float, y: np.ndarray, mode: np.ndarray) -> Evaluation:
         """All recorded quantities at one instant, from a full state y = [q, qd, W]."""
         q, qd, _ = self.split(y)
         u = self.load_values(t, q, qd, mode)
         qdd, lam, phi, phi_dot, Q, _ = self._solve(q, qd, u)
-        if hasattr(self.model, "recorded"):  # RedundantModel: the full set's residuals, minimum-norm multipliers
-            phi, phi_dot, lam = self.model.recorded(q, qd, lam)
+        phi, phi_dot, lam = self.recorded(q, qd, lam, phi, phi_dot)
         return Evaluation(
             qdd=qdd, lam=lam, phi=phi, phi_dot=phi_dot, u=u, Q=Q,
             kinetic=self.model.kinetic_energy(q, qd, self.par),
