@@ -334,3 +334,20 @@ def test_reactions_in_blocks_of_samples_equal_those_at_once(monkeypatch):
     for a, b in zip(whole.reactions, blocks.reactions):
         for name in ("force_global", "torque_global", "force_joint", "torque_joint"):
             np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=f"{a.name} {name}")
+
+
+def test_the_plane_of_a_planar_mechanism_is_read_at_its_first_finite_sample():
+    """A first sample of NaN (a failed start) blanked every tree joint's reaction of a planar mechanism: the
+    plane's normal was read at sample 0 only. The plane does not move; any finite sample gives it."""
+    import csim.linkage.reactions as reactions
+    from csim.pipeline import build_system
+
+    case = load_case(CONFIG.parent / "quick_return_tables.yaml", ["simulation.backend=python", "simulation.t_end=0.05"])
+    q = run_case(case).q
+    par = build_system(case).par
+    normal = reactions._plane_normal(case.linkage, case.mechanism, par, q)
+    first_nan = q.copy()
+    first_nan[0] = np.nan
+    assert normal is not None and np.isclose(np.linalg.norm(normal), 1.0)
+    np.testing.assert_array_equal(reactions._plane_normal(case.linkage, case.mechanism, par, first_nan), normal)
+    assert reactions._plane_normal(case.linkage, case.mechanism, par, np.full_like(q, np.nan)) is None

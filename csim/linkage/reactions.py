@@ -569,9 +569,11 @@ def tree_reactions(linkage, definition, raw_forces, par, run, cut_reactions) -> 
 
 
 def _plane_normal(linkage, definition, par, q) -> np.ndarray | None:
-    """The normal of a planar mechanism's plane (None: spatial), from the z axis of a joint
-    frame whose axis is the normal (an R joint's), at the first recorded sample."""
-    if not linkage.planar or not q.shape[0]:
+    """The normal of a planar mechanism's plane (None: spatial, or no finite sample), from the z axis
+    of a joint frame whose axis is the normal (an R joint's), at the first finite sample (the
+    plane does not move; a first sample of NaN, a failed start, would blank every reaction)."""
+    finite = np.flatnonzero(np.all(np.isfinite(q), axis=1)) if q.ndim == 2 else np.zeros(0, int)
+    if not linkage.planar or not finite.size:
         return None
     c = next((c for c in linkage.tables.couplings if JOINT_TYPES[c.type].planar_axis == "normal"), None)
     if c is None:
@@ -579,5 +581,5 @@ def _plane_normal(linkage, definition, par, q) -> np.ndarray | None:
     T = cached_lambdify(linkage.cache_key, "plane_frame", lambda: (
         [list(definition.coordinates), list(definition.parameter_symbols)],
         _entries([linkage.frames.joint_frame(c.i, c.k)])))
-    z = _at_samples(T, [q[:1]], par).reshape(4, 4)[:3, 2]
+    z = _at_samples(T, [q[finite[0]:finite[0] + 1]], par).reshape(4, 4)[:3, 2]
     return z / np.linalg.norm(z)
