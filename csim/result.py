@@ -275,18 +275,26 @@ class Result:
     @property
     def energy_scale_is_zero(self) -> bool:
         """Whether the energy scale is zero or round-off (below :data:`TINY_ENERGY_SCALE` times
-        the largest of max T, max |V| and max |sum W|): a run that stays at rest, whose balance
-        is best read in J, not relative to the scale."""
+        the largest of max T, max |V| and max |sum W|): a run that stays at rest, or whose moving
+        links have no mass, or whose energies barely change against a large V (:attr:`stays_at_rest`,
+        :attr:`energy_is_zero`), and whose balance is best read in J, not relative to the scale.
+        False for non-finite energies (a blow-up)."""
         if self.t.size == 0:
             return False
         work = np.abs(self.total_work)
         moved = max(np.max(np.abs(self.kinetic)), np.max(np.abs(self.potential - self.potential[0])), np.max(work))
         magnitude = max(np.max(np.abs(self.kinetic)), np.max(np.abs(self.potential)), np.max(work))
-        return bool(moved <= TINY_ENERGY_SCALE * magnitude)  # False for NaN (a blow-up)
+        return bool(np.isfinite(magnitude) and moved <= TINY_ENERGY_SCALE * magnitude)  # False for NaN or inf
+
+    @property
+    def energy_is_zero(self) -> bool:
+        """Whether T, V - V0 and the loads' work are exactly zero at every sample (no mass moves)."""
+        return bool(self.t.size and not np.any(self.kinetic) and not np.any(self.potential - self.potential[0])
+                    and not np.any(self.total_work))
 
     @property
     def stays_at_rest(self) -> bool:
-        """Whether no coordinate moved by more than 1e-9 (1 + its largest start value) over the run."""
+        """Whether no coordinate moved by more than 1e-9 (1 + the largest |q| at the start) over the run."""
         if self.t.size == 0:
             return True
         moved = np.max(np.abs(self.q - self.q[0]), initial=0.0)
@@ -351,7 +359,9 @@ class Result:
                 items.append(("energy balance", "- (a kinematic analysis of prescribed motion: no forces)"))
             elif self.energy_balance[1] == "J":
                 why = ("the mechanism stays at rest" if self.stays_at_rest else
-                       "the mechanism moves without kinetic or potential energy: its moving links have no mass")
+                       "the mechanism moves without kinetic or potential energy: its moving links have no mass"
+                       if self.energy_is_zero else
+                       "the mechanism moves, but its energies change by less than 1e-9 of the largest it records")
                 items.append(("energy balance", f"{self.energy_balance[0]:.3e} J (max |T + V - T0 - V0 - W|, in J: "
                                                 f"the energy scale is zero, {why})"))
             else:

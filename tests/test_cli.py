@@ -440,6 +440,16 @@ def test_a_run_at_rest_reports_its_energy_balance_in_joules(tmp_path):
     assert "e-308" not in result.stdout
 
 
+def test_a_run_that_moves_with_a_tiny_energy_change_is_not_said_to_be_massless(tmp_path):
+    """A 1 kg pendulum swinging by 32 um: its kinetic energy (5e-9 J) is below 1e-9 of |V| (9.8 J), so the
+    energy scale counts as zero; it moved, and it has mass."""
+    result = invoke("run", CONFIG.parent / "pendulum.yaml", "-o", tmp_path / "tiny.h5", "--set", "initial.q.x=0",
+                    "--set", "initial.qd.x=1e-4", "--set", "initial.q_offset.y=0", "--set", "simulation.t_end=0.2")
+    assert_clean_exit(result, 0)
+    line = [x for x in result.stdout.splitlines() if x.startswith("energy balance:")][0]
+    assert line.endswith("the mechanism moves, but its energies change by less than 1e-9 of the largest it records)")
+
+
 def test_a_python_fallback_says_why_in_the_summary(tmp_path):
     result = invoke("run", CONFIG, "-o", tmp_path / "elim.h5", *SHORT, "--set", "formulation.method=elimination")
     assert_clean_exit(result, 0)

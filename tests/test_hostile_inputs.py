@@ -695,3 +695,35 @@ def test_a_deadline_swallowed_in_a_weakref_callback_is_quiet_and_the_next_one_en
             pass
     assert time.monotonic() - start < 2
     assert reported == [] and sys.unraisablehook == reported.append
+
+
+def test_a_deadline_that_fires_on_the_way_out_leaves_nothing_behind(monkeypatch):
+    """The timer's tick landing in the block's cleanup raised _Deadline there, which skipped the rest of it:
+    the handler, a 0.5 s repeating timer and the hook stayed for the rest of the process (helper-24's
+    stress loop leaked within 11 to 330 deadlines). The tick is sent here as the cleanup restores the handler."""
+    import contextlib
+
+    from csim.plot.source import _Deadline, _deadline
+
+    real, state = signal.signal, {"leaving": False, "fired": False}
+
+    def racing(signum, handler):
+        if state["leaving"] and not state["fired"]:
+            state["fired"] = True
+            signal.raise_signal(signal.SIGALRM)  # the timer fires as the block ends
+        return real(signum, handler)
+
+    previous = signal.getsignal(signal.SIGALRM)
+    reported = []
+    monkeypatch.setattr(sys, "unraisablehook", reported.append)
+    monkeypatch.setattr(signal, "signal", racing)
+    try:
+        with contextlib.suppress(_Deadline), _deadline(10.0):
+            state["leaving"] = True
+        assert state["fired"]
+        assert signal.getsignal(signal.SIGALRM) is previous
+        assert sys.unraisablehook == reported.append and reported == []
+        assert signal.getitimer(signal.ITIMER_REAL)[0] == 0
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        real(signal.SIGALRM, previous)

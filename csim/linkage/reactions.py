@@ -135,15 +135,17 @@ def wrench_jacobian(joint_type: str, key: str | None = None):
     return jacobian
 
 
-def _removed(equations) -> list[str]:
-    """The reaction unknowns of removed equations, and why."""
+def _removed(equations, full: bool = False) -> list[str]:
+    """The reaction unknowns of removed equations, and why (``full``: the run recorded the multipliers of every
+    non-trivial equation, the minimum-norm ones; else of the kept equations only)."""
     out = []
     for eq in equations:
         if eq.status == KEPT:
             continue
+        share = ("reported with the minimum-norm multipliers of every equation (the constraint force shared "
+                 "among the dependent ones)" if full else "reported with the removed multiplier at 0")
         why = ("not carried by this (planar) model: its equation holds identically" if eq.status == ZERO else
-               "statically indeterminate: its equation is dependent and was removed; reported with the "
-               "removed multiplier at 0")
+               f"statically indeterminate: its equation is dependent and was removed; {share}")
         out.append(f"{eq.reaction}: {why}")
     return out
 
@@ -206,7 +208,8 @@ def joint_reactions(linkage, definition, par: np.ndarray, q: np.ndarray, lam: np
         One per cut joint, in the order of ``linkage.topology.cut_joints``.
     """
     kept = linkage.reduction.kept
-    if lam.shape[1] != len(kept):
+    full = lam.shape[1] != len(kept)
+    if full:
         kept = [eq for eq in linkage.reduction.equations if eq.status != ZERO]
     column = {id(eq): n for n, eq in enumerate(kept)}
     frames = _frame_functions(linkage, definition)
@@ -217,7 +220,7 @@ def joint_reactions(linkage, definition, par: np.ndarray, q: np.ndarray, lam: np
     values = {c.number: np.full((4, N, 3), np.nan) for c in cuts}  # F, M global; F, M in frame ik
     rows = np.flatnonzero(np.all(np.isfinite(q), axis=1))
     if not cuts or not rows.size:
-        return [_cut_reaction(linkage, c, values[c.number], equations[c.number]) for c in cuts]
+        return [_cut_reaction(linkage, c, values[c.number], equations[c.number], full) for c in cuts]
     T_ik, T_jm = frames(q[rows], par)  # the cut joints' frames at the evaluated samples: (n, C, 4, 4) each
     for n, c in enumerate(cuts):
         # the multipliers of the joint's equations (0 for a removed one): (n, n_eq)
@@ -229,14 +232,14 @@ def joint_reactions(linkage, definition, par: np.ndarray, q: np.ndarray, lam: np
         v = values[c.number]
         v[0, rows], v[1, rows] = F, M
         v[2, rows], v[3, rows] = np.einsum("sji,sj->si", Ai, F), np.einsum("sji,sj->si", Ai, M)  # A_ik^T F, A_ik^T M
-    return [_cut_reaction(linkage, c, values[c.number], equations[c.number]) for c in cuts]
+    return [_cut_reaction(linkage, c, values[c.number], equations[c.number], full) for c in cuts]
 
 
-def _cut_reaction(linkage, c, v: np.ndarray, equations) -> JointReaction:
+def _cut_reaction(linkage, c, v: np.ndarray, equations, full: bool = False) -> JointReaction:
     """The JointReaction of cut joint c from its values (4, N, 3): F, M global; F, M in frame ik."""
     name = str(c.name or c.number)
     label = f"joint {name} ({c.type}, {linkage.tables.link_label(c.i)} on {linkage.tables.link_label(c.j)})"
-    return JointReaction(name, label, v[0], v[1], v[2], v[3], _removed(equations))
+    return JointReaction(name, label, v[0], v[1], v[2], v[3], _removed(equations, full))
 
 
 # ---------------------------------------------------------------------------------------

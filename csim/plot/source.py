@@ -66,8 +66,13 @@ def _deadline(seconds: float) -> Iterator[None]:
         yield
         return
 
+    # False once the block is left: a tick that lands in the cleanup below raises nothing (a _Deadline
+    # raised there skipped the rest of it and left this handler, its 0.5 s timer and the hook for good)
+    armed = [True]
+
     def expired(signum, frame):
-        raise _Deadline
+        if armed[0]:
+            raise _Deadline
 
     hook = sys.unraisablehook
 
@@ -75,16 +80,18 @@ def _deadline(seconds: float) -> Iterator[None]:
         if not isinstance(unraisable.exc_value, _Deadline):
             hook(unraisable)
 
-    previous = signal.signal(signal.SIGALRM, expired)
-    sys.unraisablehook = quiet
-    outer = signal.setitimer(signal.ITIMER_REAL, seconds, 0.5)  # a caller's own timer, restored after
+    previous, outer = None, (0.0, 0.0)
     start = time.monotonic()
     try:
+        previous = signal.signal(signal.SIGALRM, expired)
+        sys.unraisablehook = quiet
+        outer = signal.setitimer(signal.ITIMER_REAL, seconds, 0.5)  # a caller's own timer, restored after
         yield
     finally:
-        signal.signal(signal.SIGALRM, signal.SIG_IGN)  # no _Deadline from here on
+        armed[0] = False  # no _Deadline from here on
         signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, previous)
+        if previous is not None:
+            signal.signal(signal.SIGALRM, previous)
         sys.unraisablehook = hook
         if outer[0] > 0:  # what was left of it, less the time spent here (at least a moment)
             signal.setitimer(signal.ITIMER_REAL, max(outer[0] - (time.monotonic() - start), 1e-3), outer[1])

@@ -94,10 +94,16 @@ class RedundantModel:
         """(Phi, Phi_q qd, multipliers) of the full set (n_all,) from the chosen rows' multipliers.
 
         The constraint force Phi_q,chosen^T lam is written as Phi_q,all^T lam_all with the
-        minimum-norm lam_all (least squares on the full Jacobian's transpose).
+        minimum-norm lam_all: the pseudo-inverse of Phi_q,all^T truncated at the rank, the chosen
+        rows' count. (Least squares at round-off, ``lstsq``'s cut, kept the dependent singular
+        value, 1e-11 to 1e-10 of the largest off the manifold by the integration's error: it gave
+        the chosen rows' multipliers with the others at 0, and so multipliers and reactions that
+        jumped where the rows were chosen again, and that differed from one method to another.)
         """
         J = self._jacobian(q)
-        lam_all = np.linalg.lstsq(J.T, J[self.rows].T @ lam, rcond=None)[0]
+        U, s, Vt = np.linalg.svd(J.T, full_matrices=False)
+        k = min(self.rows.size, s.size)
+        lam_all = Vt[:k].T @ ((U[:, :k].T @ (J[self.rows].T @ lam)) / s[:k])
         return self.watch.phi(q), J @ qd, lam_all
 
 
