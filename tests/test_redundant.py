@@ -74,3 +74,12 @@ def test_the_recorded_multipliers_of_an_overconstrained_linkage_are_minimum_norm
         np.testing.assert_allclose(J.T @ lam_all, J[model.selected(q)].T @ lam, atol=1e-10 * np.abs(lam).max())
         left_null = np.linalg.svd(J)[0][:, -1]  # J (5, m) of rank 4
         assert abs(left_null @ lam_all) < 1e-8 * np.linalg.norm(lam_all), (i, left_null @ lam_all)
+
+
+def test_a_driven_overconstrained_linkage_is_not_pointed_to_minimal():
+    """minimal does not take a dynamic drive (csim.solver.driven.driven_problems): the reason the compiled
+    backend gives for a driven overconstrained linkage does not suggest it."""
+    driven = unsupported(load_case(CONFIGS / "bricard.yaml", ["mechanism.drive_mode=dynamic"]))
+    free = unsupported(load_case(CONFIGS / "iftomm" / "a04_bricard.yaml", ["stabilization.method=none"]))
+    assert driven and not any("minimal" in reason for reason in driven), driven
+    assert any("with 'minimal'" in reason for reason in free), free

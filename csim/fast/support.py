@@ -61,9 +61,11 @@ def unsupported(case) -> list[str]:
         reasons.append(f"stabilization.method {method!r}: {why.get(method, 'not implemented in compiled code')}; "
                        f"the compiled backend supports {', '.join(compiled_stabilizers())}")
     if case.linkage is not None and case.linkage.redundant and method not in ("minimal",):
+        # (minimal does not take a dynamic drive: csim.solver.driven.driven_problems)
+        alternative = "" if case.driven else "; the compiled backend runs such a mechanism with 'minimal'"
         reasons.append(f"stabilization.method {method!r} on an overconstrained linkage: its independent constraint "
-                       f"equations are chosen again as it moves, on the Python path (csim.solver.redundant); the "
-                       f"compiled backend runs such a mechanism with 'minimal'")
+                       f"equations are chosen again as it moves, on the Python path (csim.solver.redundant)"
+                       f"{alternative}")
     if case.driven and method == "projection":
         reasons.append("stabilization.method 'projection' with mechanism.drive_mode 'dynamic': the projection onto "
                        "the drives at each step's time runs on the Python path (csim.solver.driven)")
