@@ -42,6 +42,8 @@ import textwrap
 _STATE = {"installed": False, "tried": False, "deferred": False}
 #: the module-name prefix of the kernels' copy (csim.fast.module), the libraries whose bitcode is deferred
 KERNELS_PREFIX = "csim_fast_kernels_"
+#: a function of the kernels' copy in numba's mangled names: _ZN<length><module>...
+_OF_KERNELS = re.compile(rf"_ZN\d+{KERNELS_PREFIX}")
 
 #: numba's load_overload, the statements this replacement is equivalent to (ast.unparse of its body, less the docstring)
 _EXPECTED = ("target_context.refresh()",
@@ -164,8 +166,7 @@ def _serialize(original, library):
 def _of_kernels(module) -> bool:
     """Whether a library's module for linking is that of a function of the kernels' copy: the function it
     exports (numba's for linking: ``linkonce_odr``, not private) is named for the copy's module."""
-    own = re.compile(rf"_ZN\d+{KERNELS_PREFIX}")  # numba's mangled name: _ZN<length><module>...
-    return any(own.match(fn.name) for fn in module.functions
+    return any(_OF_KERNELS.match(fn.name) for fn in module.functions
                if not fn.is_declaration and fn.linkage.name == "linkonce_odr")
 
 

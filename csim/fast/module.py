@@ -126,6 +126,11 @@ def kernels_path() -> Path:
     return kernels_dir() / f"kernels_{kernels_key()}"
 
 
+def _package_name() -> str:
+    """The name the copy is imported under: ``csim_fast_kernels_<key>`` (:mod:`csim.fast.kernels.variant`)."""
+    return f"{KERNELS_PREFIX}{kernels_key()}"
+
+
 def kernels_source() -> dict[str, str]:
     """The files of the compiled copy of the kernels (name -> text): the source's, as the key hashed them."""
     return dict(_kernels_snapshot()[1])
@@ -160,7 +165,7 @@ def load_kernels(compiled: bool = True) -> ModuleType:
     if _KernelsFinder not in sys.meta_path:
         sys.meta_path.append(_KernelsFinder)
     # numba's cache locates functions through their module, imported by name (the finder)
-    _KERNELS = importlib.import_module(f"csim_fast_{_kernels_copy().name}")
+    _KERNELS = importlib.import_module(_package_name())
     return _KERNELS
 
 
@@ -201,7 +206,7 @@ def _kernels_copy() -> Path:
 
 
 #: a copy of the kernels of another key (an earlier csim, numba or edit) that no process has loaded for
-#: this many days is removed when a new copy is written (about 15 MB a key with its machine code)
+#: this many days is removed when a new copy is written (3.3 MB a key with its machine code, 2026-11-27)
 UNUSED_DAYS = 30
 
 
@@ -259,7 +264,7 @@ class _KernelsFinder:
 
     @staticmethod
     def find_spec(name, path=None, target=None):
-        if not name.startswith(KERNELS_PREFIX) or name != f"csim_fast_{kernels_path().name}":
+        if name != _package_name():
             return None
         copy = _kernels_copy()
         return importlib.util.spec_from_file_location(name, copy / "__init__.py",

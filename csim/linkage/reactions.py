@@ -575,7 +575,7 @@ def _plane_normal(linkage, definition, par, q) -> np.ndarray | None:
     """The normal of a planar mechanism's plane (None: spatial, or no finite sample), from the z axis
     of a joint frame whose axis is the normal (an R joint's), at the first finite sample (the
     plane does not move; a first sample of NaN, a failed start, would blank every reaction)."""
-    finite = np.flatnonzero(np.all(np.isfinite(q), axis=1)) if q.ndim == 2 else np.zeros(0, int)
+    finite = np.flatnonzero(np.all(np.isfinite(q), axis=1))
     if not linkage.planar or not finite.size:
         return None
     c = next((c for c in linkage.tables.couplings if JOINT_TYPES[c.type].planar_axis == "normal"), None)
