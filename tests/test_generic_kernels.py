@@ -191,10 +191,10 @@ def test_a_copy_of_the_kernels_is_written_whole_and_never_replaced(tmp_path):
 
 
 def test_copies_of_other_keys_unused_for_a_month_are_removed(tmp_path):
-    """An upgrade leaves the copy of the old key (about 15 MB) behind: it goes once no process has loaded it
-    for UNUSED_DAYS, with the single-file copies of older csims and their machine code. This process's
-    copy, recent ones (another installation sharing the cache), a copy whose machine code was read
-    lately (an older csim, which sets no stamp), the models' files and other names stay."""
+    """An upgrade leaves the copy of the old key (3.3 MB with its machine code) behind: it goes once no
+    process has loaded it for UNUSED_DAYS, with the single-file copies of older csims and their machine
+    code. This process's copy, recent ones (another installation sharing the cache), a copy whose machine
+    code was read lately (an older csim, which sets no stamp), the models' files and other names stay."""
     from csim.fast import module
 
     now = 1.0e9
