@@ -147,15 +147,15 @@ def test_compiled_governor_against_its_rotating_frame_equations(a05_runs):
     assert np.allclose(fast.q[:, shaft], 2 * np.pi * fast.t, rtol=0, atol=1e-9)
 
 
-@pytest.mark.parametrize("method", ["none", "baumgarte", "sliding_mode"])
+@pytest.mark.parametrize("method", ["none", "baumgarte", "sliding_mode", "projection"])
 def test_compiled_drive_rows_on_a_closed_loop_equal_python(method):
     """The driven slider-crank of tests/test_driven.py (a loop and a drive: the stabilized rates of
-    the drive row need Phi_t = -f'(t)), DOP853, on both paths."""
+    the drive row, and the projection's velocity target, need Phi_t = -f'(t)), DOP853, on both paths."""
     from test_driven import _data
 
     from csim.case import validate_case
 
-    overrides = {"none": {}, "baumgarte": {"d": 1.0, "w": 20.0}, "sliding_mode": {}}[method]
+    overrides = {"none": {}, "baumgarte": {"d": 1.0, "w": 20.0}, "sliding_mode": {}, "projection": {}}[method]
     runs = {}
     for backend in ("compiled", "python"):
         data = _data(backend=backend, rtol=1e-9, atol=1e-9)
@@ -172,9 +172,22 @@ def test_compiled_drive_rows_on_a_closed_loop_equal_python(method):
     np.testing.assert_allclose(fast.drive_work, slow.drive_work, rtol=0, atol=1e-7 * scale)
 
 
-def test_projection_with_drives_stays_on_the_python_path():
+def test_projection_onto_the_drives_runs_compiled_and_takes_the_python_paths_steps():
+    """A05 with ``projection``: the shaft's drive row is projected onto at each step's time (its
+    velocity target Phi_t = -f'(t), csim.physics.projection.project) by the kernels, with the same
+    steps as the Python path and the shaft on its drive to round-off."""
     from csim.fast.support import unsupported
 
-    case = load_case(A05, ["stabilization.method=projection"])
-    assert any("projection" in why and "drive" in why for why in unsupported(case))
-    assert run_case(load_case(A05, ["stabilization.method=projection", "simulation.t_end=0.2"])).backend == "python"
+    runs = {b: run_case(load_case(A05, ["stabilization.method=projection", "simulation.t_end=2",
+                                        f"simulation.backend={b}"])) for b in ("compiled", "python")}
+    fast, slow = runs["compiled"], runs["python"]
+    assert unsupported(load_case(A05, ["stabilization.method=projection"])) == []
+    assert fast.ok and slow.ok and (fast.backend, slow.backend) == ("compiled", "python"), (fast.message, slow.message)
+    assert abs(fast.nsteps - slow.nsteps) <= 0.02 * slow.nsteps, (fast.nsteps, slow.nsteps)
+    assert np.max(np.abs(fast.q - slow.q)) < 1e-7
+    shaft = fast.coordinate_names.index("q_shaft")
+    for run in (fast, slow):  # the drive row q_shaft - 2 pi t and its rate, held by the projection
+        assert np.max(np.abs(run.q[:, shaft] - 2 * np.pi * run.t)) < 1e-12
+        assert np.max(np.abs(run.qd[:, shaft] - 2 * np.pi)) < 1e-12
+    scale = np.max(np.abs(slow.drive_forces))
+    assert np.max(np.abs(fast.drive_forces - slow.drive_forces)) < 1e-5 * scale

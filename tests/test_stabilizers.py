@@ -147,7 +147,7 @@ def test_projection_integrates_from_the_projected_start():
     y0 = initial_state(case, system)
     assert abs(system.model.phi(y0[:2], system.par)[0]) > 5e-3  # the perturbed start is off the circle
     from_perturbed = integrate(system, y0, case.integration_settings())
-    from_projected = integrate(system, system.project(y0), case.integration_settings())
+    from_projected = integrate(system, system.project(0.0, y0), case.integration_settings())
     np.testing.assert_array_equal(from_perturbed.y, from_projected.y)
 
 

@@ -12,7 +12,8 @@ elimination (each sin and cos of the coordinates is computed once):
     S = ds/dq^T (m, k), the load laws f(q, qd, t) (k,), Phi_t (r,) (zero but for the rows
     of drives, :func:`csim.model.derive.with_drive_rows`); t is the time [s]
 ``phi_``, ``jac``, ``mass``
-    the pieces the projection and the divergence checks need on their own
+    the pieces the projection and the divergence checks need on their own (``phi_``: Phi and
+    Phi_t, the projection's velocity target)
 ``loads_``
     load coordinates s and their Jacobian S, for the switching functions
 ``kinetic``, ``potential``
@@ -45,7 +46,7 @@ OFFSETS = {"mass": "W_M", "velocity_terms": "W_CQD", "gravity": "W_H", "phi": "W
 #: function name -> the DerivedModel attributes it writes into w
 FUNCTIONS = {
     "terms": TERMS,
-    "phi_": ("phi",),
+    "phi_": ("phi", "phi_t"),
     "jac": ("phi_q",),
     "mass": ("mass",),
     "loads_": ("load_coordinates", "load_jacobian"),

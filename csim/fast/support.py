@@ -23,7 +23,7 @@ Supported: ``formulation.method: kkt``; every ``stabilization.method`` whose cla
 ``compiled = True`` (:mod:`csim.solver.methods`); ``simulation.integrator`` DOP853, RK45, Tsit5,
 RK4 or Radau (each scipy's, or csim's Python class's, step for step, :mod:`csim.fast.kernels`);
 events on or off; drives
-(``mechanism.drive_mode: dynamic``) with every such method but ``projection``.
+(``mechanism.drive_mode: dynamic``) with every such method.
 """
 from __future__ import annotations
 
@@ -66,9 +66,6 @@ def unsupported(case) -> list[str]:
         reasons.append(f"stabilization.method {method!r} on an overconstrained linkage: its independent constraint "
                        f"equations are chosen again as it moves, on the Python path (csim.solver.redundant)"
                        f"{alternative}")
-    if case.driven and method == "projection":
-        reasons.append("stabilization.method 'projection' with mechanism.drive_mode 'dynamic': the projection onto "
-                       "the drives at each step's time runs on the Python path (csim.solver.driven)")
     integrator = case.simulation.integrator
     if integrator not in INTEGRATORS:
         reasons.append(f"simulation.integrator {integrator!r}: the compiled backend implements "

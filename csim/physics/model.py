@@ -1,4 +1,4 @@
-"""The model evaluations the core functions make: Phi, Phi_q, gamma and M at given coordinates.
+"""The model evaluations the core functions make: Phi, Phi_q, Phi_t, gamma and M at given coordinates.
 
 A core function that must evaluate the model (the Newton solve of the dependent coordinates,
 the branch prediction, the projection) calls these functions with a ``model`` handle. The
@@ -20,6 +20,12 @@ def model_phi(model, q, out):
 def model_jacobian(model, q, out):
     """Phi_q(q) (r * m,) into out."""
     model.jacobian(q, out)
+
+
+def model_phi_t(model, q, out):
+    """Phi_t (r,) into out: the constraints' rates at fixed q, at the handle's time (zero but for
+    the rows of drives, -f_j'(t))."""
+    model.phi_t(q, out)
 
 
 def model_gamma(model, q, qd, out):

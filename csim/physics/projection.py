@@ -1,7 +1,7 @@
 """Projection onto the constraint manifold: the Gauss-Newton correction and its stopping rules.
 
 With the metric W (the identity, or the mass matrix M), one correction of a residual res
-(Phi for positions, Phi_q qd for velocities) is
+(Phi for positions, Phi_q qd + Phi_t for velocities) is
 
     dq = W^-1 Phi_q^T (Phi_q W^-1 Phi_q^T)^-1 res,
 
@@ -16,7 +16,7 @@ from __future__ import annotations
 from csim.physics.jit import jitable, kernel
 from csim.physics.kkt import constraint_rates
 from csim.physics.linalg import lu_factor, lu_solve
-from csim.physics.model import model_jacobian, model_mass, model_phi
+from csim.physics.model import model_jacobian, model_mass, model_phi, model_phi_t
 from csim.physics.status import OK, PROJ_NO_CONVERGENCE, PROJ_SINGULAR, SINGULAR_MASS
 
 EPS = 2.220446049250313e-16
@@ -116,7 +116,8 @@ def correction(J, Winv, mass_metric, res, WJt, S, z, piv, dq, r, m):
 
 @jitable(inline=True)  # one compiled caller per backend, called once per step
 def project(model, q, qd, tol, mass_metric, max_iter, m, r, M, LU, Winv, piv, col, phi, J, WJt, S, z, dq, phi_dot):
-    """Project (q, qd) (m,) in place onto Phi = 0 and Phi_q qd = 0. Returns (code, max |Phi| of the last iterate).
+    """Project (q, qd) (m,) in place onto Phi = 0 and Phi_q qd + Phi_t = 0. Returns (code, max |Phi| of the last
+    iterate). Phi and Phi_t are the model's at the handle's time (a drive row q_j - f_j(t) and its -f_j'(t)).
 
     Positions by Gauss-Newton until max |Phi| <= ``tol`` or the correction is down to the
     round-off of q (at most ``max_iter`` corrections), then velocities by one correction,
@@ -156,6 +157,9 @@ def project(model, q, qd, tol, mass_metric, max_iter, m, r, M, LU, Winv, piv, co
         return PROJ_NO_CONVERGENCE, mx
     model_jacobian(model, q, J)
     constraint_rates(J, qd, phi_dot, r, m)
+    model_phi_t(model, q, z)  # d/dt Phi = Phi_q qd + Phi_t (Phi_t: drive rows only); z is scratch until the correction
+    for i in range(r):
+        phi_dot[i] += z[i]
     if not correction(J, Winv, mass_metric, phi_dot, WJt, S, z, piv, dq, r, m):
         return PROJ_SINGULAR, mx
     for i in range(m):

@@ -36,8 +36,9 @@ projection's metric (``projection_metric``: the mass matrix, or the identity). N
 (:func:`driven_problems`, exit 2): ``ggl``, ``minimal`` and ``augmented_lagrangian`` (they
 integrate a system of their own), the elimination, per-constraint gain lists (the drive
 rows need gains too). The compiled kernels run the same rows, built symbolically into the
-mechanism's model (:func:`csim.model.derive.with_drive_rows`), for every method above but
-``projection`` (:func:`csim.fast.support.unsupported`).
+mechanism's model (:func:`csim.model.derive.with_drive_rows`), for every method above, and the
+same projection (:func:`csim.physics.projection.project`, whose velocity target is
+Phi_q qd + Phi_t = 0). Both project the recorded samples at their own time too.
 """
 from __future__ import annotations
 
@@ -135,44 +136,19 @@ class DrivenSystem(ConstrainedSystem):
         qdd, lam = self.formulation.solve(M, J, p, gamma_star)
         return qdd, lam[:r], lam[r:], phi, phi_dot, B @ u, B
 
-    def after_step(self, t: float, y: np.ndarray) -> tuple[np.ndarray, str]:
-        """Projection (``projection``) onto Phi = 0 and the drives at time t; else y as it is."""
-        if not self.projects:
-            return y, "keep"
-        q, qd, work = self.split(y)
+    def project(self, t: float, y: np.ndarray) -> np.ndarray:
+        """y with (q, qd) projected (``projection``) onto Phi = 0 and the drives at time t.
+
+        Positions by the method's Gauss-Newton iteration on [Phi(q); q_j - f_j(t)] = 0, then
+        velocities onto J qd = [0; f_j'(t)], J = [Phi_q; e_j^T], with one correction
+        (:func:`csim.physics.projection.project`, Phi_t = [0; -f_j'(t)]): with one drive per degree
+        of freedom J is square and that is J^-1 [0; f'(t)]; with fewer, the velocities nearest the
+        integrated ones in the projection's metric.
+        """
+        q, qd, _ = self.split(y)
         view = _DriveRows(self.model, self.driven, self.drive(t))
-        q, _ = self.stabilizer.project(view, self.par, q, qd)  # Gauss-Newton on [Phi; q_j - f_j(t)]
-        # J qd = b = [0; f_j'(t)] with J = [Phi_q; e_j^T]: with one drive per degree of
-        # freedom J is square and qd = J^-1 b; with fewer, the velocities nearest the
-        # integrated ones in the projection's metric W (M, or I for minimum_norm):
-        #   [W J^T; J 0] [dqd; mu] = [0; b - J qd]
-        # (regular where W is positive definite on the null space of J, as the dynamics need)
-        J = np.vstack((self.model.phi_q(q, self.par).reshape(self.r, self.m), self._rows))
-        b = np.concatenate((np.zeros(self.r), view.rates))
-        n = J.shape[0]
-        try:
-            if n == self.m:
-                qd = np.linalg.solve(J, b)
-            else:
-                W = self.model.mass(q, self.par) if self.stabilizer.metric == "mass" else np.eye(self.m)
-                K = np.block([[W, J.T], [J, np.zeros((n, n))]])
-                qd = qd + np.linalg.solve(K, np.concatenate((np.zeros(self.m), b - J @ qd)))[:self.m]
-        except np.linalg.LinAlgError:
-            raise SimulationFailure(f"driven dynamics at t = {t:.6g} s: the constraint Jacobian with the drive rows "
-                                    f"is singular (a singular position of the driven mechanism)", "singular") from None
-        return np.concatenate((q, qd, y[2 * self.m:])), "swap"
-
-    def restart(self, t: float, y: np.ndarray, mode: np.ndarray) -> np.ndarray:
-        return self.after_step(t, y)[0]
-
-    def start(self, y_full: np.ndarray) -> np.ndarray:
-        """The state to start from (runs start at t = 0): projected onto the drives at t = 0 too."""
-        return self.after_step(0.0, np.array(y_full, dtype=float))[0]
-
-    def output_state(self, y: np.ndarray) -> np.ndarray:
-        """A recorded state as integrated (a dense-output sample between two projected steps
-        is not projected: the projection onto the drives needs its time)."""
-        return np.array(y, dtype=float)
+        q, qd = self.stabilizer.project(view, self.par, q, qd, t=t, phi_t=view.phi_t)
+        return np.concatenate((q, qd, y[2 * self.m:]))
 
     def rhs(self, t: float, y: np.ndarray, mode: np.ndarray) -> np.ndarray:
         """dy/dt (n_state,): [qd, qdd, u (B^T qd), tau qd_driven]."""
@@ -199,7 +175,7 @@ class DrivenSystem(ConstrainedSystem):
 
 class _DriveRows:
     """The model seen with the drive rows at one instant appended to its constraints, for a
-    method's projection (it reads ``n_constraints``, ``mass``, ``phi`` and ``phi_q``).
+    method's projection (it reads ``n_constraints``, ``mass``, ``phi``, ``phi_q`` and ``phi_t``).
 
     Parameters
     ----------
@@ -210,8 +186,10 @@ class _DriveRows:
 
     def __init__(self, model, driven: np.ndarray, values):
         self.model, self.driven = model, driven
-        self.target, self.rates = values[0], values[1]
+        self.target = values[0]
         self.n_constraints = model.n_constraints + driven.size
+        #: Phi_t (r + d,): the rows' rates at fixed q, [0; -f'(t)]
+        self.phi_t = np.concatenate((np.zeros(model.n_constraints), -np.asarray(values[1], dtype=float)))
         self._rows = np.eye(model.n_coordinates)[driven]
 
     def mass(self, q, par):

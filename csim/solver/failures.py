@@ -82,7 +82,8 @@ def failure_message(code: int, a: float, b: float, settings, method=None, switch
         return ("singular KKT matrix: the constraint Jacobian Phi_q lost rank (a singular "
                 "configuration of the mechanism) or M is singular")
     if code == PROJ_SINGULAR:
-        return "projection: singular constraint Jacobian"
+        return (f"projection at t = {b:.6g} s: the constraint Jacobian has lost rank (a singular configuration, "
+                f"or drives that ask for a motion the mechanism cannot make)")
     if code == PROJ_NO_CONVERGENCE:
         return (f"projection: Gauss-Newton did not reach max |Phi| <= {method.tol:g} in "
                 f"{method.max_iter} iterations (max |Phi| = {a:.3e})")
@@ -92,7 +93,8 @@ def failure_message(code: int, a: float, b: float, settings, method=None, switch
     if code == RK4_RESOLUTION:
         return f"integrator RK4 failed at t = {a:.6g} s: step {s.step:g} s is below the resolution of t = {a:g} s"
     if code == SINGULAR_MASS:
-        return f"numerical error after t = {b:.6g} s: LinAlgError: Singular matrix"
+        return (f"projection at t = {b:.6g} s: the mass matrix is singular (moving links without mass), so it "
+                f"cannot be the projection's metric; set stabilization.projection_metric: minimum_norm")
     if code == NO_SIGN_CHANGE:
         return f"numerical error after t = {a:.6g} s: ValueError: f(a) and f(b) must have different signs"
     if code == CHATTER:

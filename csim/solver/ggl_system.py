@@ -48,7 +48,7 @@ class GGLSystem(ConstrainedSystem):
     def to_full(self, x: np.ndarray) -> np.ndarray:
         return x[:2 * self.m + self.k]
 
-    def output_state(self, x: np.ndarray) -> np.ndarray:
+    def output_state(self, t: float, x: np.ndarray) -> np.ndarray:
         """The recorded [q, qd, W]: on the manifold, as every step ends.
 
         Samples between step ends come from the integrator's dense output, a polynomial
@@ -56,7 +56,7 @@ class GGLSystem(ConstrainedSystem):
         (mass metric) before they are recorded. The integration itself is never corrected.
         """
         q, v, W = self.split(self.to_full(x))
-        q, v = self._projection.project(self.model, self.par, q, v)
+        q, v = self._projection.project(self.model, self.par, q, v, t=t)
         return np.concatenate((q, v, W))
 
     def start(self, y_full: np.ndarray) -> np.ndarray:
@@ -75,7 +75,7 @@ class GGLSystem(ConstrainedSystem):
     def _consistent(self, t: float, y_full: np.ndarray, mode: np.ndarray) -> np.ndarray:
         """(q, v) projected onto the manifold (mass metric), mu = 0, lambda from the KKT system."""
         q, qd, W = self.split(y_full)
-        q, v = self._projection.project(self.model, self.par, q, qd)
+        q, v = self._projection.project(self.model, self.par, q, qd, t=t)
         _, lam, *_ = self._solve(q, v, self.load_values(t, q, v, mode))
         return np.concatenate((q, v, W, np.zeros(self.r), lam))
 

@@ -39,10 +39,15 @@ _REASONS = {DEPENDENT_NONFINITE: "non_finite", DEPENDENT_SINGULAR: "singular"}
 
 
 class PythonModel:
-    """The model evaluations of :mod:`csim.physics.model` for the Python driver: a NumericModel at ``par``."""
+    """The model evaluations of :mod:`csim.physics.model` for the Python driver: a NumericModel at ``par``
+    (and, for a projection onto drives, their rates Phi_t at one instant)."""
 
-    def __init__(self, model: NumericModel, par: np.ndarray):
+    def __init__(self, model: NumericModel, par: np.ndarray, phi_t: np.ndarray | None = None):
         self.model, self.par = model, np.asarray(par, dtype=float)
+        self._phi_t = phi_t  # Phi_t (r,) at the instant the handle stands for; None: zero
+
+    def phi_t(self, q, out):
+        out[:] = 0.0 if self._phi_t is None else self._phi_t
 
     def phi(self, q, out):
         out[:] = self.model.phi(q, self.par)

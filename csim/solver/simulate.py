@@ -118,7 +118,7 @@ class _Run:
 
     def record(self, t_i: float, y_i: np.ndarray) -> None:
         """One output sample (the system's full state at t_i)."""
-        y_full = self.system.output_state(y_i)  # may raise: nothing is appended then
+        y_full = self.system.output_state(t_i, y_i)  # may raise: nothing is appended then
         self.ts.append(t_i)
         self.ys.append(y_full)
         self.modes.append(self.mode.copy())

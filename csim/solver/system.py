@@ -97,12 +97,12 @@ class ConstrainedSystem:
         return y
 
     def start(self, y_full: np.ndarray) -> np.ndarray:
-        """The integrated state to start from, given a full initial state [q0, qd0, W0]."""
-        return self.project(y_full) if self.projects else np.array(y_full, dtype=float)
+        """The integrated state to start from (at t = 0), given a full initial state [q0, qd0, W0]."""
+        return self.project(0.0, y_full) if self.projects else np.array(y_full, dtype=float)
 
-    def output_state(self, y: np.ndarray) -> np.ndarray:
-        """The full state recorded for an integrated state y (projected, for projection)."""
-        return self.project(y) if self.projects else np.array(self.to_full(y))
+    def output_state(self, t: float, y: np.ndarray) -> np.ndarray:
+        """The full state recorded for an integrated state y at time t (projected, for projection)."""
+        return self.project(t, y) if self.projects else np.array(self.to_full(y))
 
     def dae_options(self) -> dict | None:
         """Options of a DAE integrator for this system (None: it is an ODE)."""
@@ -116,7 +116,7 @@ class ConstrainedSystem:
         integrator afresh from it).
         """
         if self.projects:
-            return self.project(y), "swap"
+            return self.project(t, y), "swap"
         return y, "keep"
 
     def restart(self, t: float, y: np.ndarray, mode: np.ndarray) -> np.ndarray:
@@ -189,10 +189,10 @@ class ConstrainedSystem:
         """Whether the method projects the state after every step."""
         return self.stabilizer.projects
 
-    def project(self, y: np.ndarray) -> np.ndarray:
-        """The state with (q, qd) projected onto the constraint manifold (a new array)."""
+    def project(self, t: float, y: np.ndarray) -> np.ndarray:
+        """The state with (q, qd) projected onto the constraint manifold at time t (a new array)."""
         q, qd, _ = self.split(y)
-        q, qd = self.stabilizer.project(self.model, self.par, q, qd)
+        q, qd = self.stabilizer.project(self.model, self.par, q, qd, t=t)
         return np.concatenate((q, qd, y[2 * self.m:]))
 
     def recorded(self, q: np.ndarray, qd: np.ndarray, lam: np.ndarray, phi: np.ndarray,

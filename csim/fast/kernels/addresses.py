@@ -4,8 +4,8 @@ and ``feval`` called through their addresses, and the core's model handle over t
 The model functions are C (``cc``, :mod:`csim.fast.ccodegen`) or numba cfuncs
 (:mod:`csim.fast.codegen`) with one interface (:mod:`csim.fast.layout`); their addresses are
 entries of ``pi``. The core (:mod:`csim.physics.model`) reaches the model through a handle,
-here the tuple ``(par, pi, w, ym)``, for which the core's ``model_*`` functions are
-overloaded (ym: a state [q, qd, W] to call the model functions at). The interpreted package
+here the tuple ``(par, pi, w, ym, t)``, for which the core's ``model_*`` functions are
+overloaded (ym: a state [q, qd, W] to call the model functions at, t: their time). The interpreted package
 has the same names in :mod:`.interpreted`; :mod:`.calls` imports one or the other.
 """
 from llvmlite import ir
@@ -15,8 +15,8 @@ from numba.core.callconv import excinfo_t
 from numba.core.errors import TypingError
 from numba.extending import intrinsic, overload
 
-from csim.fast.layout import F_JAC, F_MASS, F_PHI, F_TERMS, PI_FN, W_GAM, W_J, W_M, W_PHI
-from csim.physics.model import model_gamma, model_jacobian, model_mass, model_phi
+from csim.fast.layout import F_JAC, F_MASS, F_PHI, F_TERMS, PI_FN, PI_ND, W_GAM, W_J, W_M, W_PHI, W_PT
+from csim.physics.model import model_gamma, model_jacobian, model_mass, model_phi, model_phi_t
 
 from .common import inlined
 
@@ -110,8 +110,8 @@ def call_feval(typingctx, addr, t, y, mode, located, par, pf, pi, w, piv, f, inf
 
 
 # ---------------------------------------------------------------------------------------
-# the core's model handle (csim.physics.model) in the kernels: the tuple (par, pi, w, ym),
-# ym a state [q, qd, W] to call the model functions at
+# the core's model handle (csim.physics.model) in the kernels: the tuple (par, pi, w, ym, t),
+# ym a state [q, qd, W] to call the model functions at, t the time [s] (drive rows depend on it)
 # ---------------------------------------------------------------------------------------
 #: the compile options of the overloads (as the kernels', less the cache: they compile into their callers)
 CALL_OPTIONS = dict(error_model="numpy", _nrt=False)
@@ -134,10 +134,10 @@ def _overload_at_q(core_fn, fn, slot):
             return None
 
         def impl(model, q, out):
-            par, pi, w, ym = model
+            par, pi, w, ym, t = model
             for i in range(q.size):
                 ym[i] = q[i]
-            call_model(pi[PI_FN + fn], 0.0, ym, par, w)
+            call_model(pi[PI_FN + fn], t, ym, par, w)
             for i in range(out.size):
                 out[i] = w[pi[slot] + i]
         return impl
@@ -149,16 +149,34 @@ _overload_at_q(model_jacobian, F_JAC, W_J)
 _overload_at_q(model_mass, F_MASS, W_M)
 
 
+@overload(model_phi_t, jit_options=CALL_OPTIONS, strict=False, inline="always")
+def _model_phi_t(model, q, out):
+    if _is_handle(model):
+        def impl(model, q, out):
+            par, pi, w, ym, t = model
+            if pi[PI_ND] == 0:  # no drive rows: the mechanism's own rows do not depend on t
+                for i in range(out.size):
+                    out[i] = 0.0
+                return
+            for i in range(q.size):
+                ym[i] = q[i]
+            call_model(pi[PI_FN + F_PHI], t, ym, par, w)  # phi_ writes Phi and Phi_t
+            for i in range(out.size):
+                out[i] = w[pi[W_PT] + i]
+        return impl
+    return None
+
+
 @overload(model_gamma, jit_options=CALL_OPTIONS, strict=False, inline="always")
 def _model_gamma(model, q, qd, out):
     if _is_handle(model):
         def impl(model, q, qd, out):
-            par, pi, w, ym = model
+            par, pi, w, ym, t = model
             m = q.size
             for i in range(m):
                 ym[i] = q[i]
                 ym[m + i] = qd[i]
-            call_model(pi[PI_FN + F_TERMS], 0.0, ym, par, w)
+            call_model(pi[PI_FN + F_TERMS], t, ym, par, w)
             for i in range(out.size):
                 out[i] = w[pi[W_GAM] + i]
         return impl
@@ -166,6 +184,6 @@ def _model_gamma(model, q, qd, out):
 
 
 @inlined
-def model_handle(par, pi, w, ym):
-    """The core's model handle: the tuple (par, pi, w, ym) the overloads above take."""
-    return (par, pi, w, ym)
+def model_handle(par, pi, w, ym, t):
+    """The core's model handle at time t [s]: the tuple (par, pi, w, ym, t) the overloads above take."""
+    return (par, pi, w, ym, t)

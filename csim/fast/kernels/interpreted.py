@@ -29,7 +29,7 @@ from __future__ import annotations
 import ctypes
 from collections.abc import Callable
 
-from csim.fast.layout import F_JAC, F_MASS, F_PHI, F_TERMS, PI_FN, W_GAM, W_J, W_M, W_PHI
+from csim.fast.layout import F_JAC, F_MASS, F_PHI, F_TERMS, PI_FN, PI_ND, W_GAM, W_J, W_M, W_PHI, W_PT
 
 #: key -> the Python function that stands for a C function at that "address" (model functions:
 #: ``f(t, y, par, out)``; gamma*: the method's kernel ``g(r, gamma, phi, phi_dot, gains, fpar, ipar, out)``)
@@ -81,21 +81,27 @@ def call_feval(addr, t, y, mode, located, par, pf, pi, w, piv, f, info):
 
 class ModelHandle:
     """The core's model handle (:mod:`csim.physics.model`) over the model functions in ``pi``:
-    each method calls one at the state ``ym`` [q, qd, W] and copies its term out of ``w``."""
+    each method calls one at the state ``ym`` [q, qd, W] and time ``t`` and copies its term out of ``w``."""
 
-    __slots__ = ("par", "pi", "w", "ym")
+    __slots__ = ("par", "pi", "w", "ym", "t")
 
-    def __init__(self, par, pi, w, ym):
-        self.par, self.pi, self.w, self.ym = par, pi, w, ym
+    def __init__(self, par, pi, w, ym, t):
+        self.par, self.pi, self.w, self.ym, self.t = par, pi, w, ym, t
 
     def _at_q(self, fn, slot, q, out):
         self.ym[:q.size] = q
-        call_model(self.pi[PI_FN + fn], 0.0, self.ym, self.par, self.w)
+        call_model(self.pi[PI_FN + fn], self.t, self.ym, self.par, self.w)
         at = self.pi[slot]
         out[:] = self.w[at:at + out.size]
 
     def phi(self, q, out):
         self._at_q(F_PHI, W_PHI, q, out)
+
+    def phi_t(self, q, out):
+        if self.pi[PI_ND] == 0:  # no drive rows: the mechanism's own rows do not depend on t
+            out[:] = 0.0
+        else:
+            self._at_q(F_PHI, W_PT, q, out)  # phi_ writes Phi and Phi_t
 
     def jacobian(self, q, out):
         self._at_q(F_JAC, W_J, q, out)
@@ -107,11 +113,11 @@ class ModelHandle:
         m = q.size
         self.ym[:m] = q
         self.ym[m:2 * m] = qd
-        call_model(self.pi[PI_FN + F_TERMS], 0.0, self.ym, self.par, self.w)
+        call_model(self.pi[PI_FN + F_TERMS], self.t, self.ym, self.par, self.w)
         at = self.pi[W_GAM]
         out[:] = self.w[at:at + out.size]
 
 
-def model_handle(par, pi, w, ym):
-    """The core's model handle (:class:`ModelHandle`; the compiled copy's is a tuple)."""
-    return ModelHandle(par, pi, w, ym)
+def model_handle(par, pi, w, ym, t):
+    """The core's model handle at time t (:class:`ModelHandle`; the compiled copy's is a tuple)."""
+    return ModelHandle(par, pi, w, ym, t)

@@ -80,10 +80,11 @@ def _partition_call(par, pf, pi, w, piv):
     """(handle, P, r, m, k, tol, max_iter, max_condition): what every core call of csim.physics.branch takes.
 
     The method's settings (csim.solver.methods.minimal): fpar = [tol, max_condition], ipar = [max_iter].
+    The handle's time is 0: ``minimal`` takes no drives (its rows do not depend on t).
     """
     P = _partition(pi, w, piv)
     fpar, ipar = pf[pi[PI_FPAR]:], pi[pi[PI_IPAR]:]
-    return model_handle(par, pi, w, P.ym), P, pi[PI_NC], pi[PI_NQ], pi[PI_NL], fpar[0], ipar[0], fpar[1]
+    return model_handle(par, pi, w, P.ym, 0.0), P, pi[PI_NC], pi[PI_NQ], pi[PI_NL], fpar[0], ipar[0], fpar[1]
 
 
 # The partitioned system's branches in the functions of every step call a function of their own:
@@ -276,7 +277,8 @@ def feval_call(t, y, mode, located, par, pf, pi, w, piv, f, info):
 # ---------------------------------------------------------------------------------------
 @hot
 def project(y, out, t, par, pf, pi, w, piv, info):
-    """out = y at time t with (q, qd) projected (csim.physics.projection.project); returns the status code.
+    """out = y at time t with (q, qd) projected (csim.physics.projection.project: onto the drives at t too);
+    returns the status code.
 
     On a failure info = [max |Phi| of the last iterate, t], as the status messages read them.
     The method's settings: fpar[0] the tolerance on max |Phi|, ipar = [mass metric (0/1),
@@ -287,7 +289,7 @@ def project(y, out, t, par, pf, pi, w, piv, info):
     for i in range(y.size):
         out[i] = y[i]
     nq, nc, nl = pi[PI_NQ], pi[PI_NC], pi[PI_NL]
-    model = model_handle(par, pi, w, w[pi[W_YM]:pi[W_YM] + 2 * nq + nl])
+    model = model_handle(par, pi, w, w[pi[W_YM]:pi[W_YM] + 2 * nq + nl], t)
     code, mx = project_state(model, out[:nq], out[nq:2 * nq], fpar[0], ipar[0] == 1, ipar[1], nq, nc,
                              w[pi[W_M]:pi[W_M] + nq * nq], w[pi[W_M2]:pi[W_M2] + nq * nq],
                              w[pi[W_WINV]:pi[W_WINV] + nq * nq], piv, w[pi[W_COL]:pi[W_COL] + nq],

@@ -6,7 +6,8 @@ gamma* = gamma during the step. After it, positions go by Gauss-Newton with the 
     q <- q - W^-1 Phi_q^T (Phi_q W^-1 Phi_q^T)^-1 Phi(q),
 
 until max |Phi| <= ``projection_tol`` (or the correction is down to the round-off of q),
-then velocities onto Phi_q qd = 0 with one such correction. The mass metric changes the
+then velocities onto Phi_q qd + Phi_t = 0 with one such correction (Phi_t: zero but for the
+rows of drives, :mod:`csim.solver.driven`). The mass metric changes the
 state least in kinetic-energy norm. The core functions are in :mod:`csim.physics.projection`.
 """
 from __future__ import annotations
@@ -16,7 +17,7 @@ import dataclasses
 import numpy as np
 
 from csim.physics import projection as core
-from csim.physics.status import OK, SINGULAR_MASS
+from csim.physics.status import OK
 from csim.solver.failures import failure
 from csim.solver.methods.base import Method, option
 
@@ -60,19 +61,19 @@ class Projection(Method):
     def parameters(self):
         return [self.tol], [int(self.metric == "mass"), self.max_iter]
 
-    def project(self, model, par, q, qd):
-        """Projected (q, qd) (:func:`csim.physics.projection.project`); raises SimulationFailure when Gauss-Newton
-        does not converge or the Jacobian has lost rank, numpy's LinAlgError for a singular mass matrix."""
+    def project(self, model, par, q, qd, t=0.0, phi_t=None):
+        """Projected (q, qd) (:func:`csim.physics.projection.project`): onto Phi = 0 and
+        Phi_q qd + Phi_t = 0, Phi_t (r,) the constraints' rates at fixed q (``phi_t``: zero when
+        None; a drive row's is -f'(t)). Raises SimulationFailure, saying at time ``t`` [s], when
+        Gauss-Newton does not converge, the Jacobian has lost rank or the mass metric is singular."""
         from csim.solver.newton import PythonModel
 
         m, r = q.size, model.n_constraints
         q, qd = np.array(q, dtype=float), np.array(qd, dtype=float)
-        code, max_phi = core.project(PythonModel(model, par), q, qd, self.tol, self.metric == "mass", self.max_iter, m,
-                                     r, np.empty(m * m), np.empty(m * m), np.zeros(m * m),
+        code, max_phi = core.project(PythonModel(model, par, phi_t), q, qd, self.tol, self.metric == "mass",
+                                     self.max_iter, m, r, np.empty(m * m), np.empty(m * m), np.zeros(m * m),
                                      np.zeros(max(m, r), np.int64), np.empty(m), np.empty(r), np.empty(r * m),
                                      np.empty(m * r), np.empty(r * r), np.empty(r), np.empty(m), np.empty(r))
-        if code == SINGULAR_MASS:
-            raise np.linalg.LinAlgError("Singular matrix")  # the driver says when
         if code != OK:
-            raise failure(code, max_phi, 0.0, None, self)
+            raise failure(code, max_phi, t, None, self)
         return q, qd
