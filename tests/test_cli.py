@@ -451,13 +451,13 @@ def test_a_run_that_moves_with_a_tiny_energy_change_is_not_said_to_be_massless(t
 
 
 def test_a_python_fallback_says_why_in_the_summary(tmp_path):
-    result = invoke("run", CONFIG, "-o", tmp_path / "elim.h5", *SHORT, "--set", "formulation.method=elimination")
+    result = invoke("run", CONFIG, "-o", tmp_path / "bdf.h5", *SHORT, "--set", "simulation.integrator=BDF")
     assert_clean_exit(result, 0)
     assert "(python backend)" in result.stdout
-    assert ("python backend:    not compiled because formulation.method 'elimination': the compiled backend "
-            "implements the KKT formulation only") in result.stdout
-    with h5py.File(tmp_path / "elim.h5") as fh:
-        assert "formulation.method 'elimination'" in text_attr(fh, "backend_reason")
+    assert ("python backend:    not compiled because simulation.integrator 'BDF': the compiled backend "
+            "implements DOP853") in result.stdout
+    with h5py.File(tmp_path / "bdf.h5") as fh:
+        assert "simulation.integrator 'BDF'" in text_attr(fh, "backend_reason")
     asked = invoke("run", CONFIG, "-o", tmp_path / "py.h5", *SHORT, "--set", "simulation.backend=python")
     assert_clean_exit(asked, 0)
     assert "python backend:" not in asked.stdout  # asked for, not a fallback

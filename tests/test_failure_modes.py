@@ -200,10 +200,9 @@ def test_the_failure_kind_comes_from_the_status_code_not_the_message(blind_class
     for kind, res in runs.items():
         assert res.status == "failed" and res.backend == backend
         assert res.failure == kind, (kind, res.message)
-    if backend == "python":  # the elimination formulation runs on the Python path only
-        fixed = run_case(qr_case("formulation.method=elimination", "formulation.independent=[q2]",
-                                 "simulation.t_end=1"))
-        assert fixed.failure == "singular"
+    fixed = run_case(qr_case("formulation.method=elimination", "formulation.independent=[q2]", "simulation.t_end=1",
+                             f"simulation.backend={backend}"))
+    assert fixed.failure == "singular" and fixed.backend == backend
 
 
 def test_an_rk4_step_below_the_resolution_of_t_is_the_same_kind_on_the_python_path(blind_classifier, monkeypatch):

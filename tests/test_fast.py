@@ -169,7 +169,6 @@ def test_chatter_fails_fast_and_alike_on_both_backends(overrides):
 
 
 @pytest.mark.parametrize("override, key", [
-    ("formulation.method=elimination", "formulation.method 'elimination'"),
     ("stabilization.method=ggl", "stabilization.method 'ggl'"),
     ("simulation.integrator=BDF", "simulation.integrator 'BDF'"),
 ])
@@ -183,7 +182,8 @@ def test_unsupported_combinations_are_rejected(override, key):
 def test_auto_falls_back_to_python_for_unsupported_combinations():
     from csim.fast import resolve_backend
 
-    assert resolve_backend(qr_case("formulation.method=elimination")) == "python"
+    assert resolve_backend(qr_case("simulation.integrator=BDF")) == "python"
+    assert resolve_backend(qr_case("formulation.method=elimination")) == "compiled"
     assert resolve_backend(qr_case()) == "compiled"
     assert resolve_backend(qr_case("simulation.backend=python")) == "python"
 

@@ -42,7 +42,8 @@ def test_choose_independent_avoids_the_singular_block():
 def test_elimination_repartitions_when_the_dependent_block_turns_singular():
     M, _, p, gamma = random_problem(np.random.default_rng(0), m=3, r=2)
     form = Elimination()
-    form._set_independent([0])  # as if chosen automatically at an earlier configuration
+    form.solve(M, np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]), p, gamma)  # an earlier configuration: u = q0
+    assert form.repartitions == 0 and list(form.independent) == [0]
     J = np.array([[1.0, 1.0, 0.0], [0.0, 1.0, 0.0]])  # Phi_v over (q1, q2) is singular
     qdd, lam = form.solve(M, J, p, gamma)
     assert form.repartitions == 1 and list(form.independent) == [2]

@@ -56,7 +56,8 @@ SCRATCH = (
     ("W_E", lambda m, r, k, n: 1),  # kinetic or potential energy
     ("W_G", lambda m, r, k, n: n),  # switching functions
     ("W_YM", lambda m, r, k, n: 2 * m + k),  # a state to call the model functions at (csim.physics.model)
-    ("W_PART", lambda m, r, k, n: _partition_sizes(m, r, k)[0]),  # minimal: the partition's floats
+    # minimal: the partition's floats; the elimination's state (fewer) lies there too (never both)
+    ("W_PART", lambda m, r, k, n: _region_size(m, r, k)),
     ("W_END", lambda m, r, k, n: 0),  # the size of w
 )
 
@@ -76,8 +77,14 @@ PI_ND, PI_DRV = 14, 15
 #: the address of the kernels' right-hand side ``feval``, whose callers call it through this address
 #: (csim.fast.kernels.calls.call_feval) instead of each linking its code into theirs
 PI_FEVAL = 16
+#: the formulation (KKT or ELIMINATION), where its integers are in pi ([fixed (0/1), the independent
+#: coordinates given by formulation.independent (n), ascending]) and where its max_condition is in pf
+PI_FORM, PI_FORM_I, PI_FORM_F = 17, 18, 19
+KKT, ELIMINATION = 0, 1
+#: the address of the elimination's solve ``eliminated``, which the right-hand side calls through it (0 for KKT)
+PI_ELIM = 20
 #: the addresses of the model functions (MODEL_FUNCTIONS)
-PI_FN = 17
+PI_FN = 21
 #: the workspace offsets (MODEL_TERMS, then SCRATCH)
 PI_W = PI_FN + len(MODEL_FUNCTIONS)
 _W_NAMES = MODEL_TERMS + tuple(name for name, _ in SCRATCH)
@@ -87,15 +94,12 @@ _W_NAMES = MODEL_TERMS + tuple(name for name, _ in SCRATCH)
 PI_HEAD = PI_W + len(_W_NAMES)
 
 
-def _partition_sizes(m: int, r: int, k: int) -> tuple[int, int]:
+def _region_size(m: int, r: int, k: int) -> int:
+    """The floats of w[W_PART:]: minimal's partition (csim.physics.partition), or the elimination's state."""
+    from csim.physics.elimination import elimination_sizes
     from csim.physics.partition import partition_sizes
 
-    return partition_sizes(m, r, k)
-
-
-def int_workspace(m: int, r: int, k: int) -> int:
-    """The size of the kernels' integer workspace: the pivots of the KKT solve (m + r), then the partition's."""
-    return m + r + _partition_sizes(m, r, k)[1]
+    return max(partition_sizes(m, r, k)[0], elimination_sizes(m, r)[0])
 
 
 def model_offsets(m: int, r: int, k: int) -> tuple[dict[str, int], int]:

@@ -70,8 +70,8 @@ MODEL_BACKENDS = ("auto", "c", "numba", "python")
 
 #: the loaded copy of the kernels (one a process; None: not loaded yet)
 _KERNELS: ModuleType | None = None
-#: the loaded kernels -> the address of their feval (feval_address)
-_FEVAL: dict[ModuleType, int] = {}
+#: (the loaded kernels, a function's name) -> the address of its machine code (addressed_function)
+_ADDRESSES: dict[tuple[ModuleType, str], int] = {}
 #: (id(definition), drives) -> (definition, model): hashing a definition takes milliseconds
 _BY_DEFINITION: dict[tuple, tuple[MechanismDefinition, CompiledModel]] = {}
 _MODELS: dict[str, CompiledModel] = {}
@@ -170,24 +170,31 @@ def load_kernels(compiled: bool = True) -> ModuleType:
 
 
 def feval_address(kernels: ModuleType) -> int:
-    """The address of the machine code of ``kernels.feval`` (the right-hand side its callers call by
-    address, :func:`csim.fast.kernels.addresses.call_feval`), compiled for ``kernels.FEVAL_TYPES`` or loaded
-    from numba's cache on the first call in a process."""
-    if not kernels.COMPILED:  # the interpreted package calls its feval from Python: an id stands for the address
-        return id(kernels.feval)
-    if kernels not in _FEVAL:
+    """The address of ``kernels.feval``, the right-hand side its callers call by address
+    (:func:`csim.fast.kernels.addresses.call_feval`): :func:`addressed_function`."""
+    return addressed_function(kernels, "feval")
+
+
+def addressed_function(kernels: ModuleType, name: str) -> int:
+    """The address of the machine code of ``kernels.<name>`` (``feval``, ``eliminated``: compiled on their own
+    and called by address), compiled for ``kernels.<NAME>_TYPES`` or loaded from numba's cache on the first
+    call in a process."""
+    function = getattr(kernels, name)
+    if not kernels.COMPILED:  # the interpreted package calls its own from Python: an id stands for the address
+        return id(function)
+    if (kernels, name) not in _ADDRESSES:
         from numba import types
 
-        signature = tuple(kernels.FEVAL_TYPES)
-        kernels.feval.compile(signature)
-        compiled = kernels.feval.overloads[signature]
-        if compiled.signature.return_type != types.int64:  # call_feval reads an int64
-            raise RuntimeError(f"feval returns {compiled.signature.return_type}, the kernels expect int64")
+        signature = tuple(getattr(kernels, f"{name.upper()}_TYPES"))
+        function.compile(signature)
+        compiled = function.overloads[signature]
+        if compiled.signature.return_type != types.int64:  # the calls read an int64
+            raise RuntimeError(f"{name} returns {compiled.signature.return_type}, the kernels expect int64")
         address = compiled.library.get_pointer_to_function(compiled.fndesc.llvm_func_name)
         if not address:
             raise RuntimeError(f"no machine code for {compiled.fndesc.llvm_func_name} in {kernels.__name__}")
-        _FEVAL[kernels] = address
-    return _FEVAL[kernels]
+        _ADDRESSES[kernels, name] = address
+    return _ADDRESSES[kernels, name]
 
 
 def _kernels_copy() -> Path:

@@ -15,13 +15,22 @@ from contextlib import contextmanager, nullcontext, suppress
 
 import numpy as np
 
-from csim.fast.layout import CONSTRAINED, PARTITIONED, PI_FEVAL, PI_HEAD, workspace
-from csim.fast.module import Drives, feval_address, kernels_compiled, load_kernels, load_model, method_dispatch
+from csim.fast.layout import CONSTRAINED, ELIMINATION, KKT, PARTITIONED, PI_FEVAL, PI_HEAD, workspace
+from csim.fast.module import (
+    Drives,
+    addressed_function,
+    feval_address,
+    kernels_compiled,
+    load_kernels,
+    load_model,
+    method_dispatch,
+)
 from csim.physics.events import chattering_switches
 from csim.physics.jit import plain
 from csim.physics.status import OK, code_kind
 from csim.solver.driven import DrivenSystem
 from csim.solver.failures import failure_message
+from csim.solver.formulations import Elimination
 from csim.solver.partitioned import PartitionedSystem
 from csim.solver.settings import IntegrationSettings, Trajectory, output_times
 from csim.solver.system import ConstrainedSystem
@@ -33,10 +42,11 @@ def pack_problem(system: ConstrainedSystem, interpreted: bool = False) -> tuple[
     """``(par, pf, pi)``: the problem as the flat arrays of :mod:`csim.fast.kernels` (``interpreted``: for the
     interpreted kernels, whose model functions and gamma* may be Python functions).
 
-    pf = [magnitudes (k), sw_value (n_sw), fpar (F), gains (G * r)];
+    pf = [magnitudes (k), sw_value (n_sw), fpar (F), gains (G * r), the formulation's floats];
     pi = [mk, n_sw, at(ipar), I, at(fpar), F, at(gains), G * r, m, r, k, o, gamma* address, system kind, d,
-    at(driven), feval's address (0 here: :func:`_arguments` sets it), model function addresses, workspace
-    offsets, sw_load (n_sw), sw_kind (n_sw), ipar (I), driven (d)]
+    at(driven), feval's address (0 here: :func:`_arguments` sets it), formulation, at(its integers), at(its
+    floats), the elimination's address (0 for KKT), model function addresses, workspace offsets, sw_load
+    (n_sw), sw_kind (n_sw), ipar (I), driven (d), the formulation's integers]
     (:mod:`csim.fast.layout`), where mk is the method's dispatch code and ``at(x)`` where x
     starts in pi or pf. The load laws are :class:`csim.load_laws.LoadSet`'s packing, the method's
     settings :meth:`csim.solver.methods.base.Method.pack`'s. A driven system's (:class:`DrivenSystem`)
@@ -58,11 +68,25 @@ def pack_problem(system: ConstrainedSystem, interpreted: bool = False) -> tuple[
     code, gamma_fn = method_dispatch(method, interpreted)
     kind = PARTITIONED if isinstance(system, PartitionedSystem) else CONSTRAINED
     driven = np.zeros(0, np.int64) if drives is None else np.array(drives.driven, np.int64)
+    form, form_i, form_f = _formulation(system.formulation, m - r)
+    # the elimination's solve, called by address (compiled or loaded here, on the first run that needs it)
+    elim = addressed_function(load_kernels(compiled=not interpreted), "eliminated") if form == ELIMINATION else 0
+    at_form_i, at_form_f = at_ipar + ipar.size + d, at_fpar + fpar.size + gains.size
     header = [code, n_sw, at_ipar, ipar.size, at_fpar, fpar.size, at_fpar + fpar.size, gains.size, m, r, k, o,
-              gamma_fn, kind, d, at_ipar + ipar.size, 0, *model.addresses, *workspace(m, r, k, n_sw)]
-    pf = np.concatenate((loads.magnitudes, loads.sw_value, fpar, gains)).astype(float)
-    pi = np.concatenate((header, loads.sw_load, loads.sw_kind, ipar, driven)).astype(np.int64)
+              gamma_fn, kind, d, at_ipar + ipar.size, 0, form, at_form_i, at_form_f, elim, *model.addresses,
+              *workspace(m, r, k, n_sw)]
+    pf = np.concatenate((loads.magnitudes, loads.sw_value, fpar, gains, form_f)).astype(float)
+    pi = np.concatenate((header, loads.sw_load, loads.sw_kind, ipar, driven, form_i)).astype(np.int64)
     return np.ascontiguousarray(system.par, dtype=float), pf, pi
+
+
+def _formulation(formulation, n: int) -> tuple[int, np.ndarray, np.ndarray]:
+    """(code, integers, floats) of the formulation (:mod:`csim.fast.layout`): KKT, or ELIMINATION with
+    [fixed (0/1), formulation.independent (n, ascending; zeros when not fixed)] and [max_condition]."""
+    if not isinstance(formulation, Elimination):
+        return KKT, np.zeros(0, np.int64), np.zeros(0)
+    given = formulation.given if formulation.fixed else np.zeros(n, np.int64)
+    return ELIMINATION, np.array([int(formulation.fixed), *given], np.int64), np.array([formulation.max_condition])
 
 
 def _drives(system: ConstrainedSystem) -> Drives | None:
@@ -136,10 +160,11 @@ def compile_loop(system: ConstrainedSystem, y0: np.ndarray, settings: Integratio
 def compile_rhs(system: ConstrainedSystem, y0: np.ndarray) -> None:
     """Compile (or load) what the kernels hold besides the loop, for the full state ``y0`` of a system that
     is not partitioned (their types are every method's): the right-hand side the loop calls by address
-    (``feval``), the samples' evaluation (``evaluate_samples``) and the one-state entry points
-    (:func:`compile_entries`)."""
+    (``feval``) and the elimination's solve it calls so (``eliminated``), the samples' evaluation
+    (``evaluate_samples``) and the one-state entry points (:func:`compile_entries`)."""
     mod = _kernels_for(system)
     feval_address(mod)
+    addressed_function(mod, "eliminated")
     n_sw = system.loads.n_switches
     evaluate_compiled(system, np.zeros(1), np.asarray(y0, dtype=float)[None], np.zeros((1, n_sw), dtype=bool))
     compile_entries(system, y0)

@@ -19,10 +19,10 @@
     the reference Python path (:func:`csim.solver.simulate.integrate`: scipy's integrators,
     and every formulation and method), for debugging.
 
-Supported: ``formulation.method: kkt``; every ``stabilization.method`` whose class says
-``compiled = True`` (:mod:`csim.solver.methods`); ``simulation.integrator`` DOP853, RK45, Tsit5,
-RK4 or Radau (each scipy's, or csim's Python class's, step for step, :mod:`csim.fast.kernels`);
-events on or off; drives
+Supported: ``formulation.method`` ``kkt`` and ``elimination`` (not with ``minimal``); every
+``stabilization.method`` whose class says ``compiled = True`` (:mod:`csim.solver.methods`);
+``simulation.integrator`` DOP853, RK45, Tsit5, Vern7, RK4 or Radau (each scipy's, or csim's Python
+class's, step for step, :mod:`csim.fast.kernels`); events on or off; drives
 (``mechanism.drive_mode: dynamic``) with every such method.
 """
 from __future__ import annotations
@@ -36,7 +36,7 @@ BACKENDS = ("auto", "python", "compiled", "interpreted")
 KERNEL_BACKENDS = ("compiled", "interpreted")
 
 #: what the compiled backend implements
-FORMULATIONS = ("kkt",)
+FORMULATIONS = ("kkt", "elimination")
 INTEGRATORS = ("DOP853", "RK45", "Tsit5", "Vern7", "RK4", "Radau")
 
 
@@ -52,10 +52,14 @@ def unsupported(case) -> list[str]:
     """
     reasons = []
     formulation = case.formulation.method
-    if formulation not in FORMULATIONS:
-        reasons.append(f"formulation.method {formulation!r}: the compiled backend implements the KKT formulation "
-                       f"only (the elimination gives the same motion in exact arithmetic); use 'kkt'")
     method = case.stabilization.method
+    if formulation not in FORMULATIONS:
+        reasons.append(f"formulation.method {formulation!r}: the compiled backend implements "
+                       f"{', '.join(FORMULATIONS)}")
+    elif formulation == "elimination" and method == "minimal":
+        reasons.append("formulation.method 'elimination' with stabilization.method 'minimal': the partitioned "
+                       "system keeps its own partition where the compiled elimination keeps its; the KKT "
+                       "formulation gives minimal the same motion, compiled")
     if method not in compiled_stabilizers():
         why = {"ggl": "GGL is an index-2 DAE solved by the Python Radau IIA for DAEs"}
         reasons.append(f"stabilization.method {method!r}: {why.get(method, 'not implemented in compiled code')}; "

@@ -31,6 +31,10 @@ BRANCH_LEFT = 18  # Newton's solution left the assembly branch (a breakdown)
 NO_BETTER_PARTITION = 19  # a breakdown other than BRANCH_LEFT, and no better partition at the accepted state
 BRANCH_LOST = 20  # BRANCH_LEFT again after MAX_BRANCH_RESTARTS restarts from the same accepted state
 INTERRUPTED = 21  # a: t (Ctrl-C: the compiled loop saw the caller's request)
+# the elimination formulation (csim.physics.elimination)
+ELIMINATION_FIXED_SINGULAR = 22  # Phi_v of formulation.independent above formulation.max_condition
+ELIMINATION_NO_BLOCK = 23  # no dependent block within formulation.max_condition, after choosing again
+ELIMINATION_SINGULAR = 24  # [R^T M; Phi_q] singular
 
 #: the kind of failure each code is (:data:`csim.result.FAILURES`): what HDF5's ``failure``
 #: attribute, the sweep tables and ``csim batch`` call it
@@ -42,6 +46,7 @@ KINDS = {
     NO_SIGN_CHANGE: "event location", CHATTER: "chatter",
     DEPENDENT_NONFINITE: "blow-up", DEPENDENT_SINGULAR: "singular", DEPENDENT_NO_CONVERGENCE: "newton",
     BRANCH_LEFT: "branch", NO_BETTER_PARTITION: "branch", BRANCH_LOST: "branch", INTERRUPTED: "interrupted",
+    ELIMINATION_FIXED_SINGULAR: "singular", ELIMINATION_NO_BLOCK: "singular", ELIMINATION_SINGULAR: "singular",
 }
 
 

@@ -14,6 +14,9 @@ from csim.physics.status import (
     DEPENDENT_NO_CONVERGENCE,
     DEPENDENT_NONFINITE,
     DEPENDENT_SINGULAR,
+    ELIMINATION_FIXED_SINGULAR,
+    ELIMINATION_NO_BLOCK,
+    ELIMINATION_SINGULAR,
     INTERRUPTED,
     MAX_EVENTS,
     MAX_PHI,
@@ -101,6 +104,15 @@ def failure_message(code: int, a: float, b: float, settings, method=None, switch
         return _chatter_message(a, b, settings, switches)
     if code == INTERRUPTED:  # as the Python driver words it
         return f"interrupted by the user after t = {a:.6g} s"
+    if code == ELIMINATION_FIXED_SINGULAR:
+        return ("the dependent block Phi_v of the constraint Jacobian is singular (its condition number "
+                "||Phi_q||_1 ||Phi_v^-1||_1 exceeds formulation.max_condition) with the independent coordinates "
+                "fixed by formulation.independent")
+    if code == ELIMINATION_NO_BLOCK:
+        return ("singular constraint Jacobian: no well-conditioned dependent block exists (none within "
+                "formulation.max_condition)")
+    if code == ELIMINATION_SINGULAR:
+        return "singular system [R^T M; Phi_q] in the elimination formulation"
     if DEPENDENT_NONFINITE <= code <= BRANCH_LOST:
         return _partition_message(code, detail, method, coordinates)
     return f"integration failed with status {code}"

@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from csim.errors import SimulationFailure
+from csim.physics.elimination import E_CHOSEN, E_REPARTITIONS, eliminate, new_elimination
 from csim.physics.kkt import kkt_solve
 from csim.physics.linalg import as_core
 from csim.physics.partition import block_inverse, choose_partition
-from csim.physics.status import SINGULAR_KKT
+from csim.physics.status import OK, SINGULAR_KKT
 from csim.solver.failures import failure
 
 
@@ -102,6 +102,8 @@ class Elimination(Formulation):
         [Phi_q ]       [gamma*]
 
     The multipliers are recovered from the dependent rows, Phi_v^T lambda = (p - M qdd)_v.
+    The solve is :func:`csim.physics.elimination.eliminate`, the compiled kernels' too; this
+    object holds its partition between solves.
 
     Parameters
     ----------
@@ -117,57 +119,33 @@ class Elimination(Formulation):
 
     def __init__(self, independent=None, max_condition: float = 1e8):
         self.fixed = independent is not None
-        self.independent = self.dependent = None
-        if independent is not None:
-            self._set_independent(np.asarray(independent, dtype=int))
+        #: formulation.independent, ascending (the order of u does not change qdd)
+        self.given = np.sort(np.asarray([] if independent is None else independent, dtype=np.int64))
         self.max_condition = float(max_condition)
-        self.repartitions = 0
+        self._state = None  # the EliminationState, laid out at the first solve (its sizes are the Jacobian's)
 
-    def _set_independent(self, u):
-        self.independent = np.asarray(u, dtype=int)
-        self.dependent = None  # set from the Jacobian's width at the next evaluation
+    @property
+    def independent(self) -> np.ndarray | None:
+        """The independent coordinates of the last solve (``formulation.independent``, or None, before it)."""
+        if self._state is None or not self._state.count[E_CHOSEN]:
+            return self.given if self.fixed else None
+        return self._state.ind.copy()
 
-    def _inverse_block(self, phi_q):
-        """Dependent indices v, Phi_v^-1 and its condition (:func:`dependent_block_inverse`)."""
-        if self.dependent is None:
-            self.dependent = np.setdiff1d(np.arange(phi_q.shape[1]), self.independent)
-        return (self.dependent, *dependent_block_inverse(phi_q, self.dependent))
-
-    def _partition(self, phi_q):
-        if self.independent is None:
-            self._set_independent(choose_independent(phi_q))
-        v, inv, cond = self._inverse_block(phi_q)
-        if cond > self.max_condition:
-            if self.fixed:
-                raise SimulationFailure(
-                    f"the dependent block Phi_v of the constraint Jacobian is singular "
-                    f"(condition number {cond:.3g}) with the independent coordinates fixed by "
-                    f"formulation.independent", "singular")
-            self._set_independent(choose_independent(phi_q))
-            self.repartitions += 1
-            v, inv, cond = self._inverse_block(phi_q)
-            if cond > self.max_condition:
-                raise SimulationFailure("singular constraint Jacobian: no well-conditioned dependent block exists",
-                                        "singular")
-        return self.independent, v, inv
+    @property
+    def repartitions(self) -> int:
+        """How many times the partition was chosen again."""
+        return 0 if self._state is None else int(self._state.count[E_REPARTITIONS])
 
     def solve(self, M, phi_q, p, gamma_star):
         m, r = M.shape[0], phi_q.shape[0]
-        u, v, phi_v_inv = self._partition(phi_q)
-        # R (m, n): rows u = identity, rows v = -Phi_v^-1 Phi_u
-        R = np.zeros((m, m - r))
-        R[u, np.arange(m - r)] = 1.0
-        R[v, :] = -phi_v_inv @ phi_q[:, u]
-        A = np.vstack((R.T @ M, phi_q))
-        b = np.concatenate((R.T @ p, gamma_star))
-        try:
-            qdd = np.linalg.solve(A, b)
-        except np.linalg.LinAlgError:
-            raise SimulationFailure("singular system [R^T M; Phi_q] in the elimination formulation",
-                                    "singular") from None
-        # Phi_v^T lambda = (p - M qdd)_v
-        lam = phi_v_inv.T @ (p - M @ qdd)[v]
-        return qdd, lam
+        if self._state is None:
+            self._state = new_elimination(m, r)
+        x = np.empty(m + r)
+        code = eliminate(as_core(M), as_core(phi_q), as_core(p), as_core(gamma_star), self._state, self.fixed,
+                         self.given, self.max_condition, np.empty(m * m), x, np.empty(m, np.int64), m, r)
+        if code != OK:
+            raise failure(code, 0.0, 0.0, None)
+        return x[:m], x[m:]
 
 
 #: name -> class

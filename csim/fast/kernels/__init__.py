@@ -26,7 +26,7 @@ file, from the bottom up:
 ``variant``       whether this package is compiled (``COMPILED``): the cache's copy, not the source
 ``common``        the decorators, the integrators' codes, the loop's scalar slots
 ``tableaus``      the explicit pairs' coefficients (scipy's DOP853, :mod:`csim.physics.tableaus`)
-``addresses``     compiled-only: model functions, gamma* and ``feval`` called by address; the model handle
+``addresses``     compiled-only: calls by address (model, gamma*, ``feval``, elimination); the model handle
 ``interpreted``   the same calls from Python, for the interpreted package
 ``calls``         the model functions and gamma* by name, over one of the two
 ``system``        the right-hand side at a state, the projection, the partitioned system
@@ -56,13 +56,13 @@ The files import each other relatively: a copy in the cache is a package of its 
 """
 from .driver import integrate
 from .entries import evaluate_samples, project_entry, rhs_entry, rhs_repeat
-from .system import feval
+from .system import eliminated, feval
 from .variant import COMPILED
 
 if COMPILED:
-    from .addresses import FEVAL_TYPES
+    from .addresses import ELIMINATED_TYPES, FEVAL_TYPES
 else:
-    FEVAL_TYPES = None  # the interpreted package calls its feval from Python
+    FEVAL_TYPES = ELIMINATED_TYPES = None  # the interpreted package calls them from Python
 
-__all__ = ["COMPILED", "FEVAL_TYPES", "evaluate_samples", "feval", "integrate", "project_entry",
-           "rhs_entry", "rhs_repeat"]
+__all__ = ["COMPILED", "ELIMINATED_TYPES", "FEVAL_TYPES", "eliminated", "evaluate_samples", "feval", "integrate",
+           "project_entry", "rhs_entry", "rhs_repeat"]

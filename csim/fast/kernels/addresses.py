@@ -1,5 +1,6 @@
-"""The compiled-only part of the kernels: a mechanism's model functions, an external gamma*
-and ``feval`` called through their addresses, and the core's model handle over them.
+"""The compiled-only part of the kernels: a mechanism's model functions, an external gamma*,
+``feval`` and the elimination's solve called through their addresses, and the core's model
+handle over them.
 
 The model functions are C (``cc``, :mod:`csim.fast.ccodegen`) or numba cfuncs
 (:mod:`csim.fast.codegen`) with one interface (:mod:`csim.fast.layout`); their addresses are
@@ -63,37 +64,39 @@ def call_gamma(typingctx, addr, r, gamma, phi, phi_dot, gains, n_gains, fpar, n_
     return sig, codegen
 
 
-#: the argument types ``feval`` is compiled for (:func:`csim.fast.module.feval_address`), and its callers call
-#: it with: (t, y, mode, located, par, pf, pi, w, piv, f, info)
+#: the argument types ``feval`` is compiled for (:func:`csim.fast.module.addressed_function`), and its callers
+#: call it with: (t, y, mode, located, par, pf, pi, w, piv, f, info)
 _F8, _I8 = types.Array(types.float64, 1, "C"), types.Array(types.int64, 1, "C")
 FEVAL_TYPES = (types.float64, _F8, types.Array(types.boolean, 1, "C"), types.boolean, _F8, _F8, _I8, _F8, _I8, _F8,
                _F8)
+#: ... and the elimination's solve, ``eliminated``: (pf, pi, w, piv)
+ELIMINATED_TYPES = (_F8, _I8, _F8, _I8)
 
 
-@intrinsic
-def call_feval(typingctx, addr, t, y, mode, located, par, pf, pi, w, piv, f, info):
-    """``feval(t, y, ...)`` called through its address (pi[PI_FEVAL]), with numba's own calling convention.
+def _typed_call(name, signature, addr, argtys):
+    """The typing of a call ``call(addr, *args)`` of the function ``name``, compiled for the argument types
+    ``signature`` (returning int64), at the address ``addr``, with numba's own calling convention:
+    (signature, codegen) for an intrinsic.
 
     numba links the LLVM IR of every function a compiled function calls into it, and
     optimizes and emits the whole again: each of the dozen functions that evaluate the
     right-hand side (the steppers' stages, the dense outputs, the first step, Radau's
     Jacobian) carried its own copy of the right-hand side's closure, a third of the cold
-    compile. Called by address, ``feval`` is compiled once, on its own, for :data:`FEVAL_TYPES`
-    (the arguments must be exactly those: the call is typed only for them). As numba's own
-    call does, an error status (an exception, which nothing in ``feval`` raises today but
+    compile. Called by address, such a function is compiled once, on its own, for
+    ``signature`` (the arguments must be exactly those: the call is typed only for them). As
+    numba's own call does, an error status (an exception, which nothing there raises today but
     ``NUMBA_BOUNDSCHECK=1`` would) is passed on to the caller instead of read as a result.
     (``_get_arg_packer`` and ``_get_return_status`` are numba's, 0.60 to 0.68.)
     """
-    argtys = (t, y, mode, located, par, pf, pi, w, piv, f, info)
     if not isinstance(addr, types.Integer):
         return None
-    for i, (got, want) in enumerate(zip(argtys, FEVAL_TYPES)):
+    for i, (got, want) in enumerate(zip(argtys, signature)):
         if got != want:
-            raise TypingError(f"call_feval: argument {i + 1} is {got}; feval is compiled for {want} "
-                              f"(csim.fast.kernels.calls.FEVAL_TYPES)")
+            raise TypingError(f"call of {name}: argument {i + 1} is {got}; {name} is compiled for {want} "
+                              f"(csim.fast.kernels.addresses)")
     sig = types.int64(addr, *argtys)
 
-    def codegen(context, builder, signature, args):
+    def codegen(context, builder, sig_, args):
         call_conv = context.call_conv
         fnty = call_conv.get_function_type(types.int64, argtys)
         fn = builder.inttoptr(args[0], fnty.as_pointer())
@@ -107,6 +110,19 @@ def call_feval(typingctx, addr, t, y, mode, located, par, pf, pi, w, piv, f, inf
             call_conv.return_status_propagate(builder, status)
         return context.get_returned_value(builder, types.int64, builder.load(result))
     return sig, codegen
+
+
+@intrinsic
+def call_feval(typingctx, addr, t, y, mode, located, par, pf, pi, w, piv, f, info):
+    """``feval(t, y, ...)`` (:data:`FEVAL_TYPES`) called through its address pi[PI_FEVAL] (:func:`_typed_call`)."""
+    return _typed_call("feval", FEVAL_TYPES, addr, (t, y, mode, located, par, pf, pi, w, piv, f, info))
+
+
+@intrinsic
+def call_eliminated(typingctx, addr, pf, pi, w, piv):
+    """``eliminated(pf, pi, w, piv)`` (:data:`ELIMINATED_TYPES`) called through its address pi[PI_ELIM]
+    (:func:`_typed_call`)."""
+    return _typed_call("eliminated", ELIMINATED_TYPES, addr, (pf, pi, w, piv))
 
 
 # ---------------------------------------------------------------------------------------

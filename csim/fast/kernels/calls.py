@@ -1,6 +1,6 @@
-"""How the kernels reach the mechanism: its model functions, the stabilization method's gamma*
-and the right-hand side ``feval``, each called through an address in ``pi``, and the core's
-model handle (:mod:`csim.physics.model`).
+"""How the kernels reach the mechanism: its model functions, the stabilization method's gamma*,
+the right-hand side ``feval`` and the elimination's solve, each called through an address in
+``pi``, and the core's model handle (:mod:`csim.physics.model`).
 
 A compiled copy calls the addresses from machine code (:mod:`.addresses`, the compiled-only
 part); the interpreted package calls the same functions from Python (:mod:`.interpreted`).
@@ -27,11 +27,11 @@ from .common import hot
 from .variant import COMPILED
 
 if COMPILED:
-    from .addresses import call_feval, call_gamma, call_model, model_handle
+    from .addresses import call_eliminated, call_feval, call_gamma, call_model, model_handle
 else:
-    from .interpreted import call_feval, call_gamma, call_model, model_handle
+    from .interpreted import call_eliminated, call_feval, call_gamma, call_model, model_handle
 
-__all__ = ["call_feval", "model_handle"]
+__all__ = ["call_eliminated", "call_feval", "model_handle"]
 
 
 # the model functions of the mechanism in pi (csim.fast.layout: one C interface for all)

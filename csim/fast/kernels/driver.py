@@ -6,7 +6,7 @@ import numpy as np
 from csim.fast.layout import PARTITIONED, PI_FEVAL, PI_NC, PI_ND, PI_NL, PI_NQ, PI_NSW, PI_SYS, W_END
 from csim.physics import branch
 from csim.physics.events import check_chatter
-from csim.physics.partition import D_HEAD, partition_sizes
+from csim.physics.partition import D_HEAD
 from csim.physics.status import INTERRUPTED, MAX_EVENTS, MAX_STEPS, OK, RK4_RESOLUTION, STEP_TOO_SMALL
 from csim.physics.steps import check_step
 
@@ -52,6 +52,7 @@ from .system import (
     _repartition,
     feval_call,
     full_state,
+    int_workspace,
     mode_at,
     project,
 )
@@ -332,7 +333,7 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset, control):
     n, n_sw = 2 * n_free + pi[PI_NL] + pi[PI_ND], pi[PI_NSW]
     w = np.zeros(pi[W_END])
     # the KKT solve's pivots, then the partition's integers
-    piv = np.zeros(pi[PI_NQ] + pi[PI_NC] + partition_sizes(pi[PI_NQ], pi[PI_NC], pi[PI_NL])[1], np.int64)
+    piv = np.zeros(int_workspace(pi), np.int64)
     tr, ys, modes = np.empty(t_out.size), np.empty((t_out.size, y0.size)), np.zeros((t_out.size, n_sw), np.bool_)
     ev_t, ev_sw = np.empty(16), np.zeros((16, n_sw), np.bool_)
     info, ts_, cs = np.zeros(2 + D_HEAD + 2 * n_free), np.zeros(11), np.zeros(11, np.int64)

@@ -9,7 +9,7 @@ from csim.physics.status import OK
 
 from .calls import kinetic, observe, potential
 from .common import allocating
-from .system import project, rhs
+from .system import int_workspace, project, rhs
 
 #: ``located`` for the right-hand side at a recorded state (the load laws held in ``mode``): numpy's True,
 #: which numba types as ``boolean``, the type the loop's ``feval`` passes; a literal True (or a global
@@ -55,7 +55,7 @@ def evaluate_samples(ts, ys, modes, par, pf, pi):
     nq, nc, nl, no = pi[PI_NQ], pi[PI_NC], pi[PI_NL], pi[PI_NO]
     nk = nq + nc
     w = np.zeros(pi[W_END])
-    piv = np.zeros(nk, np.int64)
+    piv = np.zeros(int_workspace(pi), np.int64)
     f = np.empty(ys.shape[1])
     mode = np.empty(pi[PI_NSW], np.bool_)
     ok = np.ones(N, np.bool_)
@@ -92,7 +92,7 @@ def evaluate_samples(ts, ys, modes, par, pf, pi):
 def rhs_entry(t, y, mode, par, pf, pi):
     """dy/dt and [qdd, lambda] at time t and one state (mode held), for comparison with the Python path."""
     w = np.zeros(pi[W_END])
-    piv = np.zeros(pi[PI_NQ] + pi[PI_NC], np.int64)
+    piv = np.zeros(int_workspace(pi), np.int64)
     f = np.empty(y.size)
     code = rhs(t, y, mode.copy(), LOCATED, par, pf, pi, w, piv, f)
     return code, f, w[pi[W_X]:pi[W_X] + pi[PI_NQ] + pi[PI_NC]].copy()
@@ -102,7 +102,7 @@ def rhs_entry(t, y, mode, par, pf, pi):
 def rhs_repeat(y, mode, par, pf, pi, n_eval):
     """n_eval evaluations of the right-hand side (a timing loop for the benchmark)."""
     w = np.zeros(pi[W_END])
-    piv = np.zeros(pi[PI_NQ] + pi[PI_NC], np.int64)
+    piv = np.zeros(int_workspace(pi), np.int64)
     f = np.empty(y.size)
     acc = 0.0
     for _ in range(n_eval):
@@ -114,7 +114,7 @@ def rhs_repeat(y, mode, par, pf, pi, n_eval):
 @allocating
 def project_entry(y, par, pf, pi):
     w = np.zeros(pi[W_END])
-    piv = np.zeros(pi[PI_NQ] + pi[PI_NC], np.int64)
+    piv = np.zeros(int_workspace(pi), np.int64)
     out = np.empty(y.size)
     info = np.zeros(2)
     code = project(y, out, 0.0, par, pf, pi, w, piv, info)

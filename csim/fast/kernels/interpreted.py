@@ -14,7 +14,7 @@ process (:func:`csim.fast.runner.integrate_compiled` runs it inside
 - a method's gamma* outside the built-in dispatch is always the key of its Python kernel in
   :data:`PYTHON_FUNCTIONS` (:func:`csim.fast.module.method_dispatch` registers it there for the
   interpreted kernels instead of wrapping it in a cfunc);
-- ``feval`` is this package's own function (its address in ``pi`` is only checked to be set);
+- ``feval`` and ``eliminated`` are this package's own functions (their addresses in ``pi`` are ids);
 - the model handle is a :class:`ModelHandle`, whose methods are the compiled overloads'
   bodies, for the core's :mod:`csim.physics.model`.
 
@@ -77,6 +77,13 @@ def call_feval(addr, t, y, mode, located, par, pf, pi, w, piv, f, info):
     from .system import feval  # (system imports this module)
 
     return feval(t, y, mode, located, par, pf, pi, w, piv, f, info)
+
+
+def call_eliminated(addr, pf, pi, w, piv):
+    """This package's ``eliminated`` (the compiled copy calls its own through ``addr``)."""
+    from .system import eliminated  # (system imports this module)
+
+    return eliminated(pf, pi, w, piv)
 
 
 class ModelHandle:

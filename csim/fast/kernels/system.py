@@ -5,9 +5,14 @@ method, load laws), the switching functions, the projection, and the partitioned
 import numpy as np
 
 from csim.fast.layout import (
+    ELIMINATION,
     PARTITIONED,
     PI_DRV,
+    PI_ELIM,
     PI_FEVAL,
+    PI_FORM,
+    PI_FORM_F,
+    PI_FORM_I,
     PI_FPAR,
     PI_GAINS,
     PI_HEAD,
@@ -53,15 +58,16 @@ from csim.fast.layout import (
     W_Z,
 )
 from csim.physics import branch
+from csim.physics.elimination import eliminate, elimination_sizes, elimination_state
 from csim.physics.kkt import constraint_rates, generalized_forces, kkt_solve
 from csim.physics.loads import load_rates, load_values, mode_of, switching_functions
-from csim.physics.partition import C_PENDING, partition_state
+from csim.physics.partition import C_PENDING, partition_sizes, partition_state
 from csim.physics.projection import max_abs
 from csim.physics.projection import project as project_state
 from csim.physics.status import NONFINITE_RHS, OK, SINGULAR_KKT
 from csim.physics.steps import all_finite
 
-from .calls import call_feval, loads_, method_gamma_star, model_handle, phi_at, terms
+from .calls import call_eliminated, call_feval, loads_, method_gamma_star, model_handle, phi_at, terms
 from .common import addressed, hot, inlined, sized
 
 
@@ -85,6 +91,31 @@ def _partition_call(par, pf, pi, w, piv):
     P = _partition(pi, w, piv)
     fpar, ipar = pf[pi[PI_FPAR]:], pi[pi[PI_IPAR]:]
     return model_handle(par, pi, w, P.ym, 0.0), P, pi[PI_NC], pi[PI_NQ], pi[PI_NL], fpar[0], ipar[0], fpar[1]
+
+
+@inlined
+def int_workspace(pi):
+    """The size of the integer workspace piv: the KKT solve's pivots (m + r), then the partition's integers
+    (minimal's), or the elimination's, which are fewer."""
+    m, r = pi[PI_NQ], pi[PI_NC]
+    return m + r + max(partition_sizes(m, r, pi[PI_NL])[1], elimination_sizes(m, r)[1])
+
+
+# Compiled on its own and called through its address (call_eliminated), as feval: linked into the right-hand
+# side, the elimination's call tree (the partition's choice, its inverses) was optimized again inside every
+# entry point that evaluates it, and the sized copies of each (13 s more of the cold compile on 2 cores).
+@addressed
+def eliminated(pf, pi, w, piv):
+    """[qdd, lambda] into w[W_X:] by the elimination (csim.physics.elimination), from the terms, p and gamma*
+    in w; its state (csim.physics.elimination.elimination_state) lies where minimal's partition does, in
+    w[W_PART:] and piv after the KKT pivots (the plain system only: the compiled elimination does not run with
+    minimal). Returns the status code."""
+    nq, nc = pi[PI_NQ], pi[PI_NC]
+    at = pi[PI_FORM_I]
+    E = elimination_state(w[pi[W_PART]:pi[W_END]], piv[nq + nc:], nq, nc)  # (minimal's region: never both)
+    return eliminate(w[pi[W_M]:pi[W_M] + nq * nq], w[pi[W_J]:pi[W_J] + nc * nq], w[pi[W_P]:pi[W_P] + nq],
+                     w[pi[W_GS]:pi[W_GS] + nc], E, pi[at] == 1, pi[at + 1:at + 1 + nq - nc],
+                     pf[pi[PI_FORM_F]], w[pi[W_A]:pi[W_A] + nq * nq], w[pi[W_X]:pi[W_X] + nq + nc], piv[:nq], nq, nc)
 
 
 # The partitioned system's branches in the functions of every step call a function of their own:
@@ -214,7 +245,11 @@ def _rhs_sized(t, y, mode, located, par, pf, pi, w, piv, f, nq, nc):
                       ipar, gstar, pi)
     x = w[pi[W_X]:pi[W_X] + nk]
     A = w[pi[W_A]:pi[W_A] + nk * nk]
-    if not kkt_solve(w[pi[W_M]:pi[W_M] + nq * nq], J, p, gstar, A, x, piv, nq, nc):
+    if pi[PI_FORM] == ELIMINATION:
+        code = call_eliminated(pi[PI_ELIM], pf, pi, w, piv)
+        if code != OK:
+            return code
+    elif not kkt_solve(w[pi[W_M]:pi[W_M] + nq * nq], J, p, gstar, A, x, piv, nq, nc):
         return SINGULAR_KKT
     sdot = w[pi[W_SD]:pi[W_SD] + nl]
     load_rates(B, qd, sdot, nq, nl)
@@ -231,7 +266,8 @@ def _rhs_sized(t, y, mode, located, par, pf, pi, w, piv, f, nq, nc):
 
 @hot
 def rhs(t, y, mode, located, par, pf, pi, w, piv, f):
-    """dy/dt = [qd, qdd, u * B^T qd] at time t into f; [qdd, lambda] left in w[W_X:]. Returns OK or SINGULAR_KKT.
+    """dy/dt = [qd, qdd, u * B^T qd] at time t into f; [qdd, lambda] left in w[W_X:] (by the KKT system, or the
+    elimination). Returns OK or the solve's failure code.
 
     The load laws are held in ``mode``; with ``located`` False they are evaluated at y
     itself (``mode`` is then overwritten: pass a scratch array). For the commonest sizes
