@@ -83,8 +83,10 @@ def test_the_compiled_elimination_chooses_its_partition_again_over_the_top():
 
 
 def test_minimal_with_the_elimination_stays_on_the_python_path():
-    from csim.fast.support import unsupported
+    from csim.fast.support import resolve_backend, unsupported
 
-    why = unsupported(qr_case(ELIMINATION, "stabilization.method=minimal"))
+    case = qr_case(ELIMINATION, "stabilization.method=minimal", "simulation.t_end=0.05")
+    why = unsupported(case)
     assert len(why) == 1 and "minimal" in why[0] and "elimination" in why[0]
-    assert unsupported(qr_case(ELIMINATION)) == []
+    assert resolve_backend(case) == "python" and run_case(case).backend == "python"
+    assert unsupported(qr_case(ELIMINATION)) == [] and resolve_backend(qr_case(ELIMINATION)) == "compiled"

@@ -175,7 +175,8 @@ def test_compiled_drive_rows_on_a_closed_loop_equal_python(method):
 def test_projection_onto_the_drives_runs_compiled_and_takes_the_python_paths_steps():
     """A05 with ``projection``: the shaft's drive row is projected onto at each step's time (its
     velocity target Phi_t = -f'(t), csim.physics.projection.project) by the kernels, with the same
-    steps as the Python path and the shaft on its drive to round-off."""
+    steps as the Python path (within 2 %, as for Radau above; measured equal) and the shaft on its
+    drive to round-off."""
     from csim.fast.support import unsupported
 
     runs = {b: run_case(load_case(A05, ["stabilization.method=projection", "simulation.t_end=2",

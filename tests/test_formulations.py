@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from csim.errors import SimulationFailure
-from csim.solver.formulations import KKT, Elimination, choose_independent, make_formulation
+from csim.solver.formulations import KKT, Elimination, make_formulation
 
 
 def random_problem(rng, m=5, r=2):
@@ -31,11 +31,13 @@ def test_elimination_equals_kkt(seed):
     np.testing.assert_allclose(lam_e, lam_k, rtol=1e-10, atol=1e-12)
 
 
-def test_choose_independent_avoids_the_singular_block():
+def test_the_chosen_partition_avoids_the_singular_block():
     # columns 0 and 1 are parallel: they cannot both be dependent
     J = np.array([[1.0, 2.0, 0.0], [1.0, 2.0, 1.0]])
-    u = choose_independent(J)
-    v = np.setdiff1d(np.arange(3), u)
+    M, _, p, gamma = random_problem(np.random.default_rng(1), m=3, r=2)
+    form = Elimination()
+    form.solve(M, J, p, gamma)
+    v = np.setdiff1d(np.arange(3), form.independent)
     assert np.linalg.cond(J[:, v]) < 10
 
 

@@ -128,3 +128,22 @@ def test_ggl_reaches_the_published_reference_of_andrews_mechanism_at_atol_1e_9()
     res = run_case(load_case(CONFIGS / "andrews.yaml", [*ANDREWS, "simulation.atol=1e-9"]))
     assert res.ok, res.message
     np.testing.assert_allclose(res.q[-1], Q_END, rtol=0, atol=1e-8)  # measured 1.1e-9 rad
+
+
+def test_a_massless_link_stops_ggl_with_a_message_that_does_not_offer_a_setting_it_ignores():
+    """GGL projects in the mass metric, fixed: with the four-bar's coupler massless (its relative angle has
+    no inertia, M is singular) the run stops at t = 0 saying that ggl needs mass on every moving link, not
+    to set stabilization.projection_metric, which GGL does not read (helper-25)."""
+    import yaml
+
+    from csim.case import validate_case
+
+    data = yaml.safe_load((CONFIGS / "fourbar_gravity.yaml").read_text())
+    coupler = next(link for link in data["mechanism"]["links"] if link.get("name") == "coupler")
+    for key in ("mass", "com", "inertia"):
+        coupler.pop(key)
+    data.setdefault("stabilization", {})["method"] = "ggl"
+    data.setdefault("simulation", {}).update(integrator="Radau", t_end=0.5)
+    result = run_case(validate_case(data))
+    assert not result.ok and result.failure == "singular"
+    assert "ggl projects in the mass metric" in result.message and "projection_metric" not in result.message

@@ -137,12 +137,12 @@ def kernels_source() -> dict[str, str]:
 
 
 def kernels_compiled(module: ModuleType) -> bool:
-    """Whether numba's cache holds the machine code of the kernels' loop and of the right-hand side it calls by
-    address (else the first run compiles them)."""
+    """Whether numba's cache holds the machine code of the kernels' loop and of the functions it calls by
+    address, the right-hand side and the elimination's solve (else the first run compiles them)."""
     def cached(dispatcher) -> bool:  # the copy's file that holds it, and numba's index of it there
         source = Path(dispatcher.py_func.__code__.co_filename)
         return any((source.parent / "__pycache__").glob(f"{source.stem}.{dispatcher.__name__}-*.nbi"))
-    return cached(module.integrate) and cached(module.feval)
+    return cached(module.integrate) and cached(module.feval) and cached(module.eliminated)
 
 
 def load_kernels(compiled: bool = True) -> ModuleType:

@@ -346,7 +346,7 @@ def evaluate_compiled(system: ConstrainedSystem, t: np.ndarray, y: np.ndarray,
     Returns
     -------
     dict
-        ``ok`` (N,) bool (False: singular KKT matrix, the row is NaN), ``qdd`` (N, m),
+        ``ok`` (N,) bool (False: the formulation's solve failed, the row is NaN), ``qdd`` (N, m),
         ``lam`` (N, r), ``phi`` (N, r), ``phi_dot`` (N, r), ``loads`` (N, k),
         ``generalized_forces`` (N, m), ``kinetic`` (N,) and ``potential`` (N,) [J], as
         :meth:`csim.solver.system.ConstrainedSystem.evaluate` gives them one at a time,

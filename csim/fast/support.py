@@ -57,9 +57,9 @@ def unsupported(case) -> list[str]:
         reasons.append(f"formulation.method {formulation!r}: the compiled backend implements "
                        f"{', '.join(FORMULATIONS)}")
     elif formulation == "elimination" and method == "minimal":
-        reasons.append("formulation.method 'elimination' with stabilization.method 'minimal': the partitioned "
-                       "system keeps its own partition where the compiled elimination keeps its; the KKT "
-                       "formulation gives minimal the same motion, compiled")
+        reasons.append("formulation.method 'elimination' and stabilization.method 'minimal' together: the "
+                       "partitioned system keeps its own partition where the compiled elimination keeps its; the "
+                       "KKT formulation gives minimal the same motion, compiled")
     if method not in compiled_stabilizers():
         why = {"ggl": "GGL is an index-2 DAE solved by the Python Radau IIA for DAEs"}
         reasons.append(f"stabilization.method {method!r}: {why.get(method, 'not implemented in compiled code')}; "

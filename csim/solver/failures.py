@@ -96,8 +96,13 @@ def failure_message(code: int, a: float, b: float, settings, method=None, switch
     if code == RK4_RESOLUTION:
         return f"integrator RK4 failed at t = {a:.6g} s: step {s.step:g} s is below the resolution of t = {a:g} s"
     if code == SINGULAR_MASS:
-        return (f"projection at t = {b:.6g} s: the mass matrix is singular (moving links without mass), so it "
-                f"cannot be the projection's metric; set stabilization.projection_metric: minimum_norm")
+        text = (f"projection at t = {b:.6g} s: the mass matrix is singular (moving links without mass), so it "
+                f"cannot be the projection's metric")
+        owner = getattr(method, "metric_fixed_by", "")  # a method whose own projection this is (ggl)
+        if owner:
+            return f"{text}; {owner} projects in the mass metric and solves with M^-1: it needs mass on every " \
+                   f"moving link"
+        return f"{text}; set stabilization.projection_metric: minimum_norm"
     if code == NO_SIGN_CHANGE:
         return f"numerical error after t = {a:.6g} s: ValueError: f(a) and f(b) must have different signs"
     if code == CHATTER:
@@ -105,12 +110,13 @@ def failure_message(code: int, a: float, b: float, settings, method=None, switch
     if code == INTERRUPTED:  # as the Python driver words it
         return f"interrupted by the user after t = {a:.6g} s"
     if code == ELIMINATION_FIXED_SINGULAR:
-        return ("the dependent block Phi_v of the constraint Jacobian is singular (its condition number "
-                "||Phi_q||_1 ||Phi_v^-1||_1 exceeds formulation.max_condition) with the independent coordinates "
-                "fixed by formulation.independent")
+        return ("the dependent block Phi_v of the constraint Jacobian is singular or nearly so: "
+                "||Phi_q||_1 ||Phi_v^-1||_1 exceeds formulation.max_condition with the independent coordinates "
+                "fixed by formulation.independent (left out, they are chosen again as the mechanism moves)")
     if code == ELIMINATION_NO_BLOCK:
-        return ("singular constraint Jacobian: no well-conditioned dependent block exists (none within "
-                "formulation.max_condition)")
+        return ("no dependent block Phi_v has ||Phi_q||_1 ||Phi_v^-1||_1 within formulation.max_condition: the "
+                "constraint Jacobian is singular or nearly so (a singular configuration), or "
+                "formulation.max_condition is too small")
     if code == ELIMINATION_SINGULAR:
         return "singular system [R^T M; Phi_q] in the elimination formulation"
     if DEPENDENT_NONFINITE <= code <= BRANCH_LOST:

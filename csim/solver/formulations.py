@@ -14,7 +14,6 @@ import numpy as np
 from csim.physics.elimination import E_CHOSEN, E_REPARTITIONS, eliminate, new_elimination
 from csim.physics.kkt import kkt_solve
 from csim.physics.linalg import as_core
-from csim.physics.partition import block_inverse, choose_partition
 from csim.physics.status import OK, SINGULAR_KKT
 from csim.solver.failures import failure
 
@@ -65,36 +64,6 @@ class KKT(Formulation):
         return x[:m], x[m:]
 
 
-def choose_independent(phi_q: np.ndarray) -> np.ndarray:
-    """Indices of the independent coordinates u for a Jacobian ``phi_q`` (r, m).
-
-    The dependent block Phi_v is the one with the smallest condition
-    :func:`dependent_block_inverse`, found by trying every choice of r of the m columns
-    when that is cheap (:func:`csim.physics.partition.enumerates`),
-    else by QR with column pivoting (:func:`csim.physics.partition.choose_partition`, the
-    choice the minimal-coordinate method makes too).
-    """
-    r, m = phi_q.shape
-    ind, dep = np.empty(m - r, np.int64), np.empty(r, np.int64)
-    choose_partition(as_core(phi_q), r, m, ind, dep, np.empty(r, np.int64), np.empty(r, np.int64), np.empty(r * r),
-                     np.empty(r, np.int64), np.empty(r), np.empty(r * r), np.empty(r * r), np.empty(m * r))
-    return ind
-
-
-def dependent_block_inverse(phi_q: np.ndarray, dependent) -> tuple[np.ndarray | None, float]:
-    """Phi_v^-1 (r, r) and how badly Phi_v determines v, ||Phi_q||_1 ||Phi_v^-1||_1 (core: ``block_inverse``).
-
-    The condition is measured against the whole Jacobian, not Phi_v alone, so that it also
-    grows for a single constraint: it is 1 for the best-placed block of an orthogonal Jacobian
-    and infinite (with no inverse, None) where Phi_v is singular.
-    """
-    r, m = phi_q.shape
-    inv = np.empty(r * r)
-    cond = block_inverse(as_core(phi_q), np.asarray(dependent, dtype=np.int64), r, m, np.empty(r * r),
-                         np.empty(r, np.int64), np.empty(r), inv)
-    return (None, np.inf) if cond == np.inf else (inv.reshape(r, r), float(cond))
-
-
 class Elimination(Formulation):
     """Elimination of the multipliers with R = [E; -Phi_v^-1 Phi_u] (paper's eqs. 8-10).
 
@@ -108,9 +77,12 @@ class Elimination(Formulation):
     Parameters
     ----------
     independent : sequence of int or None
-        Indices of the independent coordinates u. ``None`` chooses them from Phi_q by
-        pivoted QR at the first evaluation and re-chooses them whenever the condition
-        number of Phi_v exceeds ``max_condition``.
+        Indices of the independent coordinates u. ``None`` chooses them from Phi_q at the
+        first evaluation (the best-conditioned block, every one tried where that is cheap, else
+        pivoted QR: :func:`csim.physics.partition.choose_partition`) and chooses them again
+        whenever the condition of Phi_v exceeds ``max_condition``. The Python path evaluates its
+        samples with the partition the integration ended on, the compiled kernels choose it
+        afresh at the first sample: their multipliers differ by round-off.
     max_condition : float
         Largest acceptable condition of Phi_v, ||Phi_q||_1 ||Phi_v^-1||_1.
     """

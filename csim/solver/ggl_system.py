@@ -33,6 +33,7 @@ class GGLSystem(ConstrainedSystem):
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
         self._projection = Projection(projection_metric="mass")
+        self._projection.metric_fixed_by = "ggl"
 
     @property
     def n_state(self) -> int:

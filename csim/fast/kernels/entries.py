@@ -37,7 +37,8 @@ def evaluate_samples(ts, ys, modes, par, pf, pi):
     Returns
     -------
     ok : ndarray (N,) bool
-        False where the KKT matrix is singular (the row's other outputs are then NaN).
+        False where the formulation's solve failed (the KKT matrix, or the elimination's block, singular; the
+        row's other outputs are then NaN).
     x : ndarray (N, m + r)
         [qdd, lambda].
     phi, phi_dot : ndarray (N, r)

@@ -309,7 +309,7 @@ def feval_call(t, y, mode, located, par, pf, pi, w, piv, f, info):
 
 
 # ---------------------------------------------------------------------------------------
-# projection onto Phi = 0, Phi_q qd = 0 (csim.solver.methods.projection)
+# projection onto Phi = 0, Phi_q qd + Phi_t = 0 (csim.solver.methods.projection)
 # ---------------------------------------------------------------------------------------
 @hot
 def project(y, out, t, par, pf, pi, w, piv, info):

@@ -57,6 +57,8 @@ class Projection(Method):
         self.metric = projection_metric
         self.tol = float(projection_tol)
         self.max_iter = int(projection_max_iter)
+        #: the method whose own projection this is, with its metric fixed ("": the user's ``projection``)
+        self.metric_fixed_by = ""
 
     def parameters(self):
         return [self.tol], [int(self.metric == "mass"), self.max_iter]
