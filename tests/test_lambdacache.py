@@ -43,6 +43,33 @@ def test_a_damaged_file_is_derived_again_and_no_key_caches_nothing(cache):
     assert calls == [1, 1, 1] and sorted(p.name for p in cache.iterdir()) == ["k2_f.py"]
 
 
+def test_a_cached_source_that_needs_a_name_numpy_lacks_is_derived_again(cache):
+    """A cached source runs in numpy's names, made without sympy (lambdacache._numpy_namespace); one that
+    reads a name outside them (a printer's helper of another sympy version) is derived again, not run."""
+    calls = []
+    cached_lambdify("k3", "f", _make(calls))
+    text = (cache / "k3_f.py").read_text()
+    (cache / "k3_f.py").write_text(text.replace("sin(", "sympy_only_sin("))
+    again = cached_lambdify("k3", "f", _make(calls))
+    assert calls == [1, 1] and again([0.3], [2.0])[0][0, 0] == pytest.approx(2.0 * np.sin(0.3))
+
+
+def test_reading_a_cached_source_imports_no_sympy(cache):
+    """The 0.2 s of sympy's import is not spent on a cache hit (a warm run's functions: reactions, watch,
+    drives); the cache's key needs sympy's version only, from its package's metadata."""
+    import os
+    import subprocess
+    import sys
+
+    cached_lambdify("k4", "f", _make([]))
+    code = ("import sys; from csim.linkage.lambdacache import cached_lambdify, linkage_key; "
+            "f = cached_lambdify('k4', 'f', lambda: 1 / 0); linkage_key({'links': []}); "
+            "print(f([0.3], [2.0])[0][0, 0], 'sympy' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                         env={**os.environ, "CSIM_CACHE_DIR": str(cache.parent)}).stdout.split()
+    assert float(out[0]) == pytest.approx(2.0 * np.sin(0.3)) and out[1] == "False"
+
+
 def test_the_key_follows_the_tables_not_the_parameter_values():
     base = {"links": [{"link": 0}], "couplings": [], "parameters": {"l": 0.1}}
     assert linkage_key(base) == linkage_key({**base, "parameters": {"l": 0.2}})

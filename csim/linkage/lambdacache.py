@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import importlib.metadata
 import inspect
 import json
 import os
@@ -38,13 +39,16 @@ HERE = Path(__file__).resolve().parent
 Lambdified = tuple[list, object]
 
 
+def _sympy_version() -> str:
+    """sympy's version, from its package's metadata: importing sympy to read it costs 0.2 s."""
+    return importlib.metadata.version("sympy")
+
+
 def linkage_key(mechanism: dict) -> str:
     """Hash of a ``mechanism`` section as written (parameters by name only) and csim's linkage sources."""
-    import sympy
-
     shape = {k: v for k, v in mechanism.items() if k != "parameters"}
     shape["parameters"] = sorted(map(str, mechanism.get("parameters") or {}))
-    parts = [json.dumps(shape, sort_keys=True, default=str), sympy.__version__,
+    parts = [json.dumps(shape, sort_keys=True, default=str), _sympy_version(),
              *(p.read_text() for p in sorted(HERE.glob("*.py")))]
     return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:24]
 
@@ -53,10 +57,8 @@ def build_key(mechanism: dict, initial: dict | None, options: dict) -> str:
     """Hash of what :func:`csim.linkage.model.build_linkage` reads: the sections as written (in
     their order: the order of drives and rows is part of the model), its options, sympy's
     version and csim's sources."""
-    import sympy
-
     sources = sorted(HERE.parent.rglob("*.py"))
-    parts = [json.dumps([mechanism, initial, options], default=repr), sympy.__version__,
+    parts = [json.dumps([mechanism, initial, options], default=repr), _sympy_version(),
              *(hashlib.sha256(p.read_bytes()).hexdigest() for p in sources)]
     return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:24]
 
@@ -102,22 +104,44 @@ def cached_lambdify(key: str | None, name: str, make: Callable[[], Lambdified]) 
     make : callable () -> (args, exprs)
         The symbolic work, done only when the source is not cached.
     """
-    import sympy as sp
-
     path = cache_dir() / "linkage" / f"{key}_{name}.py" if key else None
     if path is not None and path.is_file():
-        namespace = dict(sp.lambdify([], 0, "numpy").__globals__)  # numpy's names, as lambdify's own
-        try:
-            exec(compile(path.read_text(), str(path), "exec"), namespace)
-            return namespace["_lambdifygenerated"]
-        except (SyntaxError, KeyError, ValueError):  # a damaged file: derived again below
-            pass
+        with contextlib.suppress(SyntaxError, KeyError, ValueError):  # a damaged file: derived again below
+            code = compile(path.read_text(), str(path), "exec")
+            namespace = _numpy_namespace()
+            if _resolves(code, namespace):  # (a name it needs that is not numpy's: derived again below)
+                exec(code, namespace)
+                return namespace["_lambdifygenerated"]
+    import sympy as sp
+
     args, exprs = make()
     f = sp.lambdify(args, exprs, "numpy", cse=True)
     if path is not None:  # a cache that cannot be written costs the next run the derivation, nothing else
         with contextlib.suppress(OSError):
             write_atomically(path, inspect.getsource(f).encode())
     return f
+
+
+def _numpy_namespace() -> dict:
+    """The names sympy's ``lambdify(..., "numpy")`` gives its functions (its ``MODULES["numpy"]``: numpy's and
+    numpy.linalg's, ``I`` and ``Heaviside``), made without importing sympy."""
+    namespace: dict = {}
+    exec("import numpy; from numpy import *; from numpy.linalg import *", namespace)
+    namespace.update(I=1j, Heaviside=namespace["heaviside"])
+    return namespace
+
+
+def _resolves(code, namespace: dict) -> bool:
+    """Whether every name the module ``code`` and the functions in it read (``co_names``: globals, and
+    attributes, which a generated function reads of numpy only) is in ``namespace`` or a builtin."""
+    import builtins
+
+    needed, stack = set(), [code]
+    while stack:
+        c = stack.pop()
+        needed.update(c.co_names)
+        stack.extend(k for k in c.co_consts if hasattr(k, "co_names"))
+    return all(n in namespace or hasattr(builtins, n) for n in needed - {"_lambdifygenerated"})
 
 
 def cache_enabled() -> bool:

@@ -38,7 +38,7 @@ from csim.linkage.forces import Contribution, Geometry, build_forces
 from csim.linkage.frames import Frames, build_frames
 from csim.linkage.inertia import check_inertia
 from csim.linkage.joints import JOINT_TYPES
-from csim.linkage.lambdacache import build_key, cache_enabled, cached_build, linkage_key
+from csim.linkage.lambdacache import build_key, cache_enabled, cached_build, cached_lambdify, linkage_key
 from csim.linkage.recursive import recursive_terms
 from csim.linkage.tables import Coupling, Tables, parse_tables
 from csim.linkage.topology import Topology, analyse, grubler_kutzbach
@@ -126,14 +126,25 @@ class Linkage:
         return [e.label for e in self.reduction.kept]
 
     def drive_function(self, parameters: dict[str, float]) -> Callable[[float], tuple]:
-        """t -> (u, ud, udd), each (d,) [rad or m, per s, per s^2], at the given parameter values."""
-        subs = {self.tables.symbols[k]: v for k, v in parameters.items() if k in self.tables.symbols}
-        exprs = [sp.sympify(e).subs(subs) for e in self.drive.values()]
-        rows = [exprs, [sp.diff(e, T) for e in exprs], [sp.diff(e, T, 2) for e in exprs]]
-        f = sp.lambdify([T], rows, "numpy")
+        """t -> (u, ud, udd), each (d,) [rad or m, per s, per s^2], at the given parameter values (every
+        parameter of the tables, by name).
+
+        The drives and their derivatives are lambdified with the parameters as arguments, and the source
+        filed in the linkage cache (:func:`csim.linkage.lambdacache.cached_lambdify`): a warm run does no
+        symbolic work for them (the derivation and lambdify took 50 ms of each driven run).
+        """
+        names = sorted(self.tables.symbols)  # (the order linkage_key hashes them in)
+
+        def make():
+            exprs = [sp.sympify(e) for e in self.drive.values()]
+            rows = [exprs, [sp.diff(e, T) for e in exprs], [sp.diff(e, T, 2) for e in exprs]]
+            return [[T], [self.tables.symbols[n] for n in names]], rows
+
+        f = cached_lambdify(self.cache_key or None, "drive", make)
+        values = [float(parameters[n]) for n in names]
 
         def drive(t: float):
-            u, ud, udd = f(t)
+            u, ud, udd = f([t], values)
             return (np.array(u, dtype=float), np.array(ud, dtype=float), np.array(udd, dtype=float))
 
         return drive
