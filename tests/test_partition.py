@@ -79,3 +79,24 @@ def test_the_pivoted_qr_choice_passes_over_a_repeated_column():
     ind, dep = _choose(J)
     assert 9 in ind and not {4, 5} <= set(dep)
     assert np.linalg.matrix_rank(J[:, dep]) == r
+
+
+@pytest.mark.parametrize("m, r", [(3, 2), (5, 2), (8, 7), (6, 0)])
+def test_the_reduced_accelerations_equal_the_kkt_solution(m, r):
+    """(R^T M R) udd = R^T (p - M c), qdd = R udd + c (partition.reduced_accelerations, minimal's right-hand side)
+    against the (m + r) KKT system on random problems: the same qdd, on the constraints' acceleration level."""
+    from csim.physics.partition import branch_tangent, complement, new_partition, reduced_accelerations
+    from csim.solver.formulations import KKT
+
+    rng = np.random.default_rng(m * 10 + r)
+    A = rng.normal(size=(m, m))
+    M, J, p, gamma = A @ A.T + m * np.eye(m), rng.normal(size=(r, m)), rng.normal(size=m), rng.normal(size=r)
+    P = new_partition(m, r, 0)
+    P.dep[:] = np.sort(rng.choice(m, size=r, replace=False))
+    complement(P.dep, r, m, P.ind)
+    assert branch_tangent(J.ravel(), P.ind, P.dep, r, m, P.lu, P.piv, P.col, P.Ve, P.Te)
+    qdd = np.empty(m)
+    assert reduced_accelerations(P, M.ravel(), p, gamma, qdd, r, m)
+    qdd_kkt, _ = KKT().solve(M, J, p, gamma)
+    np.testing.assert_allclose(qdd, qdd_kkt, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(J @ qdd, gamma, atol=1e-11)

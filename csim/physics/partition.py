@@ -71,7 +71,9 @@ Partition = namedtuple("Partition", (
     "ym", "yf", "ff", "lost",  # model-call state, full state, its rate (2 m + k each); lost-at state (2 n + k)
     "basis", "resid",  # QR partition choice: orthonormal basis (r r), the columns' residuals (m r)
     "detail", "cause",  # failure details, and those of the breakdown being answered (D_HEAD + 2 n each)
-    "ind", "dep", "piv", "cand", "best", "old", "count",  # integers
+    "MR", "RMR", "cv", "pc", "rp",  # the reduced accelerations: M R (m n), R^T M R (n n), c_v (r), p - M c (m),
+    # R^T (p - M c) (n)
+    "ind", "dep", "piv", "cand", "best", "old", "count", "npiv",  # integers (npiv: R^T M R's pivots, n)
 ))
 
 
@@ -79,8 +81,8 @@ Partition = namedtuple("Partition", (
 def partition_sizes(m, r, k):
     """(floats, integers) that :func:`partition_state` lays out for m coordinates, r constraints, k loads."""
     n, s = m - r, 2 * m + k
-    floats = 6 * m + 3 * r * n + 2 * r * m + 6 * r * r + 5 * r + 10 * n + 3 * s + k + 2 * D_HEAD
-    return floats, 2 * n + 4 * r + N_COUNT
+    floats = 7 * m + 3 * r * n + 2 * r * m + 6 * r * r + 6 * r + 11 * n + 3 * s + k + 2 * D_HEAD + m * n + n * n
+    return floats, 3 * n + 4 * r + N_COUNT
 
 
 @jitable
@@ -129,6 +131,11 @@ def partition_state(fw, iw, m, r, k):
     resid, a = _take(fw, a, m * r)
     detail, a = _take(fw, a, D_HEAD + 2 * n)
     cause, a = _take(fw, a, D_HEAD + 2 * n)
+    MR, a = _take(fw, a, m * n)
+    RMR, a = _take(fw, a, n * n)
+    cv, a = _take(fw, a, r)
+    pc, a = _take(fw, a, m)
+    rp, a = _take(fw, a, n)
     ind, b = _take(iw, 0, n)
     dep, b = _take(iw, b, r)
     piv, b = _take(iw, b, r)
@@ -136,8 +143,10 @@ def partition_state(fw, iw, m, r, k):
     best, b = _take(iw, b, r)
     old, b = _take(iw, b, n)
     count, b = _take(iw, b, N_COUNT)
+    npiv, b = _take(iw, b, n)
     return Partition(qa, Ta, Va, qp, Tp, Vp, qe, Te, Ve, q, phi, J, lu, dv, col, cinv, pred, du, dvl, dirn, gam, u0,
-                     tgt, uu, ym, yf, ff, lost, basis, resid, detail, cause, ind, dep, piv, cand, best, old, count)
+                     tgt, uu, ym, yf, ff, lost, basis, resid, detail, cause, MR, RMR, cv, pc, rp, ind, dep, piv, cand,
+                     best, old, count, npiv)
 
 
 def new_partition(m: int, r: int, k: int) -> Partition:
@@ -344,6 +353,70 @@ def branch_tangent(J, ind, dep, r, m, lu, piv, col, V, T):
             if not np.isfinite(V[i * r + c]):
                 ok = False
     return ok
+
+
+@kernel
+def reduced_accelerations(P, M, p, gamma, qdd, r, m):
+    """qdd (m,) at the full state of the last solve on the branch (P.qe, with P.Te = dv/du and P.Ve = Phi_v^-1
+    there): the equations of motion projected onto the constraint manifold's tangent space.
+
+    With R = [E_u; dv/du] (m * n: rows u the identity, rows v dv/du), whose columns span the null space of
+    Phi_q, and c = [0_u; Phi_v^-1 gamma], every qdd = R udd + c meets Phi_q qdd = gamma, and R^T Phi_q^T = 0
+    removes the multipliers from M qdd + Phi_q^T lambda = p:
+
+        (R^T M R) udd = R^T (p - M c),    qdd = R udd + c
+
+    an n x n solve where the KKT system is (m + r) x (m + r) (the same qdd in exact arithmetic; the
+    multipliers are not formed). Returns False if R^T M R is singular (M singular on the tangent space, as
+    the KKT matrix then is).
+
+    Parameters
+    ----------
+    P : Partition
+        Read: ind, dep, Te, Ve; scratch: MR, RMR, cv, pc, rp, npiv.
+    M, p, gamma : ndarray (m * m,), (m,), (r,)
+        Mass matrix (row-major), B u - C qd - h, and gamma* (the method's: gamma for minimal).
+    qdd : ndarray (>= m,)
+        Out.
+    """
+    n = m - r
+    T, V, ind, dep = P.Te, P.Ve, P.ind, P.dep
+    for i in range(r):  # c_v = Phi_v^-1 gamma
+        s = 0.0
+        for j in range(r):
+            s += V[i * r + j] * gamma[j]
+        P.cv[i] = s
+    for a in range(m):  # p - M c, and M R: (M R)[:, j] = M[:, u_j] + sum_i M[:, v_i] (dv/du)[i, j]
+        s = p[a]
+        for i in range(r):
+            s -= M[a * m + dep[i]] * P.cv[i]
+        P.pc[a] = s
+        for j in range(n):
+            s = M[a * m + ind[j]]
+            for i in range(r):
+                s += M[a * m + dep[i]] * T[i * n + j]
+            P.MR[a * n + j] = s
+    for j in range(n):  # R^T M R and R^T (p - M c): row j of R^T is e_{u_j} + sum_i (dv/du)[i, j] e_{v_i}
+        b = P.pc[ind[j]]
+        for jj in range(n):
+            P.RMR[j * n + jj] = P.MR[ind[j] * n + jj]
+        for i in range(r):
+            t = T[i * n + j]
+            b += t * P.pc[dep[i]]
+            for jj in range(n):
+                P.RMR[j * n + jj] += t * P.MR[dep[i] * n + jj]
+        P.rp[j] = b
+    if not lu_factor(P.RMR, n, P.npiv):
+        return False
+    lu_solve(P.RMR, n, P.npiv, P.rp)
+    for j in range(n):  # qdd = R udd + c
+        qdd[ind[j]] = P.rp[j]
+    for i in range(r):
+        s = P.cv[i]
+        for j in range(n):
+            s += T[i * n + j] * P.rp[j]
+        qdd[dep[i]] = s
+    return True
 
 
 @kernel

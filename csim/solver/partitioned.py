@@ -7,10 +7,14 @@ evaluation the dependent coordinates follow from the constraints,
     Phi(u, v) = 0                   (Newton-Raphson on v, on the assembly branch)
     Phi_v vd = -Phi_u ud            (their rates)
 
-and the accelerations of all coordinates from the equations of motion with the
-acceleration-level constraint (the case's formulation, gamma* = gamma); u'' is the
-independent part. The constraints therefore hold to the Newton tolerance at every instant,
-with no drift to stabilize. When the dependent block Phi_v turns ill-conditioned (the
+and the accelerations from the equations of motion on the tangent space,
+
+    (R^T M R) u'' = R^T (p - M c),   R = [E; dv/du],   c = [0; Phi_v^-1 gamma]
+
+(:func:`csim.physics.partition.reduced_accelerations`: an n x n solve with the dv/du and
+Phi_v^-1 the solve on the branch leaves, where the KKT system is (m + r) x (m + r); the case's
+formulation gives the recorded samples' multipliers). The constraints therefore hold to the
+Newton tolerance at every instant, with no drift to stabilize. When the dependent block Phi_v turns ill-conditioned (the
 mechanism nears a configuration where v is no longer a function of u) the partition is
 chosen again (:func:`csim.physics.partition.choose_partition`: the best-conditioned block, by
 trying every one where that is cheap, else by pivoted QR) and the integration restarts from
@@ -27,8 +31,16 @@ import numpy as np
 
 from csim.errors import PartitionBreakdown, SimulationFailure
 from csim.physics import branch as core
-from csim.physics.partition import C_BRANCH_RESTARTS, C_REPARTITIONS, MAX_BRANCH_RESTARTS, block_inverse, new_partition
-from csim.physics.status import BRANCH_LEFT, OK
+from csim.physics.linalg import as_core
+from csim.physics.partition import (
+    C_BRANCH_RESTARTS,
+    C_REPARTITIONS,
+    MAX_BRANCH_RESTARTS,
+    block_inverse,
+    new_partition,
+    reduced_accelerations,
+)
+from csim.physics.status import BRANCH_LEFT, OK, SINGULAR_KKT
 from csim.solver.failures import failure
 from csim.solver.newton import PythonModel
 from csim.solver.system import ConstrainedSystem
@@ -131,10 +143,14 @@ class PartitionedSystem(ConstrainedSystem):
         return yf
 
     def rhs(self, t: float, y: np.ndarray, mode: np.ndarray) -> np.ndarray:
-        """dy/dt = [ud, udd, dW/dt] (2 n + k,)."""
+        """dy/dt = [ud, udd, dW/dt] (2 n + k,): udd from the equations of motion on the tangent space at the full
+        state (core: ``reduced_accelerations``, an n x n solve; the formulation serves the recorded samples)."""
         q, qd, _ = self.split(self.to_full(y))
         loads = self.load_values(t, q, qd, mode)
-        qdd, _, _, _, _, B = self._solve(q, qd, loads)
+        M, _, p, _, _, gamma_star, _, B = self._terms(q, qd, loads)
+        qdd = np.empty(self.m)
+        if not reduced_accelerations(self.P, as_core(M), as_core(p), as_core(gamma_star), qdd, self.r, self.m):
+            raise failure(SINGULAR_KKT, 0.0, 0.0, None)
         f = np.empty(self.n_state)
         core.reduce(self.P, np.concatenate((qd, qdd, loads * self._load_rates(B, qd))), f, self.r, self.m, self.k)
         return f

@@ -157,6 +157,13 @@ class ConstrainedSystem:
 
     def _solve(self, q, qd, u):
         """qdd, lambda and the pieces of the balance at (q, qd) with loads u."""
+        M, phi_q, p, phi, phi_dot, gamma_star, Q, B = self._terms(q, qd, u)
+        qdd, lam = self.formulation.solve(M, phi_q, p, gamma_star)
+        return qdd, lam, phi, phi_dot, Q, B
+
+    def _terms(self, q, qd, u):
+        """What the formulation solves at (q, qd) with loads u: M (m, m), Phi_q (r, m), p = B u - C qd - h
+        (m,), and Phi, Phi_q qd, gamma* (r,) each, Q = B u (m,), B (m, k)."""
         model, par = self.model, self.par
         M = model.mass(q, par)
         phi_q = model.phi_q(q, par)
@@ -169,8 +176,7 @@ class ConstrainedSystem:
         phi_dot = np.empty(self.r)  # dPhi/dt = Phi_q qd
         constraint_rates(as_core(phi_q), as_core(qd), phi_dot, self.r, self.m)
         gamma_star = self.stabilizer.gamma_star(model.gamma(q, qd, par), phi, phi_dot)
-        qdd, lam = self.formulation.solve(M, phi_q, p, gamma_star)
-        return qdd, lam, phi, phi_dot, Q, B
+        return M, phi_q, p, phi, phi_dot, gamma_star, Q, B
 
     def rhs(self, t: float, y: np.ndarray, mode: np.ndarray) -> np.ndarray:
         """dy/dt (n_state,) with the load laws held in ``mode`` (n_switches,) bool."""

@@ -61,7 +61,7 @@ from csim.physics import branch
 from csim.physics.elimination import eliminate, elimination_sizes, elimination_state
 from csim.physics.kkt import constraint_rates, generalized_forces, kkt_solve
 from csim.physics.loads import load_rates, load_values, mode_of, switching_functions
-from csim.physics.partition import C_PENDING, partition_sizes, partition_state
+from csim.physics.partition import C_PENDING, partition_sizes, partition_state, reduced_accelerations
 from csim.physics.projection import max_abs
 from csim.physics.projection import project as project_state
 from csim.physics.status import NONFINITE_RHS, OK, SINGULAR_KKT
@@ -139,15 +139,21 @@ def _partitioned_full_state(y, par, pf, pi, w, piv):
 
 @hot
 def _partitioned_rhs(t, y, mode, located, par, pf, pi, w, piv, f):
-    """dy/dt = [ud, udd, dW/dt] (2 n + k,) of the partitioned system: the rhs at the full state, reduced."""
+    """dy/dt = [ud, udd, dW/dt] (2 n + k,) of the partitioned system: the rhs at the full state, with the
+    accelerations from the equations of motion on the tangent space (csim.physics.partition.reduced_accelerations,
+    an n x n solve), reduced."""
     code, yf = full_state(y, par, pf, pi, w, piv)
     if code != OK:
         return code
+    nq, nc = pi[PI_NQ], pi[PI_NC]
     P = _partition(pi, w, piv)
-    code = rhs(t, yf, mode, located, par, pf, pi, w, piv, P.ff)
-    if code == OK:
-        branch.reduce(P, P.ff, f, pi[PI_NC], pi[PI_NQ], pi[PI_NL])
-    return code
+    _rhs_inputs(t, yf, mode, located, par, pf, pi, w, nq, nc)
+    if not reduced_accelerations(P, w[pi[W_M]:pi[W_M] + nq * nq], w[pi[W_P]:pi[W_P] + nq], w[pi[W_GS]:pi[W_GS] + nc],
+                                 w[pi[W_X]:pi[W_X] + nq], nc, nq):
+        return SINGULAR_KKT
+    _rhs_outputs(yf, pi, w, P.ff, nq, nc)
+    branch.reduce(P, P.ff, f, nc, nq, pi[PI_NL])
+    return OK
 
 
 @hot
@@ -218,10 +224,11 @@ def mode_at(y, par, pf, pi, w, piv, mode):
 
 
 @sized
-def _rhs_sized(t, y, mode, located, par, pf, pi, w, piv, f, nq, nc):
-    """:func:`rhs` for nq coordinates and nc constraints (inlined where called: constants there fix the loops)."""
+def _rhs_inputs(t, y, mode, located, par, pf, pi, w, nq, nc):
+    """What the solve for the accelerations reads, into w at (t, y): the model's terms, the load values u (the
+    laws held in ``mode``, or evaluated at y where not ``located``), p = B u - C qd - h, d/dt Phi and gamma*
+    (inlined where called, as :func:`_rhs_sized`)."""
     nl = pi[PI_NL]
-    nk = nq + nc
     terms(t, y, par, pi, w)
     qd = y[nq:2 * nq]
     B = w[pi[W_B]:pi[W_B] + nq * nl]
@@ -237,30 +244,44 @@ def _rhs_sized(t, y, mode, located, par, pf, pi, w, piv, f, nq, nc):
     constraint_rates(J, qd, phi_dot, nc, nq)
     for i in range(nc):  # d/dt Phi = Phi_q qd + Phi_t (Phi_t: drive rows only)
         phi_dot[i] += w[pi[W_PT] + i]
-    gstar = w[pi[W_GS]:pi[W_GS] + nc]
     gains = pf[pi[PI_GAINS]:pi[PI_GAINS] + pi[PI_NGAINS]]
     fpar = pf[pi[PI_FPAR]:pi[PI_FPAR] + pi[PI_NFPAR]]
     ipar = pi[pi[PI_IPAR]:pi[PI_IPAR] + pi[PI_NIPAR]]
     method_gamma_star(pi[PI_MK], nc, w[pi[W_GAM]:pi[W_GAM] + nc], w[pi[W_PHI]:pi[W_PHI] + nc], phi_dot, gains, fpar,
-                      ipar, gstar, pi)
-    x = w[pi[W_X]:pi[W_X] + nk]
-    A = w[pi[W_A]:pi[W_A] + nk * nk]
-    if pi[PI_FORM] == ELIMINATION:
-        code = call_eliminated(pi[PI_ELIM], pf, pi, w, piv)
-        if code != OK:
-            return code
-    elif not kkt_solve(w[pi[W_M]:pi[W_M] + nq * nq], J, p, gstar, A, x, piv, nq, nc):
-        return SINGULAR_KKT
+                      ipar, w[pi[W_GS]:pi[W_GS] + nc], pi)
+
+
+@sized
+def _rhs_outputs(y, pi, w, f, nq, nc):
+    """f = [qd, qdd, u * B^T qd, tau qd_j] from the accelerations (and the drives' multipliers) in w[W_X:]."""
+    nl = pi[PI_NL]
+    qd = y[nq:2 * nq]
+    x = w[pi[W_X]:pi[W_X] + nq + nc]
     sdot = w[pi[W_SD]:pi[W_SD] + nl]
-    load_rates(B, qd, sdot, nq, nl)
+    load_rates(w[pi[W_B]:pi[W_B] + nq * nl], qd, sdot, nq, nl)
     for i in range(nq):
         f[i] = qd[i]
         f[nq + i] = x[i]
     for kk in range(nl):  # dW/dt = u * (B^T qd), the power of each load
-        f[2 * nq + kk] = u[kk] * sdot[kk]
+        f[2 * nq + kk] = w[pi[W_U] + kk] * sdot[kk]
     nd = pi[PI_ND]
     for kk in range(nd):  # dW_d/dt = tau qd_j, tau = -lambda_d: the power of each drive (csim.solver.driven)
         f[2 * nq + nl + kk] = -x[nq + nc - nd + kk] * qd[pi[pi[PI_DRV] + kk]]
+
+
+@sized
+def _rhs_sized(t, y, mode, located, par, pf, pi, w, piv, f, nq, nc):
+    """:func:`rhs` for nq coordinates and nc constraints (inlined where called: constants there fix the loops)."""
+    _rhs_inputs(t, y, mode, located, par, pf, pi, w, nq, nc)
+    nk = nq + nc
+    if pi[PI_FORM] == ELIMINATION:
+        code = call_eliminated(pi[PI_ELIM], pf, pi, w, piv)
+        if code != OK:
+            return code
+    elif not kkt_solve(w[pi[W_M]:pi[W_M] + nq * nq], w[pi[W_J]:pi[W_J] + nc * nq], w[pi[W_P]:pi[W_P] + nq],
+                       w[pi[W_GS]:pi[W_GS] + nc], w[pi[W_A]:pi[W_A] + nk * nk], w[pi[W_X]:pi[W_X] + nk], piv, nq, nc):
+        return SINGULAR_KKT
+    _rhs_outputs(y, pi, w, f, nq, nc)
     return OK
 
 
