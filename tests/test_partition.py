@@ -94,7 +94,7 @@ def test_the_reduced_accelerations_equal_the_kkt_solution(m, r):
     P = new_partition(m, r, 0)
     P.dep[:] = np.sort(rng.choice(m, size=r, replace=False))
     complement(P.dep, r, m, P.ind)
-    assert branch_tangent(J.ravel(), P.ind, P.dep, r, m, P.lu, P.piv, P.col, P.Ve, P.Te)
+    assert branch_tangent(J.ravel(), P.ind, P.dep, r, m, P.Ve, P.pe, P.col, P.Te)
     qdd = np.empty(m)
     assert reduced_accelerations(P, M.ravel(), p, gamma, qdd, r, m)
     qdd_kkt, _ = KKT().solve(M, J, p, gamma)

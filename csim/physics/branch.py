@@ -37,6 +37,7 @@ most MAX_BRANCH_RESTARTS times from one state, then the run fails naming the cha
 from __future__ import annotations
 
 from csim.physics.jit import jitable
+from csim.physics.linalg import lu_solve
 from csim.physics.model import model_gamma, model_jacobian, model_phi
 from csim.physics.partition import (
     C_BRANCH_RESTARTS,
@@ -127,7 +128,8 @@ def _block_condition(P, r, m):
 
 @jitable
 def predict(model, P, u, r, m):
-    """P.pred = the branch's second-order prediction of q at the independent coordinates u, from (P.qp, P.Tp, P.Vp).
+    """P.pred = the branch's second-order prediction of q at the independent coordinates u, from (P.qp, P.Tp, and
+    Phi_v's factors P.Vp, P.pp).
 
     Also P.du = u - u_p and P.dvl = (dv/du)_p du, the first-order move (module docstring).
     """
@@ -146,16 +148,15 @@ def predict(model, P, u, r, m):
         P.dvl[i] = s
         P.dirn[P.dep[i]] = s
     model_gamma(model, P.qp, P.dirn, P.gam)
+    lu_solve(P.Vp, r, P.pp, P.gam)  # Phi_v^-1 gamma
     for i in range(r):
-        s = 0.0
-        for c in range(r):
-            s += P.Vp[i * r + c] * P.gam[c]
-        P.pred[P.dep[i]] += P.dvl[i] + 0.5 * s
+        P.pred[P.dep[i]] += P.dvl[i] + 0.5 * P.gam[i]
 
 
 @jitable
 def predicted_solve(model, P, u, r, m, tol, max_iter):
-    """Newton from the prediction at u (:func:`predict`); the solution and its tangent into (P.qe, P.Te, P.Ve).
+    """Newton from the prediction at u (:func:`predict`); the solution and its tangent into (P.qe, P.Te, and
+    Phi_v's factors P.Ve, P.pe).
 
     Returns OK, a Newton failure, DEPENDENT_SINGULAR where the solution's Phi_v is singular,
     or BRANCH_LEFT where it fails :func:`csim.physics.partition.same_branch`.
@@ -168,7 +169,7 @@ def predicted_solve(model, P, u, r, m, tol, max_iter):
         return code
     for i in range(m):
         P.qe[i] = P.q[i]
-    if not branch_tangent(P.J, P.ind, P.dep, r, m, P.lu, P.piv, P.col, P.Ve, P.Te):
+    if not branch_tangent(P.J, P.ind, P.dep, r, m, P.Ve, P.pe, P.col, P.Te):
         return DEPENDENT_SINGULAR
     if same_branch(P.qp, P.Tp, P.pred, P.qe, P.Te, P.du, P.dvl, P.dep, r, P.detail) != OK:
         return BRANCH_LEFT
@@ -183,7 +184,7 @@ def _copy(src, dst):
 
 @jitable
 def follow_branch(model, P, u, r, m, tol, max_iter):
-    """v at the independent coordinates u on the branch through the anchor (P.qa, P.Ta, P.Va), into P.qe.
+    """v at the independent coordinates u on the branch through the anchor (P.qa, P.Ta, P.Va, P.pa), into P.qe.
 
     Newton starts from the branch's prediction and its solution must pass the branch test.
     Where it does not (or Newton fails), the way from u_a to u is cut in half, the branch
@@ -198,6 +199,7 @@ def follow_branch(model, P, u, r, m, tol, max_iter):
     _copy(P.qa, P.qp)
     _copy(P.Ta, P.Tp)
     _copy(P.Va, P.Vp)
+    _copy(P.pa, P.pp)
     move = 0.0
     for j in range(n):
         P.u0[j] = P.qa[P.ind[j]]
@@ -227,6 +229,7 @@ def follow_branch(model, P, u, r, m, tol, max_iter):
         _copy(P.qe, P.qp)
         _copy(P.Te, P.Tp)
         _copy(P.Ve, P.Vp)
+        _copy(P.pe, P.pp)
         done = reach
         piece = min(2 * piece, longest)
 
@@ -282,7 +285,7 @@ def anchor_at(model, P, q, r, m):
     """Make q (on the manifold) the branch point later solves start from; DEPENDENT_SINGULAR if Phi_v is."""
     _copy(q, P.qa)
     model_jacobian(model, P.qa, P.J)
-    if not branch_tangent(P.J, P.ind, P.dep, r, m, P.lu, P.piv, P.col, P.Va, P.Ta):
+    if not branch_tangent(P.J, P.ind, P.dep, r, m, P.Va, P.pa, P.col, P.Ta):
         for j in range(m - r):
             P.uu[j] = q[P.ind[j]]
         _failed(P, DEPENDENT_SINGULAR, P.uu, m - r)
@@ -344,6 +347,7 @@ def after_step(model, P, y, r, m, k, tol, max_iter, max_condition):
     _copy(P.qe, P.qa)  # the accepted state, with its tangent
     _copy(P.Te, P.Ta)
     _copy(P.Ve, P.Va)
+    _copy(P.pe, P.pa)
     model_jacobian(model, P.qe, P.J)
     if block_inverse(P.J, P.dep, r, m, P.lu, P.piv, P.col, P.cinv) <= max_condition:
         return OK, False

@@ -63,7 +63,7 @@ N_COUNT = 5
 
 #: the state of a partitioned integration (see :func:`partition_state` for each field)
 Partition = namedtuple("Partition", (
-    "qa", "Ta", "Va",  # the branch point at the last accepted state: q (m), dv/du (r n), Phi_v^-1 (r r)
+    "qa", "Ta", "Va",  # the branch point at the last accepted state: q (m), dv/du (r n), Phi_v's LU factors (r r)
     "qp", "Tp", "Vp",  # the branch point a piece of the way starts from
     "qe", "Te", "Ve",  # the last solution and its tangent (the anchor once accepted)
     "q", "phi", "J", "lu", "dv", "col", "cinv",  # Newton: iterate (m), Phi (r), Phi_q (r m), LU (r r), scratch
@@ -74,6 +74,7 @@ Partition = namedtuple("Partition", (
     "MR", "RMR", "cv", "pc", "rp",  # the reduced accelerations: M R (m n), R^T M R (n n), c_v (r), p - M c (m),
     # R^T (p - M c) (n)
     "ind", "dep", "piv", "cand", "best", "old", "count", "npiv",  # integers (npiv: R^T M R's pivots, n)
+    "pa", "pp", "pe",  # the pivots of Va, Vp, Ve (r each)
 ))
 
 
@@ -82,7 +83,7 @@ def partition_sizes(m, r, k):
     """(floats, integers) that :func:`partition_state` lays out for m coordinates, r constraints, k loads."""
     n, s = m - r, 2 * m + k
     floats = 7 * m + 3 * r * n + 2 * r * m + 6 * r * r + 6 * r + 11 * n + 3 * s + k + 2 * D_HEAD + m * n + n * n
-    return floats, 3 * n + 4 * r + N_COUNT
+    return floats, 3 * n + 7 * r + N_COUNT
 
 
 @jitable
@@ -144,9 +145,12 @@ def partition_state(fw, iw, m, r, k):
     old, b = _take(iw, b, n)
     count, b = _take(iw, b, N_COUNT)
     npiv, b = _take(iw, b, n)
+    pa, b = _take(iw, b, r)
+    pp, b = _take(iw, b, r)
+    pe, b = _take(iw, b, r)
     return Partition(qa, Ta, Va, qp, Tp, Vp, qe, Te, Ve, q, phi, J, lu, dv, col, cinv, pred, du, dvl, dirn, gam, u0,
                      tgt, uu, ym, yf, ff, lost, basis, resid, detail, cause, MR, RMR, cv, pc, rp, ind, dep, piv, cand,
-                     best, old, count, npiv)
+                     best, old, count, npiv, pa, pp, pe)
 
 
 def new_partition(m: int, r: int, k: int) -> Partition:
@@ -331,34 +335,38 @@ def dependent_step(J, phi, dep, r, m, lu, piv, dv):
 
 
 @kernel
-def branch_tangent(J, ind, dep, r, m, lu, piv, col, V, T):
-    """V = Phi_v^-1 (r * r) and T = dv/du = -Phi_v^-1 Phi_u (r * n) at the Jacobian J.
+def branch_tangent(J, ind, dep, r, m, lu, piv, col, T):
+    """lu (r * r) = the LU factors of Phi_v (its pivots in piv, r), and T = dv/du = -Phi_v^-1 Phi_u (r * n),
+    at the Jacobian J, column by column through the factors (``col`` (r,) is scratch).
 
-    Returns False where Phi_v is singular or the result is not finite (the branch folds
-    back: v is no function of u there).
+    Phi_v^-1 is applied through its factors (:func:`csim.physics.linalg.lu_solve`), not formed: the
+    inverse of the 40-loop N-four-bar's 80 x 80 block took 285 us of its factorization's 310 (its
+    Jacobian is sparse, the inverse is not), two thirds of each right-hand side of ``minimal``.
+    Returns False where Phi_v is singular or T is not finite (the branch folds back: v is no
+    function of u there).
     """
     n = m - r
-    if block_inverse(J, dep, r, m, lu, piv, col, V) == np.inf:
+    for i in range(r):
+        for j in range(r):
+            lu[i * r + j] = J[i * m + dep[j]]
+    if not lu_factor(lu, r, piv):
         return False
     ok = True
-    for i in range(r):
-        for j in range(n):
-            s = 0.0
-            for c in range(r):
-                s += V[i * r + c] * J[c * m + ind[j]]
-            T[i * n + j] = -s
-            if not np.isfinite(T[i * n + j]):
-                ok = False
-        for c in range(r):
-            if not np.isfinite(V[i * r + c]):
+    for j in range(n):
+        for i in range(r):
+            col[i] = J[i * m + ind[j]]
+        lu_solve(lu, r, piv, col)
+        for i in range(r):
+            T[i * n + j] = -col[i]
+            if not np.isfinite(col[i]):
                 ok = False
     return ok
 
 
 @kernel
 def reduced_accelerations(P, M, p, gamma, qdd, r, m):
-    """qdd (m,) at the full state of the last solve on the branch (P.qe, with P.Te = dv/du and P.Ve = Phi_v^-1
-    there): the equations of motion projected onto the constraint manifold's tangent space.
+    """qdd (m,) at the full state of the last solve on the branch (P.qe, with P.Te = dv/du and P.Ve, P.pe the LU
+    factors of Phi_v there): the equations of motion projected onto the constraint manifold's tangent space.
 
     With R = [E_u; dv/du] (m * n: rows u the identity, rows v dv/du), whose columns span the null space of
     Phi_q, and c = [0_u; Phi_v^-1 gamma], every qdd = R udd + c meets Phi_q qdd = gamma, and R^T Phi_q^T = 0
@@ -373,19 +381,17 @@ def reduced_accelerations(P, M, p, gamma, qdd, r, m):
     Parameters
     ----------
     P : Partition
-        Read: ind, dep, Te, Ve; scratch: MR, RMR, cv, pc, rp, npiv.
+        Read: ind, dep, Te, Ve, pe; scratch: MR, RMR, cv, pc, rp, npiv.
     M, p, gamma : ndarray (m * m,), (m,), (r,)
         Mass matrix (row-major), B u - C qd - h, and gamma* (the method's: gamma for minimal).
     qdd : ndarray (>= m,)
         Out.
     """
     n = m - r
-    T, V, ind, dep = P.Te, P.Ve, P.ind, P.dep
+    T, ind, dep = P.Te, P.ind, P.dep
     for i in range(r):  # c_v = Phi_v^-1 gamma
-        s = 0.0
-        for j in range(r):
-            s += V[i * r + j] * gamma[j]
-        P.cv[i] = s
+        P.cv[i] = gamma[i]
+    lu_solve(P.Ve, r, P.pe, P.cv)
     for a in range(m):  # p - M c, and M R: (M R)[:, j] = M[:, u_j] + sum_i M[:, v_i] (dv/du)[i, j]
         s = p[a]
         for i in range(r):

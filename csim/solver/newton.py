@@ -181,8 +181,10 @@ def dependent_velocities(phi_q: np.ndarray, qd: np.ndarray, dependent: np.ndarra
     return out
 
 
-def branch_tangent(phi_q: np.ndarray, independent: np.ndarray, dependent: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """dv/du = -Phi_v^-1 Phi_u (r, n) and Phi_v^-1 (r, r) (:func:`csim.physics.partition.branch_tangent`).
+def branch_tangent(phi_q: np.ndarray, independent: np.ndarray,
+                   dependent: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """dv/du = -Phi_v^-1 Phi_u (r, n), and Phi_v's LU factors (r, r) with their pivots (r,)
+    (:func:`csim.physics.partition.branch_tangent`).
 
     Raises
     ------
@@ -191,11 +193,11 @@ def branch_tangent(phi_q: np.ndarray, independent: np.ndarray, dependent: np.nda
     """
     r, m = phi_q.shape
     independent, dependent = np.asarray(independent, np.int64), np.asarray(dependent, np.int64)
-    V, T = np.empty(r * r), np.empty(r * (m - r))
-    if not _tangent_core(np.ascontiguousarray(phi_q, dtype=float).ravel(), independent, dependent, r, m,
-                         np.empty(r * r), np.empty(r, np.int64), np.empty(r), V, T):
+    lu, piv, T = np.empty(r * r), np.zeros(r, np.int64), np.empty(r * (m - r))
+    if not _tangent_core(np.ascontiguousarray(phi_q, dtype=float).ravel(), independent, dependent, r, m, lu, piv,
+                         np.empty(r), T):
         raise DependentSolveError("singular", np.full(m, np.nan), np.full(r, np.nan))
-    return T.reshape(r, m - r), V.reshape(r, r)
+    return T.reshape(r, m - r), lu.reshape(r, r), piv
 
 
 @dataclass
@@ -208,13 +210,16 @@ class BranchPoint:
         Coordinates on the branch, Phi(q) = 0 [rad or m].
     tangent : ndarray (r, n)
         dv/du there (:func:`branch_tangent`).
-    phi_v_inv : ndarray (r, r)
-        Phi_v^-1 there.
+    phi_v_lu : ndarray (r, r)
+        Phi_v's LU factors there (:func:`csim.physics.linalg.lu_factor`).
+    phi_v_piv : ndarray (r,) int
+        Their pivots.
     """
 
     q: np.ndarray
     tangent: np.ndarray
-    phi_v_inv: np.ndarray
+    phi_v_lu: np.ndarray
+    phi_v_piv: np.ndarray
 
     @classmethod
     def at(cls, q: np.ndarray, phi_q: np.ndarray, independent: np.ndarray, dependent: np.ndarray) -> BranchPoint:
@@ -224,8 +229,8 @@ class BranchPoint:
     def state(self, model: NumericModel, independent, dependent) -> Partition:
         """A core Partition anchored here, in the partition (independent, dependent)."""
         P = _partition(model, independent, dependent)
-        P.qa[:], P.Ta[:], P.Va[:] = self.q, self.tangent.ravel(), self.phi_v_inv.ravel()
-        P.qp[:], P.Tp[:], P.Vp[:] = P.qa, P.Ta, P.Va
+        P.qa[:], P.Ta[:], P.Va[:], P.pa[:] = self.q, self.tangent.ravel(), self.phi_v_lu.ravel(), self.phi_v_piv
+        P.qp[:], P.Tp[:], P.Vp[:], P.pp[:] = P.qa, P.Ta, P.Va, P.pa
         return P
 
     def predict(self, model: NumericModel, par: np.ndarray, u: np.ndarray, independent: np.ndarray,
@@ -259,7 +264,7 @@ def _followed(code: int, P: Partition) -> tuple[DependentSolution, BranchPoint]:
     if code != OK:
         raise _error(code, P)
     r, m = P.dep.size, P.qe.size
-    end = BranchPoint(P.qe.copy(), P.Te.reshape(r, m - r).copy(), P.Ve.reshape(r, r).copy())
+    end = BranchPoint(P.qe.copy(), P.Te.reshape(r, m - r).copy(), P.Ve.reshape(r, r).copy(), P.pe.copy())
     return _solution(P, P.qe, 0), end
 
 
