@@ -39,7 +39,7 @@ FAILURE_KINDS = (
     ("singular", ("singular", "projection at t = {t}: the constraint jacobian has lost rank",
                   "projection at t = {t}: the mass matrix is singular", "numerical error after t = {t}: linalgerror",
                   "minimal: the dependent block phi_v is singular", "the dependent block phi_v",
-                  "phi_v is singular", "ggl: singular", "no dependent block phi_v")),
+                  "phi_v is singular", "ggl: singular", "no dependent block phi_v", "minimal: r^t m r is singular")),
     ("newton", ("minimal: newton-raphson",)),
     ("branch", ("minimal: the assembly branch",)),
     ("event location", ("numerical error",)),

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import CONFIGS
 
 from csim.mechanisms import get_mechanism
 from csim.model import build_numeric_model
@@ -96,3 +97,39 @@ def test_following_the_circle_past_the_prediction_keeps_its_lower_half(pendulum)
     # beyond |x| = L there is no assembly: the continuation says so, it does not jump
     with pytest.raises(DependentSolveError):
         follow_branch(model, par, point, np.array([2.5]), np.array([0]), np.array([1]), 1e-14, 20)
+
+
+def test_the_prediction_through_phi_v_factors_equals_the_explicit_formula():
+    """predict applies Phi_v^-1 through the LU factors and pivots a BranchPoint keeps (csim.physics.branch):
+    v_pred = v_a + T du + 1/2 Phi_v^-1 gamma(q_a, [du, T du]) with numpy's inverse, on Andrews' mechanism
+    (r = 6) in partitions whose factorizations swap rows (a pivot not copied with its factors would show)."""
+    from csim.case import load_case
+    from csim.pipeline import build_system, initial_state
+    from csim.solver.newton import BranchPoint
+
+    case = load_case(CONFIGS / "andrews.yaml")
+    system = build_system(case)
+    model, par = system.model, system.par
+    q0 = initial_state(case, system)[:system.m]
+    m, r = system.m, system.r
+    rng = np.random.default_rng(3)
+    swapped = tried = 0
+    for _ in range(60):
+        dep = np.sort(rng.choice(m, size=r, replace=False))
+        ind = np.setdiff1d(np.arange(m), dep)
+        J = model.phi_q(q0, par)
+        if np.linalg.cond(J[:, dep]) > 1e8:  # (a singular block: no branch point there)
+            continue
+        point = BranchPoint.at(q0, J, ind, dep)
+        tried += 1
+        swapped += int(np.any(point.phi_v_piv != np.arange(r)))
+        du = rng.normal(scale=0.01, size=m - r)
+        predicted, _, _ = point.predict(model, par, q0[ind] + du, ind, dep)
+        T = -np.linalg.solve(J[:, dep], J[:, ind])
+        direction = np.zeros(m)
+        direction[ind], direction[dep] = du, T @ du
+        gamma = model.gamma(q0, direction, par)
+        expected = q0[dep] + T @ du + 0.5 * np.linalg.solve(J[:, dep], gamma)
+        np.testing.assert_allclose(point.tangent, T, rtol=1e-10, atol=1e-12)
+        np.testing.assert_allclose(predicted[dep], expected, rtol=1e-10, atol=1e-12)
+    assert tried >= 8 and swapped >= 3, (tried, swapped)

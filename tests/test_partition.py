@@ -81,16 +81,21 @@ def test_the_pivoted_qr_choice_passes_over_a_repeated_column():
     assert np.linalg.matrix_rank(J[:, dep]) == r
 
 
-@pytest.mark.parametrize("m, r", [(3, 2), (5, 2), (8, 7), (6, 0)])
-def test_the_reduced_accelerations_equal_the_kkt_solution(m, r):
+@pytest.mark.parametrize("m, r, singular", [(3, 2, False), (5, 2, False), (8, 7, False), (6, 0, False),
+                                              (5, 2, True), (8, 5, True)])
+def test_the_reduced_accelerations_equal_the_kkt_solution(m, r, singular):
     """(R^T M R) udd = R^T (p - M c), qdd = R udd + c (partition.reduced_accelerations, minimal's right-hand side)
-    against the (m + r) KKT system on random problems: the same qdd, on the constraints' acceleration level."""
+    against the (m + r) KKT system on random problems: the same qdd, on the constraints' acceleration level;
+    also where M is singular but regular on the tangent space (``singular``: rank n), as the KKT system is."""
     from csim.physics.partition import branch_tangent, complement, new_partition, reduced_accelerations
     from csim.solver.formulations import KKT
 
     rng = np.random.default_rng(m * 10 + r)
     A = rng.normal(size=(m, m))
     M, J, p, gamma = A @ A.T + m * np.eye(m), rng.normal(size=(r, m)), rng.normal(size=m), rng.normal(size=r)
+    if singular:  # M of rank n = m - r, singular off the tangent space (massless parts the constraints hold)
+        B = rng.normal(size=(m, m - r))
+        M = B @ B.T
     P = new_partition(m, r, 0)
     P.dep[:] = np.sort(rng.choice(m, size=r, replace=False))
     complement(P.dep, r, m, P.ind)

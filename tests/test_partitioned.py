@@ -232,3 +232,26 @@ def test_a_breakdown_after_a_step_repartitions_from_the_accepted_state(monkeypat
     monkeypatch.setattr(PartitionedSystem, "repartition", recording)
     integrate(system, initial_state(case, system), case.integration_settings())  # (no better partition exists)
     np.testing.assert_array_equal(seen["from"], seen["accepted"])
+
+
+@pytest.mark.parametrize("backend", ["compiled", "python"])
+def test_a_mass_matrix_singular_on_the_tangent_space_stops_minimal_saying_so(backend):
+    """The four-bar with its coupler and rocker massless and the crank's mass at its pivot without inertia:
+    M vanishes on the one direction the mechanism can move, so R^T M R is singular (helper-27). The run stops
+    at t = 0 with minimal's own message (it said "singular KKT matrix", a matrix minimal does not form)."""
+    import yaml
+
+    from csim.case import validate_case
+
+    data = yaml.safe_load((CONFIGS / "fourbar_gravity.yaml").read_text())
+    links = {link["name"]: link for link in data["mechanism"]["links"] if "name" in link}
+    for name in ("coupler", "rocker"):
+        for key in ("mass", "com", "inertia"):
+            links[name].pop(key)
+    links["crank"].update(com=[0, 0, 0], inertia=0)
+    data.setdefault("stabilization", {})["method"] = "minimal"
+    data.setdefault("simulation", {})["backend"] = backend
+    result = run_case(validate_case(data))
+    assert not result.ok and result.backend == backend and result.failure == "singular"
+    assert result.message.startswith("minimal: R^T M R is singular: the mass matrix is singular on the constraints' "
+                                     "tangent space"), result.message

@@ -8,14 +8,15 @@ v (``dep``). This module holds what needs no model evaluation:
   the last accepted state, the Newton scratch, the failure details. The Python driver
   (:class:`csim.solver.partitioned.PartitionedSystem`) and the compiled kernels lay it out
   with the same function;
-* the condition of a dependent block, ||Phi_q||_1 ||Phi_v^-1||_1 (:func:`block_condition`);
+* the condition of a dependent block, ||Phi_q||_1 ||Phi_v^-1||_1 (:func:`block_inverse`);
 * the choice of the partition (:func:`choose_partition`): the best-conditioned block by
   trying every one, or QR with column pivoting for mechanisms with many candidates;
-* the branch tangent dv/du = -Phi_v^-1 Phi_u (:func:`branch_tangent`) and the test that a
-  Newton solution continues the branch (:func:`same_branch`).
+* the branch tangent dv/du = -Phi_v^-1 Phi_u (:func:`branch_tangent`, through Phi_v's LU
+  factors) and the test that a Newton solution continues the branch (:func:`same_branch`);
+* the accelerations on the constraints' tangent space (:func:`reduced_accelerations`).
 
 The solves that evaluate the model are in :mod:`csim.physics.branch`. Matrices are flat and
-row-major: Phi_q (r * m), dv/du (r * n), Phi_v^-1 (r * r).
+row-major: Phi_q (r * m), dv/du (r * n), Phi_v's LU factors (r * r, with their pivots).
 """
 from __future__ import annotations
 
@@ -230,7 +231,7 @@ def enumerates(m, r):
 def choose_partition(J, r, m, ind, dep, cand, best, lu, piv, col, inv, basis, resid):
     """The partition of coordinates for a Jacobian J (r * m): ind (n,) and dep (r,), ascending.
 
-    The dependent block Phi_v is the one with the smallest :func:`block_condition`, found by
+    The dependent block Phi_v is the one with the smallest condition (:func:`block_inverse`), found by
     trying every choice of r of the m columns in lexicographic order (the first of equal ones)
     when that is cheap (:func:`enumerates`). Beyond that, QR with column pivoting (which
     orders the columns by how much each adds to the rank) picks its first r pivots, a good

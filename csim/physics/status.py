@@ -35,6 +35,7 @@ INTERRUPTED = 21  # a: t (Ctrl-C: the compiled loop saw the caller's request)
 ELIMINATION_FIXED_SINGULAR = 22  # Phi_v of formulation.independent above formulation.max_condition
 ELIMINATION_NO_BLOCK = 23  # no dependent block within formulation.max_condition, after choosing again
 ELIMINATION_SINGULAR = 24  # [R^T M; Phi_q] singular
+TANGENT_MASS_SINGULAR = 25  # minimal: R^T M R singular (M singular on the constraints' tangent space)
 
 #: the kind of failure each code is (:data:`csim.result.FAILURES`): what HDF5's ``failure``
 #: attribute, the sweep tables and ``csim batch`` call it
@@ -47,6 +48,7 @@ KINDS = {
     DEPENDENT_NONFINITE: "blow-up", DEPENDENT_SINGULAR: "singular", DEPENDENT_NO_CONVERGENCE: "newton",
     BRANCH_LEFT: "branch", NO_BETTER_PARTITION: "branch", BRANCH_LOST: "branch", INTERRUPTED: "interrupted",
     ELIMINATION_FIXED_SINGULAR: "singular", ELIMINATION_NO_BLOCK: "singular", ELIMINATION_SINGULAR: "singular",
+    TANGENT_MASS_SINGULAR: "singular",
 }
 
 

@@ -32,6 +32,7 @@ from csim.physics.status import (
     SINGULAR_MASS,
     STEP_COLLAPSE,
     STEP_TOO_SMALL,
+    TANGENT_MASS_SINGULAR,
     code_kind,
 )
 
@@ -119,6 +120,9 @@ def failure_message(code: int, a: float, b: float, settings, method=None, switch
                 "formulation.max_condition is too small")
     if code == ELIMINATION_SINGULAR:
         return "singular system [R^T M; Phi_q] in the elimination formulation"
+    if code == TANGENT_MASS_SINGULAR:
+        return ("minimal: R^T M R is singular: the mass matrix is singular on the constraints' tangent space "
+                "(moving links without mass or inertia), so the motion is not determined by the forces")
     if DEPENDENT_NONFINITE <= code <= BRANCH_LOST:
         return _partition_message(code, detail, method, coordinates)
     return f"integration failed with status {code}"

@@ -12,8 +12,8 @@ and the accelerations from the equations of motion on the tangent space,
     (R^T M R) u'' = R^T (p - M c),   R = [E; dv/du],   c = [0; Phi_v^-1 gamma]
 
 (:func:`csim.physics.partition.reduced_accelerations`: an n x n solve with the dv/du and
-Phi_v^-1 the solve on the branch leaves, where the KKT system is (m + r) x (m + r); the case's
-formulation gives the recorded samples' multipliers). The constraints therefore hold to the
+Phi_v's LU factors the solve on the branch leaves, where the KKT system is (m + r) x (m + r);
+the case's formulation gives the recorded samples' multipliers). The constraints therefore hold to the
 Newton tolerance at every instant, with no drift to stabilize. When the dependent block Phi_v turns ill-conditioned (the
 mechanism nears a configuration where v is no longer a function of u) the partition is
 chosen again (:func:`csim.physics.partition.choose_partition`: the best-conditioned block, by
@@ -40,7 +40,7 @@ from csim.physics.partition import (
     new_partition,
     reduced_accelerations,
 )
-from csim.physics.status import BRANCH_LEFT, OK, SINGULAR_KKT
+from csim.physics.status import BRANCH_LEFT, OK, TANGENT_MASS_SINGULAR
 from csim.solver.failures import failure
 from csim.solver.newton import PythonModel
 from csim.solver.system import ConstrainedSystem
@@ -150,7 +150,7 @@ class PartitionedSystem(ConstrainedSystem):
         M, _, p, _, _, gamma_star, _, B = self._terms(q, qd, loads)
         qdd = np.empty(self.m)
         if not reduced_accelerations(self.P, as_core(M), as_core(p), as_core(gamma_star), qdd, self.r, self.m):
-            raise failure(SINGULAR_KKT, 0.0, 0.0, None)
+            raise failure(TANGENT_MASS_SINGULAR, 0.0, 0.0, None)
         f = np.empty(self.n_state)
         core.reduce(self.P, np.concatenate((qd, qdd, loads * self._load_rates(B, qd))), f, self.r, self.m, self.k)
         return f

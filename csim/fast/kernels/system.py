@@ -64,7 +64,7 @@ from csim.physics.loads import load_rates, load_values, mode_of, switching_funct
 from csim.physics.partition import C_PENDING, partition_sizes, partition_state, reduced_accelerations
 from csim.physics.projection import max_abs
 from csim.physics.projection import project as project_state
-from csim.physics.status import NONFINITE_RHS, OK, SINGULAR_KKT
+from csim.physics.status import NONFINITE_RHS, OK, SINGULAR_KKT, TANGENT_MASS_SINGULAR
 from csim.physics.steps import all_finite
 
 from .calls import call_eliminated, call_feval, loads_, method_gamma_star, model_handle, phi_at, terms
@@ -120,7 +120,7 @@ def eliminated(pf, pi, w, piv):
 
 # The partitioned system's branches in the functions of every step call a function of their own:
 # numba zeroes all of a function's variables at each call, and the partition's views (a tuple of
-# 39 arrays) would cost every caller a memset of kilobytes even where it is not partitioned.
+# 48 arrays) would cost every caller a memset of kilobytes even where it is not partitioned.
 @inlined
 def full_state(y, par, pf, pi, w, piv):
     """(code, the full state [q, qd, W] of the integrated state y): y itself, or for the partitioned
@@ -150,7 +150,7 @@ def _partitioned_rhs(t, y, mode, located, par, pf, pi, w, piv, f):
     _rhs_inputs(t, yf, mode, located, par, pf, pi, w, nq, nc)
     if not reduced_accelerations(P, w[pi[W_M]:pi[W_M] + nq * nq], w[pi[W_P]:pi[W_P] + nq], w[pi[W_GS]:pi[W_GS] + nc],
                                  w[pi[W_X]:pi[W_X] + nq], nc, nq):
-        return SINGULAR_KKT
+        return TANGENT_MASS_SINGULAR
     _rhs_outputs(yf, pi, w, P.ff, nq, nc)
     branch.reduce(P, P.ff, f, nc, nq, pi[PI_NL])
     return OK
