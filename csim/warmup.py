@@ -23,7 +23,7 @@ import sys
 import time
 
 #: the jobs of the warm-up (:func:`compile_part`), each in a process of its own, with what its progress line says
-PARTS = {"loop": "the loop (integrate, every integrator and method)",
+PARTS = {"loop": "the loop (integrate, every integrator and method) and the elimination's solve",
          "rhs": "the right-hand side, the samples' evaluation and the one-state entries",
          "core": "the core functions of the Python path"}
 #: the methods of the check after the compile: one of the plain system, and minimal's partitioned one
@@ -43,11 +43,12 @@ def compile_part(part: str) -> None:
     """Run one job of the warm-up (:data:`PARTS`).
 
     ``loop``: ``integrate``, for minimal's partitioned system (the same types as every other
-    method's). ``rhs``: ``feval``, ``evaluate_samples`` and the one-state entry points, for the
-    plain system. ``core``: a short run of the default case on the Python path with each of
-    :data:`METHODS`, whose calls of the core functions (:mod:`csim.physics`) compile them on
-    their own into numba's cache beside their sources (else a test session's workers would each
-    compile them, about 15 s for three methods on the 2-core machine).
+    method's), then the elimination's solve it calls by address. ``rhs``: ``feval``,
+    ``evaluate_samples`` and the one-state entry points, for the plain system. ``core``: a
+    short run of the default case on the Python path with each of :data:`METHODS`, whose calls
+    of the core functions (:mod:`csim.physics`) compile them on their own into numba's cache
+    beside their sources (else a test session's workers would each compile them, about 15 s
+    for three methods on the 2-core machine).
     """
     from csim.fast.runner import compile_loop, compile_rhs
     from csim.pipeline import build_system, initial_state, run_case

@@ -150,21 +150,23 @@ def prepare(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSett
 def compile_loop(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSettings) -> None:
     """Compile (or load) the kernels' loop, ``integrate``, for the types of its arguments, without calling it
     and without compiling the right-hand side it calls by address (``feval``: :func:`compile_rhs`), which
-    another process may compile at the same time (:mod:`csim.warmup`)."""
+    another process may compile at the same time (:mod:`csim.warmup`); then the elimination's solve
+    (``eliminated``), whose partition choice the loop's ``minimal`` has just typed (5 s in the right-hand
+    side's process, which types it for nothing else; about 1 s here)."""
     from numba import typeof
 
     mod = _kernels_for(system)
     mod.integrate.compile(tuple(typeof(value) for value in _arguments(system, y0, settings, 0, mod, feval=False)))
+    addressed_function(mod, "eliminated")
 
 
 def compile_rhs(system: ConstrainedSystem, y0: np.ndarray) -> None:
     """Compile (or load) what the kernels hold besides the loop, for the full state ``y0`` of a system that
     is not partitioned (their types are every method's): the right-hand side the loop calls by address
-    (``feval``) and the elimination's solve it calls so (``eliminated``), the samples' evaluation
-    (``evaluate_samples``) and the one-state entry points (:func:`compile_entries`)."""
+    (``feval``), the samples' evaluation (``evaluate_samples``) and the one-state entry points
+    (:func:`compile_entries`)."""
     mod = _kernels_for(system)
     feval_address(mod)
-    addressed_function(mod, "eliminated")
     n_sw = system.loads.n_switches
     evaluate_compiled(system, np.zeros(1), np.asarray(y0, dtype=float)[None], np.zeros((1, n_sw), dtype=bool))
     compile_entries(system, y0)
