@@ -352,3 +352,19 @@ def test_an_overconstrained_linkage_runs_driven_and_records_its_every_equation()
     assert result.phi.shape == result.lam.shape == (result.t.size, 5) and result.removed_names
     assert np.max(np.abs(result.phi)) < 1e-6 and np.all(np.isfinite(result.lam))
     assert not result.stays_at_rest and "its moving links have no mass" in result.summary()
+
+
+def test_a_drive_with_a_parameter_exponent_is_differentiated_at_the_values():
+    """A drive w t^n with n = 1: differentiated with n a symbol, its rate n t^n w / t is 0/0 at t = 0, and the
+    case stopped with a ZeroDivisionError (helper-28). The values are put in first; the run is the one of
+    w t, read back from the linkage cache the second time. (Python path: the compiled drive rows keep the
+    parameters as symbols, and n (n - 1) w t^(n - 2) is 0 * inf there, a blow-up at t = 0 that says so.)"""
+    data = _data(t_end=0.3, rtol=1e-9, atol=1e-9, backend="python")
+    data["mechanism"]["parameters"]["n"] = 1
+    data["mechanism"]["drive"] = {"crank": "w*t^n + th0"}
+    powered = [run_case(validate_case(data)) for _ in range(2)]  # derived, then read back
+    linear = run_case(validate_case(_data(t_end=0.3, rtol=1e-9, atol=1e-9, backend="python")))
+    for run in powered:
+        assert run.ok, run.message
+        np.testing.assert_allclose(run.q, linear.q, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(run.drive_forces, linear.drive_forces, rtol=0, atol=1e-9)

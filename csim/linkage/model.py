@@ -17,6 +17,7 @@ The result is handled by :mod:`csim.model` and the solvers like a hand-written m
 """
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -45,6 +46,7 @@ from csim.linkage.topology import Topology, analyse, grubler_kutzbach
 from csim.linkage.transforms import simplify_entry
 from csim.model.cache import definition_key, remember_key
 from csim.model.definition import Drawing, MechanismDefinition, Observable, Parameter
+from csim.model.derive import drive_rates
 from csim.model.recursive import sparse_jacobian
 from csim.quantities import convert, is_quantity
 from csim.schema import describe, finite_number
@@ -129,22 +131,26 @@ class Linkage:
         """t -> (u, ud, udd), each (d,) [rad or m, per s, per s^2], at the given parameter values (every
         parameter of the tables, by name).
 
-        The drives and their derivatives are lambdified with the parameters as arguments, and the source
-        filed in the linkage cache (:func:`csim.linkage.lambdacache.cached_lambdify`): a warm run does no
-        symbolic work for them (the derivation and lambdify took 50 ms of each driven run).
+        The drives are differentiated (:func:`csim.model.derive.drive_rates`) with the values put in, each
+        with 17 digits (it reads back as the same float, as the compiled drive rows have it): with the
+        parameters as symbols, the rates of w t^n with n = 1 are 0/0 and 0 * inf at t = 0 (helper-28). The
+        source is filed in the linkage cache under a hash of the values
+        (:func:`csim.linkage.lambdacache.cached_lambdify`): a warm run of the same case does no symbolic work
+        for them (the derivation and lambdify took 50 ms of each driven run).
         """
-        names = sorted(self.tables.symbols)  # (the order linkage_key hashes them in)
+        names = sorted(self.tables.symbols)
+        values = [float(parameters[n]) for n in names]
+        tag = hashlib.sha256(repr(values).encode()).hexdigest()[:16]
 
         def make():
-            exprs = [sp.sympify(e) for e in self.drive.values()]
-            rows = [exprs, [sp.diff(e, T) for e in exprs], [sp.diff(e, T, 2) for e in exprs]]
-            return [[T], [self.tables.symbols[n] for n in names]], rows
+            subs = {self.tables.symbols[n]: sp.Float(v, 17) for n, v in zip(names, values)}
+            exprs = [sp.sympify(e).subs(subs) for e in self.drive.values()]
+            return [[T]], [exprs, *drive_rates(exprs, T)]
 
-        f = cached_lambdify(self.cache_key or None, "drive", make)
-        values = [float(parameters[n]) for n in names]
+        f = cached_lambdify(self.cache_key or None, f"drive_{tag}", make)
 
         def drive(t: float):
-            u, ud, udd = f([t], values)
+            u, ud, udd = f([t])
             return (np.array(u, dtype=float), np.array(ud, dtype=float), np.array(udd, dtype=float))
 
         return drive

@@ -211,6 +211,15 @@ def _loads(definition: MechanismDefinition, q: sp.Matrix) -> tuple[sp.Matrix, sp
     return s, S, B, f
 
 
+def drive_rates(exprs: list, t: sp.Symbol) -> tuple[list, list]:
+    """The first and second time derivatives of drives f_j(t) (of t and the parameters), powers combined:
+    the derivative of w t^n reads n w t^(n - 1), not sympy's n w t^n / t, which is 0/0 at t = 0 for n = 1
+    (helper-28). The Python path's drives (:meth:`csim.linkage.model.Linkage.drive_function`) and the
+    compiled drive rows (:func:`with_drive_rows`) both take them from here."""
+    first = [sp.powsimp(sp.diff(e, t)) for e in exprs]
+    return first, [sp.powsimp(sp.diff(e, t)) for e in first]
+
+
 def with_drive_rows(derived: DerivedModel, driven: list[int], drives: list[sp.Expr]) -> DerivedModel:
     """``derived`` with each drive q_j = f_j(t) appended as a rheonomic constraint row.
 
@@ -242,10 +251,11 @@ def with_drive_rows(derived: DerivedModel, driven: list[int], drives: list[sp.Ex
     for i, j in enumerate(driven):
         rows[i, j] = 1
     f = [e.subs({s: t for s in e.free_symbols if s.name == "t"}) for e in map(sp.sympify, drives)]
+    first, second = drive_rates(f, t)
     return dataclasses.replace(
         derived,
         phi=sp.Matrix(list(derived.phi) + [q[j] - fj for j, fj in zip(driven, f)]),
         phi_q=derived.phi_q.col_join(rows) if r else rows,
-        gamma=sp.Matrix(list(derived.gamma) + [sp.diff(fj, t, 2) for fj in f]),
-        phi_t=sp.Matrix([0] * r + [-sp.diff(fj, t) for fj in f]),
+        gamma=sp.Matrix(list(derived.gamma) + second),
+        phi_t=sp.Matrix([0] * r + [-fd for fd in first]),
     )
