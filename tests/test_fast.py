@@ -375,7 +375,7 @@ def test_the_loop_refuses_to_run_without_the_address_of_its_right_hand_side():
     case, system, y0 = _system("simulation.t_end=0.1")
     args = list(_arguments(system, y0, case.integration_settings(), 10, module.load_kernels()))
     pi = args[5]
-    assert pi[PI_FEVAL] == module.feval_address(module.load_kernels()) != 0
+    assert pi[PI_FEVAL] == module.addressed_function(module.load_kernels(), "feval") != 0
     pi[PI_FEVAL] = 0
     with pytest.raises(ValueError, match="PI_FEVAL"):
         module.load_kernels().integrate(*args)
@@ -392,7 +392,7 @@ def test_a_call_by_address_returns_the_result_and_passes_an_exception_on():
     from csim.fast import module
     from csim.fast.kernels.addresses import FEVAL_TYPES, call_feval
 
-    @njit  # compiled by feval_address, for FEVAL_TYPES
+    @njit  # compiled by addressed_function, for FEVAL_TYPES
     def target(t, y, mode, located, par, pf, pi, w, piv, f, info):
         if t < 0:
             raise ValueError("negative time")
@@ -405,7 +405,7 @@ def test_a_call_by_address_returns_the_result_and_passes_an_exception_on():
 
     fake = pytypes.ModuleType("fake_kernels")
     fake.feval, fake.FEVAL_TYPES, fake.COMPILED = target, FEVAL_TYPES, True
-    address = module.feval_address(fake)
+    address = module.addressed_function(fake, "feval")
     f = np.zeros(1)
     rest = (np.zeros(1, np.bool_), True, np.zeros(1), np.zeros(1), np.zeros(1, np.int64), np.zeros(1),
             np.zeros(1, np.int64), f, np.zeros(2))

@@ -169,12 +169,6 @@ def load_kernels(compiled: bool = True) -> ModuleType:
     return _KERNELS
 
 
-def feval_address(kernels: ModuleType) -> int:
-    """The address of ``kernels.feval``, the right-hand side its callers call by address
-    (:func:`csim.fast.kernels.addresses.call_feval`): :func:`addressed_function`."""
-    return addressed_function(kernels, "feval")
-
-
 def addressed_function(kernels: ModuleType, name: str) -> int:
     """The address of the machine code of ``kernels.<name>`` (``feval``, ``eliminated``: compiled on their own
     and called by address), compiled for ``kernels.<NAME>_TYPES`` or loaded from numba's cache on the first

@@ -19,7 +19,6 @@ from csim.fast.layout import CONSTRAINED, ELIMINATION, KKT, PARTITIONED, PI_FEVA
 from csim.fast.module import (
     Drives,
     addressed_function,
-    feval_address,
     kernels_compiled,
     load_kernels,
     load_model,
@@ -112,7 +111,7 @@ def _arguments(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationS
                      np.nan if settings.first_step is None else settings.first_step, settings.max_phi,
                      settings.min_step], dtype=float)
     par, pf, pi = pack_problem(system, interpreted=not kernels.COMPILED)
-    pi[PI_FEVAL] = feval_address(kernels) if feval else 0  # (0: for compiling integrate, never to run it)
+    pi[PI_FEVAL] = addressed_function(kernels, "feval") if feval else 0  # (0: for compiling integrate, never to run it)
     return (INTEGRATOR_CODES[settings.integrator], np.ascontiguousarray(y0, dtype=float), t_out,
             par, pf, pi, system.stabilizer.projects, iset, fset, np.zeros(2))
 
@@ -152,7 +151,7 @@ def compile_loop(system: ConstrainedSystem, y0: np.ndarray, settings: Integratio
     and without compiling the right-hand side it calls by address (``feval``: :func:`compile_rhs`), which
     another process may compile at the same time (:mod:`csim.warmup`); then the elimination's solve
     (``eliminated``), whose partition choice the loop's ``minimal`` has just typed (5 s in the right-hand
-    side's process, which types it for nothing else; about 1 s here)."""
+    side's process, which types it for nothing else; about 2 s here)."""
     from numba import typeof
 
     mod = _kernels_for(system)
@@ -166,7 +165,7 @@ def compile_rhs(system: ConstrainedSystem, y0: np.ndarray) -> None:
     (``feval``), the samples' evaluation (``evaluate_samples``) and the one-state entry points
     (:func:`compile_entries`)."""
     mod = _kernels_for(system)
-    feval_address(mod)
+    addressed_function(mod, "feval")
     n_sw = system.loads.n_switches
     evaluate_compiled(system, np.zeros(1), np.asarray(y0, dtype=float)[None], np.zeros((1, n_sw), dtype=bool))
     compile_entries(system, y0)
