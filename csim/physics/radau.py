@@ -49,3 +49,26 @@ NUM_JAC_FACTOR_DECREASE = 0.1
 #: num_jac multiplies the difference step of a variable that F does not depend on (a work
 #: state) by 10 at every Jacobian; csim caps it so that it stays finite over long runs
 JAC_MAX_FACTOR = 1e-1
+
+# --- Radau for DAEs (csim.solver.dae.RadauDAE, and the compiled Radau on a DAE) ---
+MAX_SINGULAR = 5  # singular iteration matrices in a row (within one step) before giving up
+# Smallest finite-difference threshold of an algebraic variable. Multipliers start at 0, and
+# a difference step of sqrt(eps) atol would fall below the resolution of F: a zero Jacobian
+# column makes MU/h D - J singular for every h (RADAU5 floors |y| at 1e-5 for the same reason).
+JAC_ALGEBRAIC_THRESHOLD = 1e-3
+# Smallest finite-difference threshold of a differential variable. scipy's Radau uses atol, so
+# that a coordinate at 0 (an angle that starts at 0, a velocity at rest) is perturbed by
+# sqrt(eps) atol: with atol = 1e-9 that is 1.5e-17, below the round-off of F (eps |F|) and
+# lost entirely where the coordinate is added to others (sin(beta + Theta) with Theta = 0).
+# The column then holds round-off divided by the step (an error of 2e5 in entries of 3e6 on
+# Andrews' mechanism), the simplified Newton iteration contracts at a rate of about 0.15 to
+# 0.3 whatever the step size, and the step collapses. RADAU5 perturbs y_j by
+# sqrt(eps max(1e-5, |y_j|)), independently of atol; the same floor here makes the step at
+# least sqrt(eps) 1e-5 = 1.5e-13.
+JAC_DIFFERENTIAL_THRESHOLD = 1e-5
+# Absolute residual an algebraic row can be driven to in floating point: this many eps
+# times the size of its terms, |J_alg| |y| (used where that is above `algebraic_tol`).
+ROUNDOFF_FACTOR = 100
+# Round-off of F, in eps times the size of its terms |J| |y|, for the Newton increments it
+# alone produces (below which the iteration cannot tell convergence from noise).
+NOISE_FACTOR = 8

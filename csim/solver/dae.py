@@ -50,39 +50,45 @@ from scipy.integrate._ivp.common import num_jac
 from scipy.linalg import LinAlgWarning, lu_factor, lu_solve
 from scipy.sparse import issparse
 
-from csim.physics.radau import JAC_MAX_FACTOR, MU_COMPLEX, MU_REAL, TI, TI_COMPLEX, TI_REAL, C, E, P, T
+from csim.physics.radau import (
+    JAC_ALGEBRAIC_THRESHOLD,
+    JAC_DIFFERENTIAL_THRESHOLD,
+    JAC_MAX_FACTOR,
+    MAX_SINGULAR,
+    MU_COMPLEX,
+    MU_REAL,
+    NEWTON_MAXITER,
+    NOISE_FACTOR,
+    ROUNDOFF_FACTOR,
+    TI,
+    TI_COMPLEX,
+    TI_REAL,
+    C,
+    E,
+    P,
+    T,
+)
+from csim.physics.status import (
+    DAE_ALGEBRAIC,
+    DAE_DIVERGED,
+    DAE_ERROR_TEST,
+    DAE_NO_CONVERGENCE,
+    DAE_NONFINITE_F,
+    DAE_NONFINITE_INCREMENT,
+    DAE_SINGULAR_MATRIX,
+    DAE_SINGULAR_REPEATED,
+    DAE_SLOW,
+    DAE_ZERO_COLUMNS,
+)
+from csim.solver.failures import dae_step_message
 
 EPS = np.finfo(float).eps
 
 # --- Radau IIA, 3 stages: scipy's constants (csim.physics.radau): the nodes C, the error
 # weights E, the eigenvalues MU of A^-1, the transformations W = TI Z, Z = T W, and the dense
 # output y(t_old + x h) = y_old + (Z^T P) [x, x^2, x^3]
-NEWTON_MAXITER = 6  # Newton iterations per attempt, the polishing of the constraints included
 MIN_FACTOR = 0.2  # largest decrease of the step after an error-test failure
 MAX_FACTOR = 10  # largest increase of the step
-MAX_SINGULAR = 5  # singular iteration matrices in a row (within one step) before giving up
-# Smallest finite-difference threshold of an algebraic variable. Multipliers start at 0, and
-# a difference step of sqrt(eps) atol would fall below the resolution of F: a zero Jacobian
-# column makes MU/h D - J singular for every h (RADAU5 floors |y| at 1e-5 for the same reason).
-JAC_ALGEBRAIC_THRESHOLD = 1e-3
-# Smallest finite-difference threshold of a differential variable. scipy's Radau uses atol, so
-# that a coordinate at 0 (an angle that starts at 0, a velocity at rest) is perturbed by
-# sqrt(eps) atol: with atol = 1e-9 that is 1.5e-17, below the round-off of F (eps |F|) and
-# lost entirely where the coordinate is added to others (sin(beta + Theta) with Theta = 0).
-# The column then holds round-off divided by the step (an error of 2e5 in entries of 3e6 on
-# Andrews' mechanism), the simplified Newton iteration contracts at a rate of about 0.15 to
-# 0.3 whatever the step size, and the step collapses. RADAU5 perturbs y_j by
-# sqrt(eps max(1e-5, |y_j|)), independently of atol; the same floor here makes the step at
-# least sqrt(eps) 1e-5 = 1.5e-13.
-JAC_DIFFERENTIAL_THRESHOLD = 1e-5
-# Absolute residual an algebraic row can be driven to in floating point: this many eps
-# times the size of its terms, |J_alg| |y| (used where that is above `algebraic_tol`).
-ROUNDOFF_FACTOR = 100
-# Round-off of F, in eps times the size of its terms |J| |y|, for the Newton increments it
-# alone produces (below which the iteration cannot tell convergence from noise).
-NOISE_FACTOR = 8
-
-
 class DifferenceJacobian:
     """dF/dy by forward differences (scipy's ``num_jac``), its step factors capped.
 
@@ -112,6 +118,13 @@ class DifferenceJacobian:
         J, factor = num_jac(self.columns, t, y, self.fun(t, y) if f is None else f, self.threshold, self.factor)
         self.factor = np.minimum(factor, JAC_MAX_FACTOR)
         return J
+
+
+def _detail(reason: int, t: float, h: float = np.nan, value: float = np.nan, tol: float = np.nan,
+            residual: float = np.nan, columns=()) -> np.ndarray:
+    """A failed step's details in the layout of :mod:`csim.physics.status` (DAE_REASON ...), which the compiled
+    Radau fills in too, for :func:`csim.solver.failures.dae_step_message`."""
+    return np.array([reason, t, h, value, tol, residual, len(columns), *columns], dtype=float)
 
 
 def _rms(x: np.ndarray) -> np.float64:
@@ -443,7 +456,7 @@ class RadauDAE(OdeSolver):
             for i in range(3):
                 F[i] = f_end if (i == 2 and f_end is not None) else self.fun(t_stage[i], y + Z[i])
             if not np.all(np.isfinite(F)):
-                return False, k + 1, Z, rate, None, "non-finite right-hand side"
+                return False, k + 1, Z, rate, None, (DAE_NONFINITE_F,)
 
             # residuals of the transformed system:
             #   f_real    = (TI_REAL F)    - MU_REAL/h    D W_0
@@ -461,13 +474,13 @@ class RadauDAE(OdeSolver):
             if dW_norm_old is not None and dW_norm_old > 0:
                 rate = dW_norm / dW_norm_old
             if not np.isfinite(dW_norm):
-                return False, k + 1, Z, rate, None, "non-finite Newton increment"
+                return False, k + 1, Z, rate, None, (DAE_NONFINITE_INCREMENT,)
             # divergence, or convergence too slow to reach newton_tol within the limit
             # (scipy's test; not applied while polishing, where the increments are tiny)
             at_noise = dW_norm <= noise_norm
             if not polishing and not at_noise and rate is not None and (
                     rate >= 1 or rate ** (NEWTON_MAXITER - k) / (1 - rate) * dW_norm > self.newton_tol):
-                return False, k + 1, Z, rate, None, "iteration diverged" if rate >= 1 else "slow convergence"
+                return False, k + 1, Z, rate, None, (DAE_DIVERGED if rate >= 1 else DAE_SLOW,)
 
             W += dW
             Z = T @ W
@@ -479,7 +492,7 @@ class RadauDAE(OdeSolver):
                 # the algebraic residual at the step end: max |F_alg(t + h, y + Z_3)| <= alg_tol
                 f_end = self.fun(t_new, y + Z[2])
                 if not np.all(np.isfinite(f_end)):
-                    return False, k + 1, Z, rate, None, "non-finite right-hand side"
+                    return False, k + 1, Z, rate, None, (DAE_NONFINITE_F,)
                 excess = np.abs(f_end[alg]) / alg_tol
                 if np.max(excess) <= 1:
                     return True, k + 1, Z, rate, f_end, None
@@ -487,10 +500,9 @@ class RadauDAE(OdeSolver):
 
         if polishing:
             i = int(np.argmax(excess))
-            reason = (f"algebraic residual {abs(f_end[alg][i]):.3g} above its tolerance "
-                      f"{alg_tol[i]:.3g} after {NEWTON_MAXITER} iterations")
+            reason = (DAE_ALGEBRAIC, abs(f_end[alg][i]), alg_tol[i])
         else:
-            reason = f"no convergence in {NEWTON_MAXITER} iterations"
+            reason = (DAE_NO_CONVERGENCE,)
         return False, NEWTON_MAXITER, Z, rate, None, reason
 
     # --- one step --------------------------------------------------------------------------
@@ -530,16 +542,13 @@ class RadauDAE(OdeSolver):
                     LU_real = self._lu(MU_REAL / h * np.diag(self.d) - J)
                     LU_complex = None if LU_real is None else self._lu(MU_COMPLEX / h * np.diag(self.d) - J)
                 if LU_real is None or LU_complex is None:
-                    converged, reason = False, "singular iteration matrix"
+                    converged, reason = False, (DAE_SINGULAR_MATRIX,)
                     zero = np.flatnonzero(self.algebraic & ~J.any(axis=0))
                     if current_jac and zero.size:  # singular for every h: halving cannot help
-                        return False, (f"Newton iteration did not converge at t = {t:.9g}; singular iteration "
-                                       f"matrix: dF/dy is zero in the columns {zero.tolist()} of algebraic "
-                                       f"variables (they do not enter F)")
+                        return False, dae_step_message(_detail(DAE_ZERO_COLUMNS, t, columns=zero))
                     n_singular += 1
                     if n_singular >= MAX_SINGULAR:
-                        return False, (f"Newton iteration did not converge at t = {t:.9g}; singular "
-                                       f"iteration matrix ({n_singular} times in this step).")
+                        return False, dae_step_message(_detail(DAE_SINGULAR_REPEATED, t, value=n_singular))
                 else:
                     converged, n_iter, Z, rate, f_end, reason = self._solve_collocation(
                         t, t_new, y, h, Z0, scale, LU_real, LU_complex, alg_tol)
@@ -602,19 +611,14 @@ class RadauDAE(OdeSolver):
             return min_step, min_step, None, None
         return min_step, self.h_abs, self.h_abs_old, self.error_norm_old
 
-    def _too_small_message(self, t: float, h_abs: float, newton_failure: str | None) -> str:
-        """Why the step fell below the smallest one: the last Newton failure, and on the first
-        step the question whether the initial state is consistent."""
-        if newton_failure is not None:
-            message = (f"Newton iteration did not converge at t = {t:.9g}; {newton_failure} "
-                       f"(step size {h_abs:.3g} is less than spacing between numbers).")
-        else:
-            message = self.TOO_SMALL_STEP
+    def _too_small_message(self, t: float, h_abs: float, newton_failure: tuple | None) -> str:
+        """Why the step fell below the smallest one (:func:`csim.solver.failures.dae_step_message`): the last
+        Newton failure ``(reason, value, tolerance)``, and on the first step the question whether the initial
+        state is consistent."""
+        reason, *values = newton_failure or (DAE_ERROR_TEST,)
         alg = self.algebraic
-        if self.t_old is None and alg.any():  # failing on the first step: suspect y0
-            message += (" Is the initial state consistent (the algebraic equations and the hidden "
-                        f"constraints)? max |F_alg(t0, y0)| = {np.max(np.abs(self.f[alg])):.3g}.")
-        return message
+        residual = np.max(np.abs(self.f[alg])) if self.t_old is None and alg.any() else np.nan  # first step: y0?
+        return dae_step_message(_detail(reason, t, h_abs, *values, residual=residual))
 
     def _error_norm(self, t, y, y_new, f, Z, h, LU_real, rejected: bool) -> float:
         """The scaled rms of the error estimate err = (MU_REAL/h D - J)^-1 (F(t, y) + D Z^T E / h),

@@ -7,16 +7,35 @@ integrator's stability region, a chattering switch, a lost assembly branch).
 """
 from __future__ import annotations
 
+from csim.physics.radau import NEWTON_MAXITER
 from csim.physics.status import (
     BRANCH_LEFT,
     BRANCH_LOST,
     CHATTER,
+    DAE_ALGEBRAIC,
+    DAE_COLS,
+    DAE_DIVERGED,
+    DAE_H,
+    DAE_NCOLS,
+    DAE_NO_CONVERGENCE,
+    DAE_NONFINITE_F,
+    DAE_NONFINITE_INCREMENT,
+    DAE_REASON,
+    DAE_RESIDUAL0,
+    DAE_SINGULAR_MATRIX,
+    DAE_SINGULAR_REPEATED,
+    DAE_SLOW,
+    DAE_T,
+    DAE_TOL,
+    DAE_VALUE,
+    DAE_ZERO_COLUMNS,
     DEPENDENT_NO_CONVERGENCE,
     DEPENDENT_NONFINITE,
     DEPENDENT_SINGULAR,
     ELIMINATION_FIXED_SINGULAR,
     ELIMINATION_NO_BLOCK,
     ELIMINATION_SINGULAR,
+    GGL_SINGULAR_MASS,
     INTERRUPTED,
     MAX_EVENTS,
     MAX_PHI,
@@ -80,8 +99,8 @@ def failure_message(code: int, a: float, b: float, settings, method=None, switch
         return (f"more than simulation.max_steps = {s.max_steps} steps by t = {a:.6g} s: "
                 f"the motion is too fast or too stiff for these settings (raise max_steps to go on)")
     if code == STEP_TOO_SMALL:
-        return (f"integrator {s.integrator} failed at t = {a:.6g} s: "
-                f"Required step size is less than spacing between numbers.")
+        why = TOO_SMALL_STEP if detail is None or not detail[DAE_REASON] else dae_step_message(detail)
+        return f"integrator {s.integrator} failed at t = {a:.6g} s: {why}"
     if code == SINGULAR_KKT:
         return ("singular KKT matrix: the constraint Jacobian Phi_q lost rank (a singular "
                 "configuration of the mechanism) or M is singular")
@@ -120,12 +139,51 @@ def failure_message(code: int, a: float, b: float, settings, method=None, switch
                 "formulation.max_condition is too small")
     if code == ELIMINATION_SINGULAR:
         return "singular system [R^T M; Phi_q] in the elimination formulation"
+    if code == GGL_SINGULAR_MASS:
+        return (f"ggl: the mass matrix is singular at t = {a:.6g} s (moving links without mass or inertia): ggl "
+                f"solves M v' = p - Phi_q^T lambda, so it needs mass on every moving link")
     if code == TANGENT_MASS_SINGULAR:
         return ("minimal: R^T M R is singular: the mass matrix is singular on the constraints' tangent space "
                 "(moving links without mass or inertia), so the motion is not determined by the forces")
     if DEPENDENT_NONFINITE <= code <= BRANCH_LOST:
         return _partition_message(code, detail, method, coordinates)
     return f"integration failed with status {code}"
+
+
+#: scipy's message for a step below the spacing of the numbers at t
+TOO_SMALL_STEP = "Required step size is less than spacing between numbers."
+
+
+def dae_step_message(detail) -> str:
+    """Why Radau for DAEs stopped (:class:`csim.solver.dae.RadauDAE`'s message, and the compiled Radau's): its
+    step fell below the smallest one after Newton failures (the last one's reason) or error-test failures, or
+    the iteration matrix is singular for every step. ``detail``: the layout of :mod:`csim.physics.status`
+    (DAE_REASON ...)."""
+    reason, t, h = int(detail[DAE_REASON]), detail[DAE_T], detail[DAE_H]
+    if reason == DAE_ZERO_COLUMNS:
+        columns = [int(c) for c in detail[DAE_COLS:DAE_COLS + int(detail[DAE_NCOLS])]]
+        return (f"Newton iteration did not converge at t = {t:.9g}; singular iteration matrix: dF/dy is zero in the "
+                f"columns {columns} of algebraic variables (they do not enter F)")
+    if reason == DAE_SINGULAR_REPEATED:
+        return (f"Newton iteration did not converge at t = {t:.9g}; singular iteration matrix "
+                f"({int(detail[DAE_VALUE])} times in this step).")
+    newton = {DAE_NONFINITE_F: "non-finite right-hand side",
+              DAE_NONFINITE_INCREMENT: "non-finite Newton increment",
+              DAE_DIVERGED: "iteration diverged", DAE_SLOW: "slow convergence",
+              DAE_NO_CONVERGENCE: f"no convergence in {NEWTON_MAXITER} iterations",
+              DAE_SINGULAR_MATRIX: "singular iteration matrix",
+              DAE_ALGEBRAIC: f"algebraic residual {detail[DAE_VALUE]:.3g} above its tolerance {detail[DAE_TOL]:.3g} "
+                             f"after {NEWTON_MAXITER} iterations"}.get(reason)
+    if newton is None:  # the error test cut the step down (DAE_ERROR_TEST)
+        message = TOO_SMALL_STEP
+    else:
+        message = (f"Newton iteration did not converge at t = {t:.9g}; {newton} (step size {h:.3g} is less than "
+                   f"spacing between numbers).")
+    residual = detail[DAE_RESIDUAL0]
+    if residual == residual:  # failing on the first step: suspect the initial state
+        message += (" Is the initial state consistent (the algebraic equations and the hidden constraints)? "
+                    f"max |F_alg(t0, y0)| = {residual:.3g}.")
+    return message
 
 
 def _chatter_message(t: float, span: float, settings, switches) -> str:

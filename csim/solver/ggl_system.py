@@ -19,6 +19,11 @@ from __future__ import annotations
 import numpy as np
 
 from csim.errors import SimulationFailure
+from csim.physics.ggl import ggl_equations
+from csim.physics.kkt import constraint_rates
+from csim.physics.linalg import as_core
+from csim.physics.status import GGL_SINGULAR_MASS
+from csim.solver.failures import failure_message
 from csim.solver.methods.projection import Projection
 from csim.solver.system import ConstrainedSystem
 
@@ -81,18 +86,22 @@ class GGLSystem(ConstrainedSystem):
         return np.concatenate((q, v, W, np.zeros(self.r), lam))
 
     def rhs(self, t: float, x: np.ndarray, mode: np.ndarray) -> np.ndarray:
-        """F(t, x) (n_state,): the differential right-hand sides, then Phi and Phi_q v."""
+        """F(t, x) (n_state,): the differential right-hand sides, then Phi and Phi_q v
+        (:func:`csim.physics.ggl.ggl_equations`, which the compiled kernels call too)."""
         model, par, m, k, r = self.model, self.par, self.m, self.k, self.r
-        q, v = x[:m], x[m:2 * m]
+        q, v = x[:m], np.ascontiguousarray(x[m:2 * m])
         mu, lam = x[2 * m + k:2 * m + k + r], x[2 * m + k + r:]
         u = self.load_values(t, q, v, mode)
-        M = model.mass(q, par)
-        phi_q = model.phi_q(q, par)
+        M = as_core(model.mass(q, par))
+        phi_q = as_core(model.phi_q(q, par))
         B = model.load_matrix(q, par)
         # p = B u - C v - h
-        p = B @ u - model.velocity_terms(q, v, par) - model.gravity(q, par)
-        try:
-            v_dot = np.linalg.solve(M, p - phi_q.T @ lam)
-        except np.linalg.LinAlgError:
-            raise SimulationFailure("ggl: singular mass matrix", "singular") from None
-        return np.concatenate((v - phi_q.T @ mu, v_dot, u * (B.T @ v), model.phi(q, par), phi_q @ v))
+        p = as_core(B @ u - model.velocity_terms(q, v, par) - model.gravity(q, par))
+        phi_dot = np.empty(r)
+        constraint_rates(phi_q, v, phi_dot, r, m)
+        F = np.empty(self.n_state)
+        if not ggl_equations(M, phi_q, p, as_core(model.phi(q, par)), phi_dot, v, as_core(mu), as_core(lam),
+                             np.empty(m * m), np.zeros(m, np.int64), F[:m], F[m:2 * m], F[2 * m + k:], m, r):
+            raise SimulationFailure(failure_message(GGL_SINGULAR_MASS, t, 0.0, None), "singular")
+        F[2 * m:2 * m + k] = u * (B.T @ v)
+        return F
