@@ -169,7 +169,7 @@ def test_chatter_fails_fast_and_alike_on_both_backends(overrides):
 
 
 @pytest.mark.parametrize("override, key", [
-    ("stabilization.method=ggl", "stabilization.method 'ggl'"),
+    ("stabilization.method=augmented_lagrangian", "stabilization.method 'augmented_lagrangian'"),
     ("simulation.integrator=BDF", "simulation.integrator 'BDF'"),
 ])
 def test_unsupported_combinations_are_rejected(override, key):
@@ -340,7 +340,7 @@ def test_auto_runs_minimal_compiled():
     from csim.fast import resolve_backend
 
     assert resolve_backend(qr_case("stabilization.method=minimal")) == "compiled"
-    assert resolve_backend(qr_case("stabilization.method=ggl", "simulation.integrator=Radau")) == "python"
+    assert resolve_backend(qr_case("stabilization.method=ggl", "simulation.integrator=Radau")) == "compiled"
 
 
 def test_one_copy_of_the_kernels_is_the_source_unchanged_and_runs_every_method():

@@ -68,9 +68,10 @@ PI_MK, PI_NSW, PI_IPAR, PI_NIPAR, PI_FPAR, PI_NFPAR, PI_GAINS, PI_NGAINS = range
 PI_NQ, PI_NC, PI_NL, PI_NO = range(8, 12)
 #: the address of the gamma* of a method outside the kernels' own dispatch (0: none)
 PI_GAMMA_FN = 12
-#: what is integrated: CONSTRAINED ([q, qd, W]) or PARTITIONED ([u, ud, W], csim.physics.branch)
+#: what is integrated: CONSTRAINED ([q, qd, W]), PARTITIONED ([u, ud, W], csim.physics.branch) or GGL's DAE
+#: ([q, v, W, mu, lambda], csim.physics.ggl: Radau only)
 PI_SYS = 13
-CONSTRAINED, PARTITIONED = 0, 1
+CONSTRAINED, PARTITIONED, GGL = 0, 1, 2
 #: drives (csim.solver.driven): how many of the constraint rows, the last ones, are drives
 #: q_j = f_j(t), and where in pi their coordinates j are (each drive's work is a state after the loads')
 PI_ND, PI_DRV = 14, 15

@@ -15,7 +15,7 @@ from contextlib import contextmanager, nullcontext, suppress
 
 import numpy as np
 
-from csim.fast.layout import CONSTRAINED, ELIMINATION, KKT, PARTITIONED, PI_FEVAL, PI_HEAD, workspace
+from csim.fast.layout import CONSTRAINED, ELIMINATION, GGL, KKT, PARTITIONED, PI_FEVAL, PI_HEAD, workspace
 from csim.fast.module import (
     Drives,
     addressed_function,
@@ -30,6 +30,7 @@ from csim.physics.status import OK, code_kind
 from csim.solver.driven import DrivenSystem
 from csim.solver.failures import failure_message
 from csim.solver.formulations import Elimination
+from csim.solver.ggl_system import GGLSystem
 from csim.solver.partitioned import PartitionedSystem
 from csim.solver.settings import IntegrationSettings, Trajectory, output_times
 from csim.solver.system import ConstrainedSystem
@@ -65,7 +66,8 @@ def pack_problem(system: ConstrainedSystem, interpreted: bool = False) -> tuple[
     n_sw = loads.n_switches
     at_ipar, at_fpar = PI_HEAD + 2 * n_sw, k + n_sw
     code, gamma_fn = method_dispatch(method, interpreted)
-    kind = PARTITIONED if isinstance(system, PartitionedSystem) else CONSTRAINED
+    kind = (PARTITIONED if isinstance(system, PartitionedSystem) else GGL if isinstance(system, GGLSystem)
+            else CONSTRAINED)
     driven = np.zeros(0, np.int64) if drives is None else np.array(drives.driven, np.int64)
     form, form_i, form_f = _formulation(system.formulation, m - r)
     # the elimination's solve, called by address (compiled or loaded here, on the first run that needs it)
@@ -218,7 +220,7 @@ def integrate_compiled(system: ConstrainedSystem, y0: np.ndarray, settings: Inte
     status, message, failure = "success", f"reached t_end = {settings.t_end:g} s", ""
     if code != OK:
         status, failure = "failed", code_kind(int(code), info[2:])
-        message = failure_message(int(code), float(info[0]), float(info[1]), settings, system.stabilizer,
+        message = failure_message(int(code), float(info[0]), float(info[1]), settings, system.failure_method(int(code)),
                                   switches=_chattering_labels(ev_sw, n_ev, settings.chatter_events, labels),
                                   detail=info[2:], coordinates=system.model.definition.coordinate_names)
     return Trajectory(

@@ -22,7 +22,9 @@
 Supported: ``formulation.method`` ``kkt`` and ``elimination`` (not with ``minimal``); every
 ``stabilization.method`` whose class says ``compiled = True`` (:mod:`csim.solver.methods`);
 ``simulation.integrator`` DOP853, RK45, Tsit5, Vern7, RK4 or Radau (each scipy's, or csim's Python
-class's, step for step, :mod:`csim.fast.kernels`); events on or off; drives
+class's, step for step, :mod:`csim.fast.kernels`; on ``ggl``'s DAE the algorithm of
+:class:`csim.solver.dae.RadauDAE`, whose steps it takes to a few in a thousand, since its decisions
+there read increments at the round-off of the multipliers); events on or off; drives
 (``mechanism.drive_mode: dynamic``) with every such method.
 """
 from __future__ import annotations
@@ -61,8 +63,7 @@ def unsupported(case) -> list[str]:
                        "partitioned system keeps its own partition where the compiled elimination keeps its; the "
                        "KKT formulation gives minimal the same motion, compiled")
     if method not in compiled_stabilizers():
-        why = {"ggl": "GGL is an index-2 DAE solved by the Python Radau IIA for DAEs"}
-        reasons.append(f"stabilization.method {method!r}: {why.get(method, 'not implemented in compiled code')}; "
+        reasons.append(f"stabilization.method {method!r}: not implemented in compiled code; "
                        f"the compiled backend supports {', '.join(compiled_stabilizers())}")
     if case.linkage is not None and case.linkage.redundant and method not in ("minimal",):
         # (minimal does not take a dynamic drive: csim.solver.driven.driven_problems)

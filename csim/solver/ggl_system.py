@@ -22,7 +22,7 @@ from csim.errors import SimulationFailure
 from csim.physics.ggl import ggl_equations
 from csim.physics.kkt import constraint_rates
 from csim.physics.linalg import as_core
-from csim.physics.status import GGL_SINGULAR_MASS
+from csim.physics.status import GGL_SINGULAR_MASS, PROJ_NO_CONVERGENCE, PROJ_SINGULAR, SINGULAR_MASS
 from csim.solver.failures import failure_message
 from csim.solver.methods.projection import Projection
 from csim.solver.system import ConstrainedSystem
@@ -50,6 +50,10 @@ class GGLSystem(ConstrainedSystem):
 
     def dae_options(self) -> dict:
         return dict(differential=self.differential, algebraic_tol=self.stabilizer.tol)
+
+    def failure_method(self, code: int):
+        """The projection's failures quote its settings (the mass metric, fixed by ggl), the others the stabilizer's."""
+        return self._projection if code in (PROJ_NO_CONVERGENCE, PROJ_SINGULAR, SINGULAR_MASS) else self.stabilizer
 
     def to_full(self, x: np.ndarray) -> np.ndarray:
         return x[:2 * self.m + self.k]

@@ -104,6 +104,11 @@ class ConstrainedSystem:
         """The full state recorded for an integrated state y at time t (projected, for projection)."""
         return self.project(t, y) if self.projects else np.array(self.to_full(y))
 
+    def failure_method(self, code: int) -> Method:
+        """The method whose settings the message of a failure with status ``code`` quotes
+        (:func:`csim.solver.failures.failure_message`): the stabilizer."""
+        return self.stabilizer
+
     def dae_options(self) -> dict | None:
         """Options of a DAE integrator for this system (None: it is an ODE)."""
         return None

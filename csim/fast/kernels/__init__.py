@@ -29,12 +29,12 @@ file, from the bottom up:
 ``addresses``     compiled-only: calls by address (model, gamma*, ``feval``, elimination); the model handle
 ``interpreted``   the same calls from Python, for the interpreted package
 ``calls``         the model functions and gamma* by name, over one of the two
-``system``        the right-hand side at a state, the projection, the partitioned system
+``system``        the right-hand side at a state, the projection, the partitioned system, GGL's DAE
 ``control``       step-size control: scipy's first step, the error estimators' orders
 ``dense``         each stepper's dense output and its evaluation
 ``explicit``      DOP853 and the pairs RK45, Tsit5, Vern7 (scipy's ``RungeKutta`` step)
 ``rk4``           the fixed-step RK4 (:class:`csim.solver.rk4.RK4`), Hermite dense output
-``radau``         Radau IIA (scipy's ``Radau``, the difference Jacobian of ``num_jac``)
+``radau``         Radau IIA (scipy's ``Radau``, the difference Jacobian of ``num_jac``; on GGL's DAE RadauDAE's)
 ``events``        switching functions' zeros on the dense output (``brentq``), event records
 ``driver``        the loop: segments, steps, checks, events, samples, restarts (:func:`integrate`)
 ``entries``       the samples' recorded quantities, and one-state entries for tests and benchmark

@@ -8,6 +8,8 @@ the function itself, and numba is not imported.
 """
 import math
 
+import numpy as np
+
 from .variant import COMPILED
 
 if COMPILED:
@@ -47,6 +49,11 @@ SIZED = ((3, 2), (2, 1))
 
 # ---- the loop's constants (status codes are csim.physics.status's) ----
 EPS = 2.220446049250313e-16
+#: ``located`` for the right-hand side at a recorded state (the load laws held in ``mode``): numpy's True,
+#: which numba types as ``boolean``, the type the loop's ``feval`` passes; a literal True (or a global
+#: Python bool, which numba freezes as a constant of the same type) is typed ``Literal[bool](True)``, and
+#: numba compiled the whole right-hand side a second time for it (10 s)
+LOCATED = np.bool_(True)
 
 
 # integrators (csim.fast.runner.INTEGRATOR_CODES), and the dense output of an empty step
@@ -58,9 +65,12 @@ RK45 = 4
 TSIT5 = 5
 VERN7 = 6
 
-# scalars of the loop, in one float array ts_ and one int array cs_ (R_*: Radau's)
-T, T_OLD, H_ABS, HSTEP, T_STOP, SEG_START, R_H_OLD, R_ERR_OLD, R_NEWTON_TOL, R_SOL_T, R_SOL_H = range(11)
-NFEV, NSTEPS, N_REC, I_OUT, N_EV, SEG_STEPS, NJEV, NLU, R_LU_OK, R_SOL, R_CURRENT_JAC = range(11)
+# scalars of the loop, in one float array ts_ and one int array cs_ (R_*: Radau's; R_FAIL*: the reason of its
+# last failed Newton attempt on a DAE, with its numbers; R_NSING: its singular iteration matrices in this step)
+(T, T_OLD, H_ABS, HSTEP, T_STOP, SEG_START, R_H_OLD, R_ERR_OLD, R_NEWTON_TOL, R_SOL_T, R_SOL_H, R_FAIL_VALUE,
+ R_FAIL_TOL, N_TS) = range(14)
+(NFEV, NSTEPS, N_REC, I_OUT, N_EV, SEG_STEPS, NJEV, NLU, R_LU_OK, R_SOL, R_CURRENT_JAC, R_FAIL, R_NSING,
+ N_CS) = range(14)
 
 
 @hot
@@ -74,5 +84,6 @@ def spacing(t):
 
 @hot
 def copy_row(src, dst, row):
-    for i in range(src.size):
+    """dst[row] = src[:dst.shape[1]] (a recorded state: the full state [q, qd, W] leads GGL's integrated one)."""
+    for i in range(dst.shape[1]):
         dst[row, i] = src[i]

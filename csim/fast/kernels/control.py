@@ -25,9 +25,10 @@ def _rms(x, scale):
 
 @hot
 def _initial_step(t, y, f, t_end, rtol, tolv, max_step, first_step, par, pf, pi, rmode, locate, w, piv, ytmp, f1, scl,
-                  cs, info, order):
+                  cs, info, order, nd):
     """The first step of DOP853 (error estimator ``order`` 7) or Radau (3): given, or scipy's
-    select_initial_step (one evaluation). Returns (status, h)."""
+    select_initial_step (one evaluation), on the first ``nd`` rows of the state (a DAE's differential
+    rows, as csim.solver.dae.RadauDAE; all of an ODE's). Returns (status, h)."""
     n = y.size
     interval = abs(t_end - t)
     if first_step == first_step:  # given (NaN: automatic)
@@ -36,22 +37,22 @@ def _initial_step(t, y, f, t_end, rtol, tolv, max_step, first_step, par, pf, pi,
         return OK, 0.0
     for i in range(n):
         scl[i] = tolv[i] + abs(y[i]) * rtol
-    d0 = _rms(y, scl)
-    d1 = _rms(f, scl)
+    d0 = _rms(y[:nd], scl[:nd])
+    d1 = _rms(f[:nd], scl[:nd])
     if d0 < 1e-5 or d1 < 1e-5:
         h0 = 1e-6
     else:
         h0 = 0.01 * d0 / d1
     h0 = min(h0, interval)
-    for i in range(n):
-        ytmp[i] = y[i] + h0 * f[i]
+    for i in range(n):  # (the algebraic rows stay)
+        ytmp[i] = y[i] + h0 * f[i] if i < nd else y[i]
     cs[NFEV] += 1
     status = feval_call(t + h0, ytmp, rmode, locate, par, pf, pi, w, piv, f1, info)
     if status != OK:
         return status, 0.0
     for i in range(n):
         f1[i] = f1[i] - f[i]
-    d2 = _rms(f1, scl) / h0
+    d2 = _rms(f1[:nd], scl[:nd]) / h0
     if d1 <= 1e-15 and d2 <= 1e-15:
         h1 = max(1e-6, h0 * 1e-3)
     else:

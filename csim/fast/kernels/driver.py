@@ -3,7 +3,7 @@ checks, events, sampling, restarts and repartitioning (:func:`integrate`).
 """
 import numpy as np
 
-from csim.fast.layout import PARTITIONED, PI_FEVAL, PI_NC, PI_ND, PI_NL, PI_NQ, PI_NSW, PI_SYS, W_END
+from csim.fast.layout import GGL, PARTITIONED, PI_FEVAL, PI_NC, PI_ND, PI_NL, PI_NQ, PI_NSW, PI_SYS, W_END
 from csim.physics import branch
 from csim.physics.events import check_chatter
 from csim.physics.partition import D_HEAD
@@ -17,8 +17,10 @@ from .common import (
     H_ABS,
     HSTEP,
     I_OUT,
+    N_CS,
     N_EV,
     N_REC,
+    N_TS,
     NFEV,
     NJEV,
     NLU,
@@ -42,7 +44,7 @@ from .control import _error_order, _initial_step
 from .dense import _ensure_dense, dense_eval
 from .events import _event_state, _find_event, _record_event
 from .explicit import _explicit_step
-from .radau import R_ROWS, _radau_start, _radau_step
+from .radau import R_ROWS, _n_differential, _radau_start, _radau_step
 from .rk4 import _rk4_step
 from .system import (
     _failure_details,
@@ -52,6 +54,7 @@ from .system import (
     _repartition,
     feval_call,
     full_state,
+    ggl_consistent,
     int_workspace,
     mode_at,
     project,
@@ -63,7 +66,8 @@ from .variant import COMPILED
 @hot
 def _sample(ts_, t_out, dense_kind, y_old, y, f_new, mode, rmode, locate, projects, par, pf, pi, w, piv, K, F, Fh, ytmp,
             yp, dense, tr, ys, modes, cs, info):
-    """Record the output times in (t_old, t_stop] from the step's dense output (projected, for projection)."""
+    """Record the output times in (t_old, t_stop] from the step's dense output (projected, for projection and
+    GGL)."""
     t_old, t, t_stop = ts_[T_OLD], ts_[T], ts_[T_STOP]
     FF = Fh if dense_kind == RK4 else F
     while cs[I_OUT] < t_out.size and t_out[cs[I_OUT]] <= t_stop:
@@ -78,7 +82,7 @@ def _sample(ts_, t_out, dense_kind, y_old, y, f_new, mode, rmode, locate, projec
                 return status
             dense[0] = True
             dense_eval(dense_kind, t_i, t_old, t - t_old, y_old, FF, ytmp)
-        if projects:
+        if _projects_samples(projects, pi):
             code = project(ytmp, yp, t_i, par, pf, pi, w, piv, info)
             if code != OK:
                 return code
@@ -97,12 +101,28 @@ def _sample(ts_, t_out, dense_kind, y_old, y, f_new, mode, rmode, locate, projec
 
 
 @hot
+def _projects_samples(projects, pi):
+    """Whether the recorded samples are projected: for projection, and for GGL (whose dense output satisfies the
+    constraints only to the interpolation error, GGLSystem.output_state)."""
+    return projects or pi[PI_SYS] == GGL
+
+
+@hot
 def _start(y0, y, yp, mode, projects, par, pf, pi, w, piv, tr, ys, modes, info):
     """The integrated state y from the full initial state y0: projected (projection), partitioned and reduced
-    (minimal), else y0 itself; then its mode, and the record of it. Returns the status."""
+    (minimal), made consistent (GGL, under the load laws that hold at y0), else y0 itself; then its mode, and
+    the record of it. Returns the status."""
     if pi[PI_SYS] == PARTITIONED:
         model, P, r, m, k, tol, max_iter, _ = _partition_call(par, pf, pi, w, piv)
         code = branch.start(model, P, y0, y, r, m, k, tol, max_iter)
+        if code != OK:
+            return code
+    elif pi[PI_SYS] == GGL:
+        for i in range(y0.size):
+            y[i] = y0[i]
+        code = mode_at(y, par, pf, pi, w, piv, mode)
+        if code == OK:
+            code = ggl_consistent(0.0, y, mode, yp, par, pf, pi, w, piv, info)
         if code != OK:
             return code
     else:
@@ -117,7 +137,7 @@ def _start(y0, y, yp, mode, projects, par, pf, pi, w, piv, tr, ys, modes, info):
     code = mode_at(y, par, pf, pi, w, piv, mode)
     if code != OK:
         return code
-    if projects:  # the recorded sample, projected as every recorded sample is
+    if _projects_samples(projects, pi):  # the recorded sample, projected as every recorded sample is
         code = project(y, yp, 0.0, par, pf, pi, w, piv, info)
         if code != OK:
             return code
@@ -143,8 +163,9 @@ def _start_segment(method, ts_, y, f, t_end, rtol, atol, max_step, first_step, t
     if status != OK:
         return status
     scale_w = max(1.0, abs(kinetic(yv, par, pi, w)))  # the work states are in J: atol scaled to the energy
+    nd = _n_differential(pi, n)  # the work states are the last differential rows
     for i in range(n):
-        tolv[i] = atol * scale_w if i >= n - pi[PI_NL] - pi[PI_ND] else atol
+        tolv[i] = atol * scale_w if nd - pi[PI_NL] - pi[PI_ND] <= i < nd else atol
     cs[NFEV] += 1
     status = feval_call(ts_[T], y, rmode, locate, par, pf, pi, w, piv, f,
                    info)
@@ -155,7 +176,7 @@ def _start_segment(method, ts_, y, f, t_end, rtol, atol, max_step, first_step, t
     cs[SEG_STEPS] = 0
     if method != RK4:
         status, h = _initial_step(ts_[T], y, f, t_end, rtol, tolv, max_step, first_step, par, pf, pi, rmode, locate, w,
-                                  piv, ytmp, f1, scl, cs, info, _error_order(method))
+                                  piv, ytmp, f1, scl, cs, info, _error_order(method), nd)
         ts_[H_ABS] = h
     if status == OK and method == RADAU:
         status = _radau_start(ts_, y, f, tolv, rtol, RM, RJ, par, pf, pi, rmode, locate, w, piv, cs, info)
@@ -282,6 +303,10 @@ def _event_restart(t_a, ts_, dense_kind, y_old, y, ya, F, Fh, projects, mode, ro
         return status, t_a, ev_t, ev_sw
     t_a = _accept(ts_, y, ya)
     ev_t, ev_sw = _record_event(ts_[T], mode, roots, has_root, ev_t, ev_sw, cs[N_EV])
+    if pi[PI_SYS] == GGL:  # the multipliers of the new mode (a load that jumps changes lambda at once)
+        status = ggl_consistent(ts_[T], y, mode, yp, par, pf, pi, w, piv, info)
+        if status != OK:
+            return status, t_a, ev_t, ev_sw
     status = _after_event(ts_, y, ev_t, ev_sw, n_chatter, max_events, min_step, par, pf, pi, w, piv, cs, info)
     return status, t_a, ev_t, ev_sw
 
@@ -329,14 +354,14 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset, control):
     partitioned = pi[PI_SYS] == PARTITIONED
     if pi[PI_FEVAL] == 0:
         raise ValueError("pi[PI_FEVAL], the address of feval, is not set (csim.fast.runner._arguments sets it)")
-    n_free = pi[PI_NQ] - pi[PI_NC] if partitioned else pi[PI_NQ]  # the integrated state: 2 n_free + k
-    n, n_sw = 2 * n_free + pi[PI_NL] + pi[PI_ND], pi[PI_NSW]
+    n_free = pi[PI_NQ] - pi[PI_NC] if partitioned else pi[PI_NQ]  # the integrated state: 2 n_free + k (+ 2 r)
+    n, n_sw = 2 * n_free + pi[PI_NL] + pi[PI_ND] + (2 * pi[PI_NC] if pi[PI_SYS] == GGL else 0), pi[PI_NSW]
     w = np.zeros(pi[W_END])
     # the KKT solve's pivots, then the partition's integers
     piv = np.zeros(int_workspace(pi), np.int64)
     tr, ys, modes = np.empty(t_out.size), np.empty((t_out.size, y0.size)), np.zeros((t_out.size, n_sw), np.bool_)
     ev_t, ev_sw = np.empty(16), np.zeros((16, n_sw), np.bool_)
-    info, ts_, cs = np.zeros(2 + D_HEAD + 2 * n_free), np.zeros(11), np.zeros(11, np.int64)
+    info, ts_, cs = np.zeros(2 + D_HEAD + 2 * n_free), np.zeros(N_TS), np.zeros(N_CS, np.int64)
     y, ytmp, yp, f, f_new, y_new, y_old, ya = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), \
         np.empty(n), np.empty(n), np.empty(n)
     K, F, Fh = np.empty((DOP_NX, n)), np.empty((DOP_POWER, n)), np.empty((4, n))

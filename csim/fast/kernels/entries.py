@@ -8,14 +8,8 @@ from csim.fast.layout import PI_NC, PI_NL, PI_NO, PI_NQ, PI_NSW, W_B, W_END, W_P
 from csim.physics.status import OK
 
 from .calls import kinetic, observe, potential
-from .common import allocating
+from .common import LOCATED, allocating
 from .system import int_workspace, project, rhs
-
-#: ``located`` for the right-hand side at a recorded state (the load laws held in ``mode``): numpy's True,
-#: which numba types as ``boolean``, the type the loop's ``feval`` passes; a literal True (or a global
-#: Python bool, which numba freezes as a constant of the same type) is typed ``Literal[bool](True)``, and
-#: numba compiled the whole right-hand side a second time for it (10 s)
-LOCATED = np.bool_(True)
 
 
 # ---------------------------------------------------------------------------------------

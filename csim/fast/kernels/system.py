@@ -5,7 +5,9 @@ method, load laws), the switching functions, the projection, and the partitioned
 import numpy as np
 
 from csim.fast.layout import (
+    CONSTRAINED,
     ELIMINATION,
+    GGL,
     PARTITIONED,
     PI_DRV,
     PI_ELIM,
@@ -59,16 +61,17 @@ from csim.fast.layout import (
 )
 from csim.physics import branch
 from csim.physics.elimination import eliminate, elimination_sizes, elimination_state
+from csim.physics.ggl import ggl_equations
 from csim.physics.kkt import constraint_rates, generalized_forces, kkt_solve
 from csim.physics.loads import load_rates, load_values, mode_of, switching_functions
 from csim.physics.partition import C_PENDING, partition_sizes, partition_state, reduced_accelerations
 from csim.physics.projection import max_abs
 from csim.physics.projection import project as project_state
-from csim.physics.status import NONFINITE_RHS, OK, SINGULAR_KKT, TANGENT_MASS_SINGULAR
+from csim.physics.status import GGL_SINGULAR_MASS, NONFINITE_RHS, OK, SINGULAR_KKT, TANGENT_MASS_SINGULAR
 from csim.physics.steps import all_finite
 
 from .calls import call_eliminated, call_feval, loads_, method_gamma_star, model_handle, phi_at, terms
-from .common import addressed, hot, inlined, sized
+from .common import LOCATED, addressed, hot, inlined, sized
 
 
 # ---------------------------------------------------------------------------------------
@@ -313,6 +316,8 @@ def feval(t, y, mode, located, par, pf, pi, w, piv, f, info):
     """rhs plus the driver's check of a non-finite result (info = [t, max |y|] then)."""
     if pi[PI_SYS] == PARTITIONED:
         code = _partitioned_rhs(t, y, mode, located, par, pf, pi, w, piv, f)
+    elif pi[PI_SYS] == GGL:
+        code = _ggl_rhs(t, y, mode, located, par, pf, pi, w, piv, f)
     else:
         code = rhs(t, y, mode, located, par, pf, pi, w, piv, f)
     if code == OK and not all_finite(f):
@@ -327,6 +332,53 @@ def feval(t, y, mode, located, par, pf, pi, w, piv, f, info):
 def feval_call(t, y, mode, located, par, pf, pi, w, piv, f, info):
     """:func:`feval` called through its address pi[PI_FEVAL] (:func:`.calls.call_feval`): what its callers call."""
     return call_feval(pi[PI_FEVAL], t, y, mode, located, par, pf, pi, w, piv, f, info)
+
+
+# ---------------------------------------------------------------------------------------
+# GGL's DAE (csim.solver.ggl_system.GGLSystem): x = [q, v, W, mu, lambda]
+# ---------------------------------------------------------------------------------------
+@hot
+def _ggl_rhs(t, x, mode, located, par, pf, pi, w, piv, f):
+    """F(t, x) (2 m + k + 2 r,) of GGL's DAE (csim.physics.ggl.ggl_equations): [v - Phi_q^T mu,
+    M^-1 (p - Phi_q^T lambda), u * B^T v, Phi, Phi_q v]. Returns OK or GGL_SINGULAR_MASS."""
+    nq, nc = pi[PI_NQ], pi[PI_NC]
+    _rhs_inputs(t, x, mode, located, par, pf, pi, w, nq, nc)  # the terms, u, p and Phi_q v at [q, v, W]
+    n0 = 2 * nq + pi[PI_NL]
+    q_dot, v_dot = w[pi[W_DQ]:pi[W_DQ] + nq], w[pi[W_X]:pi[W_X] + nq]
+    if not ggl_equations(w[pi[W_M]:pi[W_M] + nq * nq], w[pi[W_J]:pi[W_J] + nc * nq], w[pi[W_P]:pi[W_P] + nq],
+                         w[pi[W_PHI]:pi[W_PHI] + nc], w[pi[W_PD]:pi[W_PD] + nc], x[nq:2 * nq], x[n0:n0 + nc],
+                         x[n0 + nc:n0 + 2 * nc], w[pi[W_M2]:pi[W_M2] + nq * nq], piv, q_dot, v_dot,
+                         f[n0:n0 + 2 * nc], nq, nc):
+        return GGL_SINGULAR_MASS
+    _rhs_outputs(x, pi, w, f, nq, nc)  # [v, v', u * B^T v]
+    for i in range(nq):
+        f[i] = q_dot[i]
+    return OK
+
+
+@hot
+def ggl_consistent(t, y, mode, yp, par, pf, pi, w, piv, info):
+    """y = GGL's consistent state at time t from its [q, v, W] under the load laws ``mode``
+    (GGLSystem._consistent): (q, v) projected in the mass metric, mu = 0, lambda from the KKT system.
+    ``yp`` (n,) is scratch. Returns the status."""
+    code = project(y, yp, t, par, pf, pi, w, piv, info)  # (GGL's fpar[0], ipar: its projection's settings)
+    if code != OK:
+        return code
+    nq, nc = pi[PI_NQ], pi[PI_NC]
+    n0 = 2 * nq + pi[PI_NL]
+    for i in range(n0):
+        y[i] = yp[i]
+    # lambda: the KKT solve of the plain system's right-hand side at [q, v, W], called through feval's address as
+    # the plain system (pi[PI_SYS] is read there), so that the loop links none of it
+    pi[PI_SYS] = CONSTRAINED
+    code = feval_call(t, y[:n0], mode, LOCATED, par, pf, pi, w, piv, yp[:n0], info)
+    pi[PI_SYS] = GGL
+    if code != OK:
+        return code
+    for i in range(nc):
+        y[n0 + i] = 0.0
+        y[n0 + nc + i] = w[pi[W_X] + nq + i]
+    return OK
 
 
 # ---------------------------------------------------------------------------------------

@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 
 from csim.solver.methods.base import Method, option
+from csim.solver.methods.projection import ProjectionOptions
 
 
 @dataclasses.dataclass(frozen=True)
@@ -33,10 +34,18 @@ class GGL(Method):
     rank = 40
     Options = GGLOptions
     integrators = ("Radau",)  # the DAE integrators of csim.solver.integrators
+    compiled = True  # the compiled Radau runs the DAE (csim.fast.kernels.radau)
 
     def __init__(self, ggl_tol=1e-12):
         super().__init__(ggl_tol=ggl_tol)
         self.tol = float(ggl_tol)
+
+    def parameters(self):
+        """([projection tolerance, ggl_tol], [mass metric (1), projection iteration limit]): the compiled kernels'
+        projection of the consistent states and the samples reads fpar[0] and ipar (with the settings of
+        GGLSystem's own projection, the defaults of ``projection``), their Radau fpar[1]."""
+        projection = ProjectionOptions()
+        return [projection.projection_tol, self.tol], [1, projection.projection_max_iter]
 
     @classmethod
     def system_class(cls):
