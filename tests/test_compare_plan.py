@@ -126,9 +126,9 @@ def test_one_backend_for_every_run(monkeypatch):
     assert {simulation(c)["backend"] for _, c in p.run_cases()} == {"python"}
     assert p.backend_note.startswith("python for every run (baumgarte has no compiled path")
     monkeypatch.undo()
-    p = plan(methods=["none", "ggl:Radau"])  # an integrator only Python has: that method alone runs there
+    p = plan(methods=["none", "projection:BDF"])  # an integrator only Python has: that method alone runs there
     assert {simulation(c)["backend"] for _, c in p.run_cases()} == {"auto"}
-    assert p.backend_note.startswith("python for ggl:Radau (no compiled path for its integrator)")
+    assert p.backend_note.startswith("python for projection:BDF (no compiled path for its integrator)")
     assert simulation(p.reference_case)["backend"] == "auto"  # the reference runs on its own
     p = plan(methods=["none", "baumgarte"])
     assert {simulation(c)["backend"] for _, c in p.run_cases()} == {"auto"} and p.backend_note == ""

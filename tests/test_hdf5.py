@@ -202,7 +202,7 @@ CODE_KINDS = {"NONFINITE_RHS": "blow-up", "NONFINITE_STATE": "blow-up", "MAX_PHI
               "BRANCH_LEFT": "branch", "NO_BETTER_PARTITION": "branch", "BRANCH_LOST": "branch",
               "INTERRUPTED": "interrupted", "ELIMINATION_FIXED_SINGULAR": "singular",
               "ELIMINATION_NO_BLOCK": "singular", "ELIMINATION_SINGULAR": "singular",
-              "TANGENT_MASS_SINGULAR": "singular"}
+              "TANGENT_MASS_SINGULAR": "singular", "GGL_SINGULAR_MASS": "singular"}
 
 
 def test_every_status_code_is_listed():

@@ -72,3 +72,12 @@ ROUNDOFF_FACTOR = 100
 # Round-off of F, in eps times the size of its terms |J| |y|, for the Newton increments it
 # alone produces (below which the iteration cannot tell convergence from noise).
 NOISE_FACTOR = 8
+
+#: why Radau for DAEs (csim.solver.dae, csim.fast.kernels.radau) could not take a step: the reason of its
+#: STEP_TOO_SMALL (csim.physics.status), first of that failure's details (csim.solver.failures.dae_step_message
+#: reads them; 0: scipy's plain case)
+(DAE_ERROR_TEST, DAE_NONFINITE_F, DAE_NONFINITE_INCREMENT, DAE_DIVERGED, DAE_SLOW, DAE_NO_CONVERGENCE, DAE_ALGEBRAIC,
+ DAE_SINGULAR_MATRIX, DAE_ZERO_COLUMNS, DAE_SINGULAR_REPEATED) = range(1, 11)
+#: the details' layout: [reason, t, h, value, tolerance, max |F_alg(t0, y0)| (NaN after the first step),
+#: the count of the columns listed, the columns...]
+DAE_REASON, DAE_T, DAE_H, DAE_VALUE, DAE_TOL, DAE_RESIDUAL0, DAE_NCOLS, DAE_COLS = range(8)

@@ -38,13 +38,6 @@ ELIMINATION_SINGULAR = 24  # [R^T M; Phi_q] singular
 TANGENT_MASS_SINGULAR = 25  # minimal: R^T M R singular (M singular on the constraints' tangent space)
 GGL_SINGULAR_MASS = 26  # a: t (ggl solves M v' = p - Phi_q^T lambda)
 
-# Why Radau for DAEs (csim.solver.dae, csim.fast.kernels.radau) could not take a step: the reason of a
-# STEP_TOO_SMALL, first of its details (csim.solver.failures.dae_step_message reads them; 0: scipy's plain case)
-(DAE_ERROR_TEST, DAE_NONFINITE_F, DAE_NONFINITE_INCREMENT, DAE_DIVERGED, DAE_SLOW, DAE_NO_CONVERGENCE, DAE_ALGEBRAIC,
- DAE_SINGULAR_MATRIX, DAE_ZERO_COLUMNS, DAE_SINGULAR_REPEATED) = range(1, 11)
-#: the details' layout: [reason, t, h, value, tolerance, max |F_alg(t0, y0)| (NaN after the first step),
-#: the count of the columns listed, the columns...]
-DAE_REASON, DAE_T, DAE_H, DAE_VALUE, DAE_TOL, DAE_RESIDUAL0, DAE_NCOLS, DAE_COLS = range(8)
 
 #: the kind of failure each code is (:data:`csim.result.FAILURES`): what HDF5's ``failure``
 #: attribute, the sweep tables and ``csim batch`` call it

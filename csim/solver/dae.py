@@ -51,6 +51,16 @@ from scipy.linalg import LinAlgWarning, lu_factor, lu_solve
 from scipy.sparse import issparse
 
 from csim.physics.radau import (
+    DAE_ALGEBRAIC,
+    DAE_DIVERGED,
+    DAE_ERROR_TEST,
+    DAE_NO_CONVERGENCE,
+    DAE_NONFINITE_F,
+    DAE_NONFINITE_INCREMENT,
+    DAE_SINGULAR_MATRIX,
+    DAE_SINGULAR_REPEATED,
+    DAE_SLOW,
+    DAE_ZERO_COLUMNS,
     JAC_ALGEBRAIC_THRESHOLD,
     JAC_DIFFERENTIAL_THRESHOLD,
     JAC_MAX_FACTOR,
@@ -67,18 +77,6 @@ from csim.physics.radau import (
     E,
     P,
     T,
-)
-from csim.physics.status import (
-    DAE_ALGEBRAIC,
-    DAE_DIVERGED,
-    DAE_ERROR_TEST,
-    DAE_NO_CONVERGENCE,
-    DAE_NONFINITE_F,
-    DAE_NONFINITE_INCREMENT,
-    DAE_SINGULAR_MATRIX,
-    DAE_SINGULAR_REPEATED,
-    DAE_SLOW,
-    DAE_ZERO_COLUMNS,
 )
 from csim.solver.failures import dae_step_message
 

@@ -7,11 +7,7 @@ integrator's stability region, a chattering switch, a lost assembly branch).
 """
 from __future__ import annotations
 
-from csim.physics.radau import NEWTON_MAXITER
-from csim.physics.status import (
-    BRANCH_LEFT,
-    BRANCH_LOST,
-    CHATTER,
+from csim.physics.radau import (
     DAE_ALGEBRAIC,
     DAE_COLS,
     DAE_DIVERGED,
@@ -29,6 +25,12 @@ from csim.physics.status import (
     DAE_TOL,
     DAE_VALUE,
     DAE_ZERO_COLUMNS,
+    NEWTON_MAXITER,
+)
+from csim.physics.status import (
+    BRANCH_LEFT,
+    BRANCH_LOST,
+    CHATTER,
     DEPENDENT_NO_CONVERGENCE,
     DEPENDENT_NONFINITE,
     DEPENDENT_SINGULAR,

@@ -18,23 +18,6 @@ from csim.fast.layout import GGL, PI_FPAR, PI_NC, PI_SYS
 from csim.physics import radau as coefficients
 from csim.physics.linalg import lu_factor, lu_solve
 from csim.physics.radau import (
-    JAC_ALGEBRAIC_THRESHOLD,
-    JAC_DIFFERENTIAL_THRESHOLD,
-    JAC_MAX_FACTOR,
-    MAX_SINGULAR,
-    MU_COMPLEX,
-    MU_REAL,
-    NEWTON_MAXITER,
-    NUM_JAC_DIFF_BIG,
-    NUM_JAC_DIFF_REJECT,
-    NUM_JAC_DIFF_SMALL,
-    NUM_JAC_FACTOR_DECREASE,
-    NUM_JAC_FACTOR_INCREASE,
-    NUM_JAC_MIN_FACTOR,
-    ROUNDOFF_FACTOR,
-)
-from csim.physics.radau import NOISE_FACTOR as RADAU_NOISE_FACTOR
-from csim.physics.status import (
     DAE_ALGEBRAIC,
     DAE_COLS,
     DAE_DIVERGED,
@@ -53,6 +36,23 @@ from csim.physics.status import (
     DAE_TOL,
     DAE_VALUE,
     DAE_ZERO_COLUMNS,
+    JAC_ALGEBRAIC_THRESHOLD,
+    JAC_DIFFERENTIAL_THRESHOLD,
+    JAC_MAX_FACTOR,
+    MAX_SINGULAR,
+    MU_COMPLEX,
+    MU_REAL,
+    NEWTON_MAXITER,
+    NUM_JAC_DIFF_BIG,
+    NUM_JAC_DIFF_REJECT,
+    NUM_JAC_DIFF_SMALL,
+    NUM_JAC_FACTOR_DECREASE,
+    NUM_JAC_FACTOR_INCREASE,
+    NUM_JAC_MIN_FACTOR,
+    ROUNDOFF_FACTOR,
+)
+from csim.physics.radau import NOISE_FACTOR as RADAU_NOISE_FACTOR
+from csim.physics.status import (
     NONFINITE_RHS,
     OK,
     STEP_TOO_SMALL,
@@ -269,6 +269,34 @@ def _radau_polish(t_new, y, nd, RM, par, pf, pi, rmode, locate, w, piv, cs, info
 
 
 @hot
+def _radau_increment(h, nd, scale, RM, RLR, RLC, rpiv, rcv):
+    """The Newton increment dW (RM[R_DW:R_DW + 3]) from the stages' F (RM[R_F:]) and W (RM[R_W:]): the real and
+    the complex system, (MU / h D - J) dW = f with f_real = F^T TI_REAL - MU_REAL / h D W_0 and
+    f_complex = F^T TI_COMPLEX - MU_COMPLEX / h D (W_1 + i W_2), D = 1 on the nd differential rows. Returns
+    its scaled rms."""
+    n = scale.size
+    mr = MU_REAL / h
+    mc = MU_COMPLEX / h
+    for i in range(n):
+        fr = 0.0
+        fcx = 0j
+        for s in range(3):
+            fr += RM[R_F + s, i] * RAD_TI[0, s]
+            fcx += RM[R_F + s, i] * RAD_TI_COMPLEX[s]
+        if i < nd:
+            fr -= mr * RM[R_W, i]
+            fcx -= mc * (RM[R_W + 1, i] + 1j * RM[R_W + 2, i])
+        RM[R_DW, i] = fr
+        rcv[i] = fcx
+    lu_solve(RLR, n, rpiv[:n], RM[R_DW])
+    lu_solve(RLC, n, rpiv[n:], rcv)
+    for i in range(n):
+        RM[R_DW + 1, i] = rcv[i].real
+        RM[R_DW + 2, i] = rcv[i].imag
+    return _radau_rms(RM, R_DW, 3, scale)
+
+
+@hot
 def _radau_newton(t, t_new, y, h, scale, tol, RM, RJ, RLR, RLC, rpiv, rcv, ts_, par, pf, pi, rmode, locate, w, piv,
                   cs, info):
     """scipy's solve_collocation_system: the stage increments Z (RM[R_Z:R_Z + 3]) by the simplified
@@ -282,8 +310,6 @@ def _radau_newton(t, t_new, y, h, scale, tol, RM, RJ, RLR, RLC, rpiv, rcv, ts_, 
     n = y.size
     nd = _n_differential(pi, n)
     dae = nd < n
-    mr = MU_REAL / h
-    mc = MU_COMPLEX / h
     yt, F = RM[R_YT], RM[R_F:R_F + 3]
     noise_norm = _radau_noise(y, scale, RM, RJ, RLR, rpiv) if dae else -1.0
     for i in range(n):  # W = TI Z0, Z = Z0
@@ -315,24 +341,7 @@ def _radau_newton(t, t_new, y, h, scale, tol, RM, RJ, RLR, RLC, rpiv, rcv, ts_, 
         if not finite:
             cs[R_FAIL] = DAE_NONFINITE_F
             break
-        # f_real = F^T TI_REAL - MU_REAL / h D W_0; f_complex = F^T TI_COMPLEX - MU_COMPLEX / h D (W_1 + i W_2)
-        for i in range(n):
-            fr = 0.0
-            fcx = 0j
-            for s in range(3):
-                fr += F[s, i] * RAD_TI[0, s]
-                fcx += F[s, i] * RAD_TI_COMPLEX[s]
-            if i < nd:
-                fr -= mr * RM[R_W, i]
-                fcx -= mc * (RM[R_W + 1, i] + 1j * RM[R_W + 2, i])
-            RM[R_DW, i] = fr
-            rcv[i] = fcx
-        lu_solve(RLR, n, rpiv[:n], RM[R_DW])
-        lu_solve(RLC, n, rpiv[n:], rcv)
-        for i in range(n):
-            RM[R_DW + 1, i] = rcv[i].real
-            RM[R_DW + 2, i] = rcv[i].imag
-        dw_norm = _radau_rms(RM, R_DW, 3, scale)
+        dw_norm = _radau_increment(h, nd, scale, RM, RLR, RLC, rpiv, rcv)
         if dw_norm_old > 0 or (not dae and dw_norm_old >= 0):
             rate = dw_norm / dw_norm_old
         if dae and not dw_norm < np.inf:  # (NaN or inf)
@@ -604,30 +613,41 @@ def _radau_step(ts_, t_end, rtol, tolv, max_step, y, f, F, y_old, y_new, f_new, 
         factor = 1.0
     else:
         cs[R_LU_OK] = 0
-    if dae:  # F at the step's end: the polish's
-        for i in range(n):
+    status = _radau_accept(ts_, t, t_new, h, h_abs * factor, err_norm, recompute_jac, dae, y_new, f_new, F, RM, RJ,
+                           par, pf, pi, rmode, locate, w, piv, cs, info)
+    return status, (t_new if status == OK else t), True
+
+
+@hot
+def _radau_accept(ts_, t, t_new, h, h_next, err_norm, recompute_jac, dae, y_new, f_new, F, RM, RJ, par, pf, pi, rmode,
+                  locate, w, piv, cs, info):
+    """Go on from the accepted step to (t_new, y_new): f_new (on a DAE the polish's F at the step's end), the
+    Jacobian there where it is to be recomputed, the next step h_next, and the dense output's data. Returns
+    the status."""
+    if dae:
+        for i in range(y_new.size):
             f_new[i] = RM[R_F_END, i]
     else:
         cs[NFEV] += 1
         status = feval_call(t_new, y_new, rmode, locate, par, pf, pi, w, piv, f_new, info)
         if status != OK and status != NONFINITE_RHS:
-            return status, t, True
+            return status
     if recompute_jac:
         status = _radau_jacobian(t_new, y_new, f_new, RJ, RM, par, pf, pi, rmode, locate, w, piv, cs, info)
         if status != OK:
-            return status, t, True
+            return status
         cs[R_CURRENT_JAC] = 1
     else:
         cs[R_CURRENT_JAC] = 0
     ts_[R_H_OLD] = ts_[H_ABS]
     ts_[R_ERR_OLD] = err_norm
-    ts_[H_ABS] = h_abs * factor
+    ts_[H_ABS] = h_next
     ts_[HSTEP] = h
     _dense_weights(RM[R_Z:R_Z + 3], RAD_P, F)  # the dense output y_old + Q (x, x^2, x^3), Q = Z^T P
     ts_[R_SOL_T] = t
     ts_[R_SOL_H] = h
     cs[R_SOL] = 1
-    return OK, t_new, True
+    return OK
 
 
 @hot
