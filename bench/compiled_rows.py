@@ -5,7 +5,9 @@ Run from a tree's root with that tree first on the path, alternating the trees::
     (cd OLD && PYTHONPATH=OLD python /path/to/bench/compiled_rows.py)
     (cd NEW && PYTHONPATH=NEW python bench/compiled_rows.py)
 
-Prints one JSON object: for each row ``method/integrator`` the median over 9 runs of
+``python bench/compiled_rows.py ROW ...`` runs only the rows named (``ggl/Radau``, ...), e.g. to leave out a row
+that an older tree runs on the Python path. Prints one JSON object: for each row ``method/integrator`` the median
+over 9 runs of
 ``Result.wall_time`` [ms] (the integration, without loading the kernels), the backend, the
 RHS evaluations (equal in both trees when the numerics are unchanged) and the status.
 """
@@ -13,6 +15,7 @@ from __future__ import annotations
 
 import json
 import statistics
+import sys
 
 from csim.case import load_case
 from csim.pipeline import run_case
@@ -22,13 +25,20 @@ ROWS = [("projection", "DOP853", ["simulation.rtol=1e-9", "simulation.atol=1e-9"
         ("baumgarte", "DOP853", ["simulation.rtol=1e-10", "simulation.atol=1e-10"]),
         ("none", "RK4", ["simulation.step=1e-3"]),
         ("projection", "RK4", ["simulation.step=1e-3"]),
-        ("minimal", "DOP853", ["simulation.rtol=1e-9", "simulation.atol=1e-9"])]
+        ("minimal", "DOP853", ["simulation.rtol=1e-9", "simulation.atol=1e-9"]),
+        ("projection", "Radau", ["simulation.rtol=1e-7", "simulation.atol=1e-7"]),
+        ("ggl", "Radau", ["simulation.rtol=1e-7", "simulation.atol=1e-7"])]
 REPEAT = 9
 
 
-def main() -> None:
+def main(names: list[str]) -> None:
     out = {}
+    unknown = set(names) - {f"{method}/{integrator}" for method, integrator, _ in ROWS}
+    if unknown:
+        sys.exit(f"unknown rows {sorted(unknown)}; the rows are {[f'{m}/{i}' for m, i, _ in ROWS]}")
     for method, integrator, extra in ROWS:
+        if names and f"{method}/{integrator}" not in names:
+            continue
         overrides = [f"stabilization.method={method}", f"simulation.integrator={integrator}", "simulation.t_end=10",
                      "simulation.backend=auto", *extra]
         case = load_case("configs/quick_return.yaml", overrides=overrides)
@@ -42,4 +52,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    main(sys.argv[1:])

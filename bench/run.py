@@ -57,6 +57,7 @@ MATRIX = [
     ("none", "RK4", 1e-3, True), ("none", "RK4", 2.5e-4, False), ("projection", "RK4", 1e-3, False),
     ("minimal", "DOP853", 1e-9, True),
     ("projection", "Tsit5", 1e-9, False), ("projection", "Vern7", 1e-9, False),
+    ("ggl", "Radau", 1e-7, True),
 ]
 #: the configuration of the 20 ms target (chosen from the table: the cheapest that meets both bounds)
 TARGET = ("projection", "DOP853", 1e-9)

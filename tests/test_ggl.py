@@ -175,3 +175,49 @@ def test_a_massless_link_stops_ggl_with_a_message_that_does_not_offer_a_setting_
     result = run_case(validate_case(data))
     assert not result.ok and result.failure == "singular" and result.backend == backend
     assert "ggl projects in the mass metric" in result.message and "projection_metric" not in result.message
+
+
+def test_a_failed_dae_step_reads_the_same_on_both_backends():
+    """The compiled Radau writes a failed step's reason into STEP_TOO_SMALL's details (csim.physics.radau,
+    DAE_*), RadauDAE words its own from the same layout: one text (csim.solver.failures.dae_step_message)."""
+    from types import SimpleNamespace
+
+    from csim.fast.kernels import radau as kernel
+    from csim.fast.kernels.common import N_CS, N_TS, R_FAIL_TOL, R_FAIL_VALUE, R_SOL
+    from csim.physics.radau import DAE_ALGEBRAIC, DAE_ERROR_TEST
+    from csim.physics.status import STEP_TOO_SMALL
+    from csim.solver.dae import RadauDAE
+    from csim.solver.failures import failure_message
+
+    def fun(t, y):
+        return np.array([y[1], y[0] - 1.0])
+
+    solver = RadauDAE(fun, 0.0, [1.0, 0.5], 1.0, np.array([True, False]))  # no step taken: the hint is due
+    settings = SimpleNamespace(integrator="Radau")
+    for reason, value, tol in ((DAE_ALGEBRAIC, 3.5e-9, 1e-12), (DAE_ERROR_TEST, np.nan, np.nan)):
+        ts_, cs, info = np.zeros(N_TS), np.zeros(N_CS, np.int64), np.zeros(2 + 16)
+        ts_[R_FAIL_VALUE], ts_[R_FAIL_TOL], cs[R_SOL] = value, tol, 0
+        kernel._radau_too_small(0.25, 1e-15, reason if reason == DAE_ALGEBRAIC else 0, solver.y, solver.f, 1, ts_, cs,
+                                info)
+        compiled = failure_message(STEP_TOO_SMALL, 0.25, 0.0, settings, detail=info[2:])
+        python = solver._too_small_message(0.25, 1e-15, (reason, value, tol) if reason == DAE_ALGEBRAIC else None)
+        assert compiled == f"integrator Radau failed at t = 0.25 s: {python}"
+        assert "Is the initial state consistent" in python
+
+
+def test_a_step_too_small_of_another_system_ignores_the_partitions_details():
+    """A partitioned (minimal) run's info[2:] holds the partition's details, which may be left from a breakdown it
+    got past: a step too small reads scipy's text there, not a DAE's (helper-31)."""
+    from csim.fast.runner import failure_detail
+    from csim.physics.partition import D_HEAD
+    from csim.physics.status import DEPENDENT_SINGULAR, STEP_TOO_SMALL
+    from csim.solver.failures import failure_message
+
+    case = qr_case("stabilization.method=minimal")
+    info = np.zeros(2 + D_HEAD + 4)
+    info[2] = DEPENDENT_SINGULAR
+    detail = failure_detail(build_system(case), STEP_TOO_SMALL, info)
+    message = failure_message(STEP_TOO_SMALL, 1.5, 0.0, case.integration_settings(), detail=detail)
+    assert message == "integrator DOP853 failed at t = 1.5 s: Required step size is less than spacing between numbers."
+    ggl = build_system(qr_case(*GGL))
+    assert failure_detail(ggl, STEP_TOO_SMALL, info) is not None

@@ -26,7 +26,7 @@ from csim.fast.module import (
 )
 from csim.physics.events import chattering_switches
 from csim.physics.jit import plain
-from csim.physics.status import OK, code_kind
+from csim.physics.status import OK, STEP_TOO_SMALL, code_kind
 from csim.solver.driven import DrivenSystem
 from csim.solver.failures import failure_message
 from csim.solver.formulations import Elimination
@@ -219,16 +219,26 @@ def integrate_compiled(system: ConstrainedSystem, y0: np.ndarray, settings: Inte
     labels = system.loads.switch_labels
     status, message, failure = "success", f"reached t_end = {settings.t_end:g} s", ""
     if code != OK:
-        status, failure = "failed", code_kind(int(code), info[2:])
+        detail = failure_detail(system, int(code), info)
+        status, failure = "failed", code_kind(int(code), detail)
         message = failure_message(int(code), float(info[0]), float(info[1]), settings, system.failure_method(int(code)),
                                   switches=_chattering_labels(ev_sw, n_ev, settings.chatter_events, labels),
-                                  detail=info[2:], coordinates=system.model.definition.coordinate_names)
+                                  detail=detail, coordinates=system.model.definition.coordinate_names)
     return Trajectory(
         t=ts[:n_rec].copy(), y=ys[:n_rec].copy(), mode=modes[:n_rec].copy(),
         status=status, message=message, failure=failure, nfev=int(nfev), njev=int(njev), nlu=int(nlu),
         nsteps=int(nsteps),
         event_times=ev_t[:n_ev].tolist(), event_labels=_event_labels(ev_sw[:n_ev], labels),
     )
+
+
+def failure_detail(system: ConstrainedSystem, code: int, info: np.ndarray) -> np.ndarray | None:
+    """The details of a failed kernel run's status ``code``, info[2:], where they are that code's: a step too small
+    is worded from Radau's DAE details on GGL's system only (a partitioned system's info[2:] holds the partition's,
+    which may be left from a breakdown the run got past)."""
+    if code == STEP_TOO_SMALL and not isinstance(system, GGLSystem):
+        return None
+    return info[2:]
 
 
 class _PythonArithmetic(Exception):

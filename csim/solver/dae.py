@@ -417,14 +417,14 @@ class RadauDAE(OdeSolver):
         scale[self.index2] /= h_abs
         return scale
 
-    def _solve_collocation(self, t, t_new, y, h, Z0, scale, LU_real, LU_complex, alg_tol):
+    def _solve_collocation(self, t, t_new, y, h, Z0, scale, J, LU_real, LU_complex, alg_tol):
         """Simplified Newton iteration for the stage increments Z, shape (3, n).
 
         Solves the collocation equations ``(A^-1 (x) D) Z = h F(t + C h, y + Z)`` in the
         eigenbasis of A^-1 (``W = TI Z``): one real and one complex linear system per
         iteration. Returns ``(converged, n_iter, Z, rate, f_end, reason)``; ``f_end`` is
         F at the step end when it was evaluated (algebraic rows present), ``reason`` says
-        why the iteration failed.
+        why the iteration failed. ``J`` is the Jacobian of the iteration matrices' factors.
         """
         n = y.shape[0]
         d = self.d
@@ -439,7 +439,7 @@ class RadauDAE(OdeSolver):
         # r = NOISE_FACTOR eps |J| |y|: an iteration whose increment is down to them has
         # converged as far as floating point allows (with tight tolerances, the round-off of
         # Phi at large coordinates turns into multiplier increments of about r / (h atol))
-        noise = np.abs(lu_solve(LU_real, NOISE_FACTOR * EPS * (np.abs(self.J) @ np.abs(y)), check_finite=False))
+        noise = np.abs(lu_solve(LU_real, NOISE_FACTOR * EPS * (np.abs(J) @ np.abs(y)), check_finite=False))
         noise_norm = _rms(noise / scale)
 
         W = TI @ Z0
@@ -549,7 +549,7 @@ class RadauDAE(OdeSolver):
                         return False, dae_step_message(_detail(DAE_SINGULAR_REPEATED, t, value=n_singular))
                 else:
                     converged, n_iter, Z, rate, f_end, reason = self._solve_collocation(
-                        t, t_new, y, h, Z0, scale, LU_real, LU_complex, alg_tol)
+                        t, t_new, y, h, Z0, scale, J, LU_real, LU_complex, alg_tol)
                 if not converged:
                     if current_jac:
                         break

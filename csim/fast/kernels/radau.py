@@ -224,7 +224,10 @@ def _radau_lu(h, RJ, RLR, RLC, rpiv, n, nd, cs):
         cs[NLU] += 2
         ok_real = lu_factor(RLR, n, rpiv[:n])
         return ok_real and lu_factor(RLC, n, rpiv[n:])
-    cs[NLU] += 1  # dae: RadauDAE counts the factorizations it makes
+    cs[NLU] += 1  # dae: RadauDAE counts the factorizations it makes, and takes a non-finite J for singular
+    for i in range(n * n):
+        if not RJ[i] < np.inf or not RJ[i] > -np.inf:
+            return False
     if not lu_factor(RLR, n, rpiv[:n]):
         return False
     cs[NLU] += 1
@@ -342,7 +345,7 @@ def _radau_newton(t, t_new, y, h, scale, tol, RM, RJ, RLR, RLC, rpiv, rcv, ts_, 
             cs[R_FAIL] = DAE_NONFINITE_F
             break
         dw_norm = _radau_increment(h, nd, scale, RM, RLR, RLC, rpiv, rcv)
-        if dw_norm_old > 0 or (not dae and dw_norm_old >= 0):
+        if k > 0 and (dw_norm_old > 0 or not dae):  # (RadauDAE: after a nonzero increment; scipy: after any)
             rate = dw_norm / dw_norm_old
         if dae and not dw_norm < np.inf:  # (NaN or inf)
             cs[R_FAIL] = DAE_NONFINITE_INCREMENT
@@ -583,6 +586,8 @@ def _radau_step(ts_, t_end, rtol, tolv, max_step, y, f, F, y_old, y_new, f_new, 
         status, converged, n_iter, rate = _radau_solve(t, t_new, y, f, h, scale, ts_[R_NEWTON_TOL], RM, RJ, RLR,
                                                        RLC, rpiv, rcv, ts_, par, pf, pi, rmode, locate, w, piv, cs,
                                                        info)
+        if status == STEP_TOO_SMALL:  # dae: singular for every step (details in info): a step not taken, counted
+            return OK, t, False
         if status != OK:
             return status, t, True
         if not converged:
