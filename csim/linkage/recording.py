@@ -32,7 +32,7 @@ def linkage_outputs(case, system, trajectory, result) -> None:
         record_drives(result, system, trajectory.t, trajectory.y, trajectory.mode, list(linkage.drive), units)
     if not result.t.size:
         return
-    cut = joint_reactions(linkage, case.mechanism, system.par, result.q, result.lam) if linkage.topology.cut_joints \
+    cut = joint_reactions(linkage, case.mechanism, system.par, result.q, result.lam) if linkage.plan.cut_joints \
         else []
     run = {"q": result.q, "qd": result.qd, "qdd": result.qdd, "loads": result.loads,
            "drive_forces": result.drive_forces}

@@ -20,10 +20,11 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from csim.io.atomic import write_atomically
+from csim.io.units import declared_constraint_units
 from csim.model.definition import MechanismDefinition, Parameter
 
 #: bump when the snapshot's content changes
-SNAPSHOT_VERSION = "1"
+SNAPSHOT_VERSION = "2"
 
 #: the files every generated model depends on, beside the mechanism's own module
 MODEL_SOURCES = ("definition.py", "derive.py", "codegen.py", "cache.py", "light.py", "recursive.py")
@@ -34,14 +35,15 @@ class LoadInfo:
     """A load's name, units and default law (its coordinate s_k(q) is on the full definition).
 
     A registered mechanism's loads are switched constants (``law`` None) of magnitude 0
-    unless the case names them.
+    unless the case names them; a link-coupling mechanism's force elements have a law (here
+    as text, ``str`` of the expression, which is on the full definition), magnitude 1.
     """
 
     name: str
     unit: str
     coordinate_unit: str
     description: str
-    law: None = None
+    law: str | None = None
     magnitude: float = 0.0
     window: tuple[float, float] = (float("-inf"), float("inf"))
     velocity: str = "any"
@@ -62,9 +64,11 @@ class LightDefinition:
 
     Attributes read here without sympy: ``name``, ``description``, ``coordinate_names``,
     ``coordinate_units``, ``parameters``, ``parameter_names``, ``loads`` and ``observables``
-    (names and units), ``n_constraints``, the ``default_*`` initial values and ``key``
-    (the generated code's key, :func:`csim.model.cache.definition_key`). Every other
-    attribute is the full definition's (:meth:`full`).
+    (names and units), ``n_constraints``, the ``default_*`` initial values, ``key``
+    (the generated code's key, :func:`csim.model.cache.definition_key`) and
+    ``constraint_units`` (the unit of each constraint row where the mechanism declares them,
+    :func:`csim.io.units.declared_constraint_units`; else None). Every other attribute is the full definition's
+    (:meth:`full`).
     """
 
     def __init__(self, data: dict, factory: Callable[[], MechanismDefinition],
@@ -74,13 +78,15 @@ class LightDefinition:
         self.coordinate_names: list[str] = list(data["coordinate_names"])
         self.coordinate_units: list[str] = list(data["coordinate_units"])
         self.parameters = [Parameter(**p) for p in data["parameters"]]
-        self.loads = [LoadInfo(**x) for x in data["loads"]]
+        self.loads = [LoadInfo(**{**x, "window": tuple(x.get("window", LoadInfo.window))}) for x in data["loads"]]
         self.observables = [ObservableInfo(**x) for x in data["observables"]]
         self.n_constraints: int = int(data["n_constraints"])
         self.default_independent: dict[str, float] = dict(data["default_independent"])
         self.default_independent_velocities: dict[str, float] = dict(data["default_independent_velocities"])
         self.default_guess: dict[str, float] = dict(data["default_guess"])
         self.key: str = data["key"]
+        units = data.get("constraint_units")
+        self.constraint_units: list[str] | None = None if units is None else [str(u) for u in units]
         self._factory = factory
         self._full = full
 
@@ -123,7 +129,9 @@ def snapshot(definition: MechanismDefinition) -> dict:
         "coordinate_names": definition.coordinate_names,
         "coordinate_units": list(definition.coordinate_units),
         "parameters": [asdict(p) for p in definition.parameters],
-        "loads": [asdict(LoadInfo(ld.name, ld.unit, ld.coordinate_unit, ld.description)) for ld in definition.loads],
+        "loads": [asdict(LoadInfo(ld.name, ld.unit, ld.coordinate_unit, ld.description,
+                                  None if ld.law is None else str(ld.law), ld.magnitude, tuple(ld.window), ld.velocity))
+                  for ld in definition.loads],
         "observables": [asdict(ObservableInfo(o.name, o.unit, o.rate_unit, o.description))
                         for o in definition.observables],
         "n_constraints": definition.n_constraints,
@@ -131,6 +139,7 @@ def snapshot(definition: MechanismDefinition) -> dict:
         "default_independent_velocities": dict(definition.default_independent_velocities),
         "default_guess": dict(definition.default_guess),
         "key": definition_key(definition),
+        "constraint_units": declared_constraint_units(definition),
     }
 
 
