@@ -130,7 +130,7 @@ def snapshot(definition: MechanismDefinition) -> dict:
         "coordinate_units": list(definition.coordinate_units),
         "parameters": [asdict(p) for p in definition.parameters],
         "loads": [asdict(LoadInfo(ld.name, ld.unit, ld.coordinate_unit, ld.description,
-                                  None if ld.law is None else str(ld.law), ld.magnitude, tuple(ld.window), ld.velocity))
+                                  None if ld.law is None else str(ld.law), ld.magnitude, list(ld.window), ld.velocity))
                   for ld in definition.loads],
         "observables": [asdict(ObservableInfo(o.name, o.unit, o.rate_unit, o.description))
                         for o in definition.observables],

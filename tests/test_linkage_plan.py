@@ -1,0 +1,161 @@
+"""A linkage's plan: its plain data filed beside the cached build, read by a warm run without sympy."""
+from __future__ import annotations
+
+import json
+import os
+import pickle
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from conftest import CONFIGS, ROOT
+
+from csim.linkage.plan import LightLinkage, LinkagePlan, load_linkage, plan_path, read_plan
+
+#: a short run of each case
+SHORT = ["simulation.t_end=0.2"]
+
+
+def _sections(config: str) -> tuple[dict, dict]:
+    """The ``mechanism`` and ``initial`` sections of a case, validated (as case validation builds them)."""
+    from csim.case import SCHEMA, read_case_file
+    from csim.schema import validate_section
+
+    out = validate_section("", read_case_file(CONFIGS / config), SCHEMA, [])
+    out["mechanism"].pop("name", None)
+    return out["mechanism"], out["initial"]
+
+
+@pytest.fixture
+def cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("CSIM_CACHE_DIR", str(tmp_path))
+    monkeypatch.delenv("CSIM_LINKAGE_CACHE", raising=False)
+    return tmp_path / "linkage"
+
+
+def _load(config: str) -> LightLinkage:
+    mechanism, initial = _sections(config)
+    return load_linkage(mechanism, initial, tol=initial["tol"], max_iter=initial["max_iter"])
+
+
+def test_the_plan_is_filed_by_the_build_and_read_back_without_the_symbolic_linkage(cache):
+    built = _load("iftomm/a05_flyball_governor.yaml")
+    assert built.loaded and len(list(cache.glob("*_plan.json"))) == 1
+    read = _load("iftomm/a05_flyball_governor.yaml")
+    assert not read.loaded
+    assert read.plan == built.plan == built.full().plan()
+    assert read.drive == list(built.full().drive) and read.driven_indices == built.full().driven_indices
+    assert read.equation_labels == built.full().equation_labels and read.dof == built.full().dof
+    assert read.definition.key == built.definition.key
+    assert read.definition.constraint_units == built.full().definition.recursive.constraint_units
+    keep = read.definition.parameter_names
+    assert read.drive_expressions(read.parameters, keep) == built.full().drive_expressions(read.parameters, keep)
+    assert not read.loaded
+
+
+def test_drive_expressions_put_in_the_values_of_parameters_not_kept(cache):
+    _load("iftomm/a05_flyball_governor.yaml")
+    read = _load("iftomm/a05_flyball_governor.yaml")
+    used = read.plan.drive_parameters
+    assert used  # the governor's drive reads its parameters
+    keep = [name for name in read.parameters if name not in used]
+    assert read.drive_expressions(read.parameters, keep) == read.full().drive_expressions(read.parameters, keep)
+    assert read.loaded
+
+
+@pytest.mark.parametrize("damage", ["not json", "foreign", "version", "edited", "truncated"])
+def test_a_damaged_or_stale_plan_is_built_again(cache, damage):
+    first = _load("iftomm/a04_bricard.yaml")
+    path = plan_path(first.build_key)
+    filed = json.loads(path.read_text())
+    if damage == "not json":
+        path.write_bytes(b"\x00 not a plan")
+    elif damage == "foreign":  # a valid plan, filed under another key
+        filed["key"] = "0" * 24
+        path.write_text(json.dumps(filed))
+    elif damage == "version":
+        filed["version"] = "0"
+        path.write_text(json.dumps(filed))
+    elif damage == "edited":  # its content no longer matches its hash
+        filed["plan"]["generic_rank"] += 1
+        path.write_text(json.dumps(filed))
+    else:
+        path.write_text(json.dumps(filed)[:200])
+    assert read_plan(first.build_key) is None
+    again = _load("iftomm/a04_bricard.yaml")
+    assert again.loaded and again.plan == first.plan  # built again (from the cached linkage), and filed anew
+    assert read_plan(first.build_key) == first.plan
+
+
+def test_no_plan_is_filed_without_the_linkage_cache(cache, monkeypatch):
+    monkeypatch.setenv("CSIM_LINKAGE_CACHE", "0")
+    linkage = _load("slider_crank.yaml")
+    assert linkage.loaded and linkage.build_key == "" and not list(cache.glob("*_plan.json"))
+
+
+def test_the_plan_reads_back_as_written():
+    plan = LinkagePlan(variables=["q1"], start={"q1": 0.5}, drive=[], drive_expressions=[], drive_parameters=[], dof=1,
+                       planar=True, parameters={"a": 0.1}, link_labels={0: "ground", 1: "crank"}, mass_links=[1],
+                       equations=[], generic_rank=0, cut_joints=[], tree_joints=[], build_key="k")
+    assert LinkagePlan.from_json(json.loads(json.dumps(plan.to_json()))) == plan
+    with pytest.raises(KeyError):
+        LinkagePlan.from_json({**plan.to_json(), "extra": 1})
+
+
+def test_a_light_linkage_pickles_without_its_symbolic_linkage(cache):
+    # a case is sent to worker processes (csim compare, csim sweep)
+    built = _load("slider_crank.yaml")
+    f = built.drive_function(built.parameters)  # derived and filed
+    read = _load("slider_crank.yaml")
+    copy = pickle.loads(pickle.dumps(read))
+    assert not copy.loaded and copy.plan == read.plan and copy.definition.key == read.definition.key
+    for t in (0.0, 0.3):
+        for a, b in zip(copy.drive_function(copy.parameters)(t), f(t)):
+            np.testing.assert_array_equal(a, b)
+    assert copy.full().plan() == read.plan  # built in the worker, from the sections it carries
+
+
+@pytest.mark.parametrize("config", ["iftomm/a05_flyball_governor.yaml", "iftomm/a04_bricard.yaml"])
+def test_a_warm_run_records_what_a_cold_one_does(cache, monkeypatch, config):
+    from csim.case import load_case
+    from csim.pipeline import run_case
+
+    monkeypatch.setenv("CSIM_LINKAGE_CACHE", "0")
+    cold = run_case(load_case(CONFIGS / config, SHORT))
+    monkeypatch.delenv("CSIM_LINKAGE_CACHE")
+    run_case(load_case(CONFIGS / config, SHORT))  # files the plan and the functions
+    case = load_case(CONFIGS / config, SHORT)
+    warm = run_case(case)
+    assert not case.linkage.loaded and warm.ok and cold.ok
+    for name in ("q", "qd", "qdd", "lam", "phi", "removed_phi"):
+        np.testing.assert_array_equal(getattr(warm, name), getattr(cold, name))
+    assert warm.constraint_units == cold.constraint_units and warm.removed_names == cold.removed_names
+    assert [r.label for r in warm.reactions] == [r.label for r in cold.reactions]
+    for a, b in zip(warm.reactions, cold.reactions):
+        for field in ("force_global", "torque_global", "force_joint", "torque_joint"):
+            np.testing.assert_array_equal(getattr(a, field), getattr(b, field))
+        assert a.undetermined == b.undetermined
+    if cold.drive_forces is not None:
+        np.testing.assert_array_equal(warm.drive_forces, cold.drive_forces)
+
+
+@pytest.mark.parametrize("config", ["iftomm/a05_flyball_governor.yaml", "iftomm/a04_bricard.yaml",
+                                    "slider_crank.yaml"])
+def test_a_warm_linkage_run_imports_no_sympy(tmp_path, config):
+    # driven dynamics with force elements, an overconstrained mechanism (the constraint watch's
+    # removed equations), a kinematic analysis: the second run reads everything from the cache
+    # (a cache of its own: the first run is cold, and imports sympy to derive)
+    from csim.model.cache import kernels_dir
+
+    env = {**os.environ, "CSIM_CACHE_DIR": str(tmp_path / "cache"), "CSIM_KERNELS_DIR": str(kernels_dir())}
+    env.pop("CSIM_LINKAGE_CACHE", None)
+    code = ("import runpy, sys\n"
+            f"sys.argv = ['csim', 'run', {str(CONFIGS / config)!r}, '-o', {str(tmp_path / 'run.h5')!r}, "
+            f"'-s', {SHORT[0]!r}]\n"
+            "try:\n    runpy.run_module('csim', run_name='__main__')\n"
+            "except SystemExit as exc:\n    assert not exc.code, exc.code\n"
+            "print('sympy' in sys.modules)")
+    outs = [subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True,
+                           text=True, check=True).stdout.split()[-1] for _ in range(2)]
+    assert outs == ["True", "False"], outs
