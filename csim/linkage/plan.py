@@ -261,13 +261,19 @@ def load_linkage(mechanism: dict, initial: dict | None, tol: float = 1e-12, max_
     return LightLinkage(plan, builder, linkage)
 
 
+#: the fields of the plan a :class:`LightLinkage` answers as its own attributes
+PLAN_FIELDS = ("drive", "dof", "planar", "start", "parameters", "cache_key", "build_key", "definition_key")
+
+
 class LightLinkage:
     """A linkage for a run: its plan (:class:`LinkagePlan`), and its symbolic
     :class:`~csim.linkage.model.Linkage` built (read back from the cache) on first use.
 
-    The attributes of the plan, the properties and methods below are read without sympy;
-    any other attribute (``tables``, ``topology``, ``frames``, ``reduction``, ...) is the
-    symbolic linkage's (:meth:`full`).
+    The plan's fields named in :data:`PLAN_FIELDS` (``drive``: the driven joint variables'
+    names, where the symbolic linkage's maps each to its expression; ``parameters``: the
+    tables' values [SI], a value written with a unit converted; ``dof``, ``start``, ...), the
+    properties and methods below are read without sympy; any other attribute (``tables``,
+    ``topology``, ``frames``, ``reduction``, ...) is the symbolic linkage's (:meth:`full`).
 
     Parameters
     ----------
@@ -300,9 +306,11 @@ class LightLinkage:
         return self.full().definition
 
     def __getattr__(self, attr: str):
-        # only for what is not set on the instance or the class: the symbolic parts
+        # only for what is not set on the instance or the class: the plan's fields it answers, else the symbolic parts
         if attr.startswith("_"):
             raise AttributeError(attr)
+        if attr in PLAN_FIELDS:
+            return getattr(self.plan, attr)
         return getattr(self.full(), attr)
 
     def __getstate__(self) -> dict:
@@ -314,43 +322,9 @@ class LightLinkage:
 
     # -- the plan's data ------------------------------------------------------------------
     @property
-    def drive(self) -> list[str]:
-        """The driven joint variables' names (the symbolic linkage's ``drive`` maps each to its expression)."""
-        return self.plan.drive
-
-    @property
-    def dof(self) -> int:
-        return self.plan.dof
-
-    @property
-    def planar(self) -> bool:
-        return self.plan.planar
-
-    @property
-    def start(self) -> dict[str, float]:
-        return self.plan.start
-
-    @property
-    def parameters(self) -> dict[str, float]:
-        """The tables' parameter values [SI] (a value written with a unit, converted)."""
-        return self.plan.parameters
-
-    @property
     def has_mass(self) -> bool:
         """Whether a moving link has mass or inertia."""
         return bool(self.plan.mass_links)
-
-    @property
-    def cache_key(self) -> str:
-        return self.plan.cache_key
-
-    @property
-    def build_key(self) -> str:
-        return self.plan.build_key
-
-    @property
-    def definition_key(self) -> str:
-        return self.plan.definition_key
 
     @property
     def variable_names(self) -> list[str]:
