@@ -253,7 +253,8 @@ def load_linkage(mechanism: dict, initial: dict | None, tol: float = 1e-12, max_
     key = builder.key
     plan = read_plan(key) if key else None
     if plan is not None:
-        return LightLinkage(plan, builder)
+        with contextlib.suppress(KeyError, TypeError, ValueError):  # a definition's data it cannot read: built again
+            return LightLinkage(plan, builder)
     linkage = builder()
     plan = linkage.plan()
     if key and plan.build_key == key:
