@@ -375,13 +375,13 @@ class Case:
     def kinematic(self) -> bool:
         """True for a link-coupling case with prescribed drives and ``drive_mode: kinematic`` (a
         kinematic analysis)."""
-        return self.linkage is not None and bool(self.linkage.drive) and not self.driven
+        return self.linkage is not None and bool(self.linkage.drive_names) and not self.driven
 
     @property
     def driven(self) -> bool:
         """True for a link-coupling case with prescribed drives and ``drive_mode: dynamic``
         (driven dynamics, :mod:`csim.solver.driven`)."""
-        return (self.linkage is not None and bool(self.linkage.drive)
+        return (self.linkage is not None and bool(self.linkage.drive_names)
                 and self.data["mechanism"].get("drive_mode") == "dynamic")
 
     @property
@@ -629,7 +629,7 @@ def _build_linkage(out: dict, problems: list[str]) -> LightLinkage:
     given = out["mechanism"].get("parameters")
     if isinstance(given, dict):  # as the tables read them: written with a unit (50 mm), converted (0.05)
         out["mechanism"]["parameters"] = {k: linkage.parameters.get(str(k), v) for k, v in given.items()}
-    if linkage.drive:
+    if linkage.drive_names:
         _drive_start(out, linkage, problems)
         if out["mechanism"].get("drive_mode") is None:
             out["mechanism"]["drive_mode"] = "kinematic"
@@ -658,25 +658,25 @@ def _drive_start(out: dict, linkage: LightLinkage, problems: list[str]) -> None:
     and ``qd`` as a simulation does (default: the assembled values, at rest); they may not
     name a driven variable except with its drive's value.
     """
-    ini, mech = out["initial"], linkage.definition
+    ini, mech, names = out["initial"], linkage.definition, linkage.drive_names
     u, ud, _ = linkage.drive_function(linkage.parameters)(0.0)
-    at_start = {"q": dict(zip(linkage.drive, u.tolist())), "qd": dict(zip(linkage.drive, ud.tolist()))}
-    partial = len(linkage.drive) < linkage.dof
+    at_start = {"q": dict(zip(names, u.tolist())), "qd": dict(zip(names, ud.tolist()))}
+    partial = len(names) < linkage.dof
     for key in ("q", "qd"):
         given = ini.get(key)
         if given is None:
             continue
-        driven = {k: v for k, v in given.items() if str(k) in linkage.drive} if isinstance(given, dict) else given
+        driven = {k: v for k, v in given.items() if str(k) in names} if isinstance(given, dict) else given
         if partial and isinstance(given, dict) and (not driven or _same_values(driven, at_start[key])):
-            free = {k: v for k, v in given.items() if str(k) not in linkage.drive}
-            needed = linkage.dof - len(linkage.drive)
+            free = {k: v for k, v in given.items() if str(k) not in names}
+            needed = linkage.dof - len(names)
             if key == "q" and len(free) != needed:  # counted here, not with the drives the user did not write
-                others = [n for n in linkage.variable_names if n not in linkage.drive]
+                others = [n for n in linkage.variable_names if n not in names]
                 named = ", ".join(map(str, free)) or "none"
                 problems.append(f"initial.q: got {len(free)} free joint variable(s) ({named}); "
                                 f"expected exactly {needed} of the joint variables not driven ({', '.join(others)}), "
                                 f"or initial.q left out (the assembled values); the drives set "
-                                f"{', '.join(linkage.drive)}")
+                                f"{', '.join(names)}")
                 ini[key] = None
                 continue
             ini[key] = {**at_start[key], **free}
@@ -688,7 +688,7 @@ def _drive_start(out: dict, linkage: LightLinkage, problems: list[str]) -> None:
         elif not _same_values(given, at_start[key]):
             # the drive's own values at t = 0 are what a validated (stored) case holds: they may stay
             problems.append(f"initial.{key}: got {describe(given)} with mechanism.drive; the driving joint "
-                            f"variables ({', '.join(linkage.drive)}) set the motion; expected initial.{key} left "
+                            f"variables ({', '.join(names)}) set the motion; expected initial.{key} left "
                             f"out (initial.guess chooses the assembly branch)")
     if partial and ini.get("q") is not None and ini.get("qd") is None:  # the free joints start at rest
         ini["qd"] = {**{k: 0.0 for k in ini["q"]}, **at_start["qd"]}
@@ -796,7 +796,7 @@ def _validate_loads(out, mech, problems):
             continue
         load = mech.loads[load_names.index(key)]
         unit = load.unit
-        if load.law is not None:
+        if load.has_law:
             problems.append(f"{path}: {key!r} is a force element of mechanism.forces, whose law is set there; "
                             f"expected no loads.{key} (change the element in mechanism.forces)")
             continue

@@ -138,16 +138,23 @@ def test_other_values_or_start_build_again_a_damaged_file_too(cache, monkeypatch
 
 
 def test_the_constraint_watch_read_back_equals_the_one_derived(cache):
-    from csim.linkage.constraints import constraint_watch
+    import dataclasses
+
     from csim.linkage.model import build_linkage
+    from csim.linkage.plan import LightLinkage
 
     data = _bricard()
     linkage = build_linkage(data["mechanism"], data.get("initial"))
-    args = (linkage.reduction, linkage.topology.variables, dict(linkage.tables.values))
-    derived = constraint_watch(*args)                              # no key: derived here
+
+    def watch(key: str):
+        # at the tables' parameter values (none of the definition's given)
+        plan = dataclasses.replace(linkage.plan(), build_key=key)
+        return LightLinkage(plan, lambda: linkage, linkage).constraint_watch([], np.zeros(0))
+
+    derived = watch("")                                            # no key: derived here
     assert not list(cache.glob("*_watch_*.py"))
-    filed = constraint_watch(*args, key=linkage.build_key)         # derived, then filed
-    read = constraint_watch(*args, key=linkage.build_key)          # read back
+    filed = watch(linkage.build_key)                               # derived, then filed
+    read = watch(linkage.build_key)                                # read back
     assert {p.name.split("_", 1)[1] for p in cache.glob("*_watch_*.py")} == \
         {"watch_phi.py", "watch_pattern.py", "watch_jac.py", "watch_gamma.py"}
     rng = np.random.default_rng(3)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from conftest import CONFIGS, ROOT
 
-from csim.linkage.plan import LightLinkage, LinkagePlan, load_linkage, plan_path, read_plan
+from csim.linkage.plan import LightLinkage, LinkagePlan, load_linkage, plan_path, read_plan, write_plan
 
 #: a short run of each case
 SHORT = ["simulation.t_end=0.2"]
@@ -45,13 +45,17 @@ def test_the_plan_is_filed_by_the_build_and_read_back_without_the_symbolic_linka
     read = _load("iftomm/a05_flyball_governor.yaml")
     assert not read.loaded
     assert read.plan == built.plan == built.full().plan()
-    assert read.drive == list(built.full().drive) and read.driven_indices == built.full().driven_indices
-    assert read.equation_labels == built.full().equation_labels and read.dof == built.full().dof
+    full = built.full()
+    assert read.drive_names == list(full.drive)
+    assert read.driven_indices == [full.variable_names.index(n) for n in full.drive]
+    assert read.equation_labels == [e.label for e in full.reduction.kept] and read.dof == full.dof
     assert read.definition.key == built.definition.key
     assert read.definition.constraint_units == built.full().definition.recursive.constraint_units
     keep = read.definition.parameter_names
     assert read.drive_expressions(read.parameters, keep) == built.full().drive_expressions(read.parameters, keep)
     assert not read.loaded
+    assert read.drive == full.drive  # the symbolic linkage's: each driven variable's expression
+    assert read.loaded
 
 
 def test_drive_expressions_put_in_the_values_of_parameters_not_kept(cache):
@@ -64,7 +68,14 @@ def test_drive_expressions_put_in_the_values_of_parameters_not_kept(cache):
     assert read.loaded
 
 
-@pytest.mark.parametrize("damage", ["not json", "foreign", "version", "edited", "truncated"])
+def _refile(path, filed: dict) -> None:
+    """Write ``filed`` (a plan file's data, edited) to ``path`` with the digest of its plan."""
+    from csim.linkage.plan import _digest
+
+    path.write_text(json.dumps({**filed, "digest": _digest(filed["plan"])}))
+
+
+@pytest.mark.parametrize("damage", ["not json", "foreign", "inner key", "version", "edited", "truncated"])
 def test_a_damaged_or_stale_plan_is_built_again(cache, damage):
     first = _load("iftomm/a04_bricard.yaml")
     path = plan_path(first.build_key)
@@ -74,6 +85,9 @@ def test_a_damaged_or_stale_plan_is_built_again(cache, damage):
     elif damage == "foreign":  # a valid plan, filed under another key
         filed["key"] = "0" * 24
         path.write_text(json.dumps(filed))
+    elif damage == "inner key":  # filed under its key, with a hash that matches, but another build's plan
+        filed["plan"]["build_key"] = "0" * 24
+        _refile(path, filed)
     elif damage == "version":
         filed["version"] = "0"
         path.write_text(json.dumps(filed))
@@ -88,16 +102,80 @@ def test_a_damaged_or_stale_plan_is_built_again(cache, damage):
     assert read_plan(first.build_key) == first.plan
 
 
+def test_a_plan_whose_definition_cannot_be_read_is_built_again(cache):
+    first = _load("iftomm/a04_bricard.yaml")
+    path = plan_path(first.build_key)
+    filed = json.loads(path.read_text())
+    del filed["plan"]["definition"]["coordinate_names"]
+    _refile(path, filed)
+    assert read_plan(first.build_key) is not None  # the plan itself reads back
+    again = _load("iftomm/a04_bricard.yaml")
+    assert again.loaded and again.plan == first.plan
+    assert read_plan(first.build_key) == first.plan  # and is filed anew
+
+
+def test_a_symbolic_linkage_that_does_not_match_its_plan_stops_the_run(cache):
+    # the pickled linkage and the plan are separate files: one read back with a plan that is
+    # not its own must not run the plan's numbers (the plan is removed, the next run rebuilds)
+    first = _load("iftomm/a04_bricard.yaml")
+    path = plan_path(first.build_key)
+    filed = json.loads(path.read_text())
+    assert filed["plan"]["equations"][0]["status"] == "dependent"
+    filed["plan"]["equations"][0]["status"] = "kept"
+    _refile(path, filed)
+    read = _load("iftomm/a04_bricard.yaml")
+    assert not read.loaded
+    with pytest.raises(RuntimeError, match="equations differ"):
+        read.full()
+    assert not path.exists()
+    assert _load("iftomm/a04_bricard.yaml").plan == first.plan
+
+
+def test_a_plan_that_json_cannot_hold_raises(cache):
+    # a cache that cannot be written is no error; a value JSON cannot take is a programming error
+    import dataclasses
+
+    plan = _load("slider_crank.yaml").plan
+    with pytest.raises(TypeError):
+        write_plan(dataclasses.replace(plan, start={"q1": object()}))
+
+
 def test_no_plan_is_filed_without_the_linkage_cache(cache, monkeypatch):
     monkeypatch.setenv("CSIM_LINKAGE_CACHE", "0")
     linkage = _load("slider_crank.yaml")
     assert linkage.loaded and linkage.build_key == "" and not list(cache.glob("*_plan.json"))
 
 
+@pytest.mark.parametrize("warm", [False, True])
+def test_the_light_and_the_symbolic_definition_take_the_drives_start(cache, warm):
+    # a kinematic analysis starts at the drives' rates, which the case sets on its definition
+    # (csim.case._drive_start): the symbolic definition, built with the case or after, agrees
+    from csim.case import load_case
+
+    if warm:
+        load_case(CONFIGS / "slider_crank.yaml")
+    case = load_case(CONFIGS / "slider_crank.yaml")
+    assert case.linkage.loaded != warm
+    light = case.mechanism.default_independent_velocities
+    assert light == case.linkage.full().definition.default_independent_velocities
+    assert light == case.mechanism.full().default_independent_velocities
+    (name,) = case.linkage.drive_names
+    assert light[name] == pytest.approx(2 * np.pi)
+
+
+def test_the_light_definition_says_which_loads_have_a_law(cache):
+    from csim.case import load_case
+
+    definition = load_case(CONFIGS / "iftomm" / "a05_flyball_governor.yaml").mechanism
+    assert [ld.has_law for ld in definition.loads] == [ld.law is not None for ld in definition.full().loads]
+    assert any(ld.has_law for ld in definition.loads)
+
+
 def test_the_plan_reads_back_as_written():
-    plan = LinkagePlan(variables=["q1"], start={"q1": 0.5}, drive=[], drive_expressions=[], drive_parameters=[], dof=1,
-                       planar=True, parameters={"a": 0.1}, link_labels={0: "ground", 1: "crank"}, mass_links=[1],
-                       equations=[], generic_rank=0, cut_joints=[], tree_joints=[], build_key="k")
+    plan = LinkagePlan(variables=["q1"], start={"q1": 0.5}, drive_names=[], drive_expressions=[], drive_parameters=[],
+                       dof=1, planar=True, parameters={"a": 0.1}, link_labels={0: "ground", 1: "crank"},
+                       mass_links=[1], equations=[], generic_rank=0, cut_joints=[], tree_joints=[],
+                       definition={"name": "m"}, build_key="k")
     assert LinkagePlan.from_json(json.loads(json.dumps(plan.to_json()))) == plan
     with pytest.raises(KeyError):
         LinkagePlan.from_json({**plan.to_json(), "extra": 1})

@@ -324,9 +324,9 @@ def test_a_unit_where_a_table_entry_has_none_is_refused_and_expressions_are_unch
 def test_a_drive_takes_its_joint_variables_unit_and_expressions_stay_expressions():
     doc = read("fourbar.yaml")
     doc["mechanism"]["drive"] = {"crank": "30 deg"}
-    assert validate_case(copy.deepcopy(doc)).linkage.full().drive == {"q_crank": sp.pi / 6}
+    assert validate_case(copy.deepcopy(doc)).linkage.drive == {"q_crank": sp.pi / 6}
     doc["mechanism"]["drive"] = {"crank": "2*pi*t"}  # pi (and deg, a parameter, t) make an expression
-    assert validate_case(copy.deepcopy(doc)).linkage.full().drive == {"q_crank": 2 * sp.pi * sp.Symbol("t", real=True)}
+    assert validate_case(copy.deepcopy(doc)).linkage.drive == {"q_crank": 2 * sp.pi * sp.Symbol("t", real=True)}
     doc["mechanism"]["drive"] = {"crank": "2*pi*t rad"}  # a unit inside an expression is not read
     (msg,) = problems_of(doc)
     assert msg.startswith("mechanism.drive.crank: got '2*pi*t rad' (string); unknown name 'rad'"), msg

@@ -113,11 +113,11 @@ class Reduction:
         return [e for e in self.equations if e.status == KEPT]
 
 
-def _numeric(exprs: Sequence[sp.Expr], q_syms: list[sp.Symbol], parameters: dict[sp.Symbol, float],
-             key: str = ""):
-    """phi(q) (r,) and phi_q(q) (r, n) as numpy functions at the given parameter values
-    (:func:`csim.linkage.watch.numeric_constraints`; "": derived here)."""
-    return numeric_constraints(len(exprs), len(q_syms), list(parameters.values()), key,
+def _numeric(exprs: Sequence[sp.Expr], q_syms: list[sp.Symbol], parameters: dict[sp.Symbol, float]):
+    """phi(q) (r,) and phi_q(q) (r, n) as numpy functions at the given parameter values, derived
+    here, not filed (:func:`csim.linkage.watch.numeric_constraints`: the constraint watch's are
+    filed, :meth:`csim.linkage.plan.LightLinkage.constraint_watch`)."""
+    return numeric_constraints(len(exprs), len(q_syms), list(parameters.values()), "",
                                lambda: (exprs, q_syms, list(parameters)))
 
 
@@ -318,16 +318,3 @@ def plane_of_motion(tables: Tables, frames: Frames, variables: list[JointVariabl
     if not (parallel and normal_slides):
         return None
     return Plane(normal, {n: T[:3, :3].T @ normal for n, T in numeric.items()})
-
-
-def constraint_watch(reduction: Reduction, variables: list[JointVariable], values: dict[sp.Symbol, float],
-                     key: str = ""):
-    """Every non-trivial equation of ``reduction`` as a :class:`csim.solver.integrity.ConstraintWatch`
-    (:func:`csim.linkage.watch.constraint_watch`) at the parameter ``values``; the numeric
-    functions filed in the cache under ``key`` (the linkage's
-    :attr:`~csim.linkage.model.Linkage.build_key`, which the equations' status depends on; "":
-    derived here)."""
-    from csim.linkage.watch import constraint_watch as watch
-
-    return watch([e.record() for e in reduction.equations], len(variables), reduction.generic_rank,
-                 list(values.values()), key, lambda: (reduction.equations, variables, list(values)))

@@ -17,7 +17,6 @@ The result is handled by :mod:`csim.model` and the solvers like a hand-written m
 """
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -25,7 +24,6 @@ import sympy as sp
 
 from csim.errors import CaseError
 from csim.linkage.constraints import (
-    DEPENDENT,
     Equation,
     Plane,
     Reduction,
@@ -39,11 +37,10 @@ from csim.linkage.frames import Frames, build_frames
 from csim.linkage.inertia import check_inertia
 from csim.linkage.joints import JOINT_TYPES
 from csim.linkage.lambdacache import build_key, cache_enabled, cached_build, linkage_key
-from csim.linkage.plan import JointRecord, LinkagePlan, drive_function
-from csim.linkage.reactions import subtree
+from csim.linkage.plan import JointRecord, LinkagePlan
 from csim.linkage.recursive import recursive_terms
 from csim.linkage.tables import Coupling, Tables, parse_tables
-from csim.linkage.topology import Topology, analyse, grubler_kutzbach
+from csim.linkage.topology import Topology, analyse, grubler_kutzbach, subtree
 from csim.linkage.transforms import simplify_entry
 from csim.model.cache import definition_key, remember_key
 from csim.model.definition import Drawing, MechanismDefinition, Observable, Parameter
@@ -115,30 +112,11 @@ class Linkage:
     def variable_names(self) -> list[str]:
         return [v.name for v in self.topology.variables]
 
-    @property
-    def driven_indices(self) -> list[int]:
-        names = self.variable_names
-        return [names.index(n) for n in self.drive]
-
-    @property
-    def redundant(self) -> bool:
-        """Whether equations were removed as dependent (an overconstrained mechanism)."""
-        return any(e.status == DEPENDENT for e in self.reduction.equations)
-
-    @property
-    def equation_labels(self) -> list[str]:
-        return [e.label for e in self.reduction.kept]
-
-    def drive_function(self, parameters: dict[str, float]) -> Callable[[float], tuple]:
-        """t -> (u, ud, udd), each (d,) [rad or m, per s, per s^2], at the given parameter values (every
-        parameter of the tables, by name): :func:`csim.linkage.plan.drive_function` of :meth:`drive_rows`,
-        its source filed in the linkage cache under a hash of the values (a warm run of the same case
-        does no symbolic work for them: the derivation and lambdify took 50 ms of each driven run)."""
-        return drive_function(self.cache_key, sorted(self.tables.symbols), parameters, self.drive_rows)
-
     def drive_rows(self, names: list[str], values: list[float]) -> tuple[list, list]:
         """The drives and their first two derivatives in t, with the parameters ``names`` given
-        ``values`` (:func:`csim.model.derive.drive_rates`): the arguments ([t]) and the three rows.
+        ``values`` (:func:`csim.model.derive.drive_rates`): the arguments ([t]) and the three rows,
+        which :func:`csim.linkage.plan.drive_function` lambdifies (and files: a warm run of the same
+        case does no symbolic work for them; the derivation and lambdify took 50 ms of each driven run).
 
         Each value is put in with 17 digits (it reads back as the same float, as the compiled drive
         rows have it): with the parameters as symbols, the rates of w t^n with n = 1 are 0/0 and
@@ -156,7 +134,8 @@ class Linkage:
         return [sp.srepr(sp.sympify(e).subs(subs)) for e in self.drive.values()]
 
     def plan(self) -> LinkagePlan:
-        """Its plain data (:class:`csim.linkage.plan.LinkagePlan`): what a run reads of it."""
+        """Its plain data (:class:`csim.linkage.plan.LinkagePlan`): what a run reads of it (a linkage
+        built with its definition, as a case's is: ``build_linkage(..., definition=True)``)."""
         tables, topology = self.tables, self.topology
 
         def record(c: Coupling, below: set[int] = frozenset()) -> JointRecord:
@@ -168,7 +147,7 @@ class Linkage:
         drives = [sp.sympify(e) for e in self.drive.values()]
         used = set().union(*(e.free_symbols for e in drives))
         return LinkagePlan(
-            variables=self.variable_names, start=dict(self.start), drive=list(self.drive),
+            variables=self.variable_names, start=dict(self.start), drive_names=list(self.drive),
             drive_expressions=[sp.srepr(e) for e in drives],
             drive_parameters=[n for n, symbol in tables.symbols.items() if symbol in used],
             dof=self.dof, planar=self.planar, parameters=dict(tables.parameters),
@@ -178,8 +157,7 @@ class Linkage:
             cut_joints=[record(c) for c in topology.cut_joints],
             tree_joints=[record(c, subtree(topology, child[c.number])) for c in topology.tree_joints],
             normal_joint=None if normal is None else [normal.i, normal.k],
-            cache_key=self.cache_key, build_key=self.build_key, definition_key=self.definition_key,
-            definition=None if self.definition is None else snapshot(self.definition), notes=list(self.notes))
+            definition=snapshot(self.definition), cache_key=self.cache_key, build_key=self.build_key)
 
 
 def _resolve_drive(tables: Tables, problems: list[str]) -> tuple[dict[int, list], dict]:

@@ -26,7 +26,8 @@ import copy
 import hashlib
 import json
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, fields
+from pathlib import Path
 
 import numpy as np
 
@@ -36,7 +37,7 @@ from csim.model.cache import cache_dir
 from csim.model.light import LightDefinition
 
 #: bump when the plan's content changes
-PLAN_VERSION = "1"
+PLAN_VERSION = "2"
 
 #: the status of a cut-joint equation (:class:`csim.linkage.constraints.Equation`)
 KEPT, ZERO, DEPENDENT = "kept", "identically zero", "dependent"
@@ -65,6 +66,7 @@ class EquationRecord:
 
     @property
     def label(self) -> str:
+        """``joint NAME COMPONENT``, as :attr:`csim.linkage.constraints.Equation.label`."""
         return f"joint {self.name} {self.component}"
 
 
@@ -81,7 +83,7 @@ class JointRecord:
     variables : tuple of str
         Its joint variables' names (a tree joint's; a cut joint has none).
     below : tuple of int
-        A tree joint's subtree, the links beyond it away from link 0 (:func:`csim.linkage.reactions.subtree`).
+        A tree joint's subtree, the links beyond it away from link 0 (:func:`csim.linkage.topology.subtree`).
     """
 
     number: int
@@ -105,8 +107,9 @@ class LinkagePlan:
         The joint variables' names, the model's coordinates in their order.
     start : dict str -> float
         The assembled given configuration.
-    drive : list of str
-        The driven joint variables, in the drives' order.
+    drive_names : list of str
+        The driven joint variables, in the drives' order (the symbolic linkage's ``drive`` maps
+        each to its expression).
     drive_expressions : list of str
         Each drive as sympy's ``srepr``, in ``t`` and the parameters (the compiled drive rows').
     drive_parameters : list of str
@@ -122,17 +125,17 @@ class LinkagePlan:
         Every generated cut-joint equation, with its status.
     generic_rank : int
     cut_joints, tree_joints : list of JointRecord
+    definition : dict
+        The plain data of its definition (:func:`csim.model.light.snapshot`).
     normal_joint : list of two int, or None
         [i, k] of a joint frame whose z axis is a planar mechanism's normal (an R joint's).
-    cache_key, build_key, definition_key : str
+    cache_key, build_key : str
         As :class:`~csim.linkage.model.Linkage`'s.
-    definition : dict or None
-        The plain data of its definition (:func:`csim.model.light.snapshot`); None: not derived.
     """
 
     variables: list[str]
     start: dict[str, float]
-    drive: list[str]
+    drive_names: list[str]
     drive_expressions: list[str]
     drive_parameters: list[str]
     dof: int
@@ -144,12 +147,10 @@ class LinkagePlan:
     generic_rank: int
     cut_joints: list[JointRecord]
     tree_joints: list[JointRecord]
+    definition: dict
     normal_joint: list[int] | None = None
     cache_key: str = ""
     build_key: str = ""
-    definition_key: str = ""
-    definition: dict | None = None
-    notes: list[str] = field(default_factory=list)
 
     def to_json(self) -> dict:
         """The plan as JSON data (the keys of ``link_labels`` become strings)."""
@@ -159,7 +160,14 @@ class LinkagePlan:
 
     @classmethod
     def from_json(cls, data: dict) -> LinkagePlan:
-        """The plan of :meth:`to_json`'s data (raises KeyError, TypeError or ValueError on anything else)."""
+        """The plan of :meth:`to_json`'s data (raises KeyError, TypeError or ValueError on anything else).
+
+        It checks the field names and converts the containers it rebuilds, not every value's
+        type: the data is what :func:`write_plan` filed, with a hash of its content that
+        :func:`read_plan` checks. A file damaged by accident fails that check; one forged with
+        a recomputed hash (someone who can write the cache can write its code too) is out of
+        scope.
+        """
         if set(data) != {f.name for f in fields(cls)}:
             raise KeyError(f"the fields of a linkage plan, got {sorted(data)}")
         out = cls(**data)
@@ -180,7 +188,7 @@ def _digest(data: dict) -> str:
     return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()
 
 
-def plan_path(key: str):
+def plan_path(key: str) -> Path:
     """Where the plan of the build ``key`` is filed (beside ``<key>_linkage.pickle``)."""
     return cache_dir() / "linkage" / f"{key}_plan.json"
 
@@ -199,11 +207,12 @@ def read_plan(key: str) -> LinkagePlan | None:
 
 
 def write_plan(plan: LinkagePlan) -> None:
-    """File ``plan`` under its build key (a cache that cannot be written costs the next run the read-back)."""
+    """File ``plan`` under its build key (a cache that cannot be written costs the next run the
+    read-back; a value JSON cannot hold is a programming error, and raises)."""
     data = plan.to_json()
     filed = {"version": PLAN_VERSION, "key": plan.build_key, "digest": _digest(data), "plan": data}
     path = plan_path(plan.build_key)
-    with contextlib.suppress(OSError, ValueError, TypeError):
+    with contextlib.suppress(OSError):
         write_atomically(path, json.dumps(filed).encode())
         evict(path.parent, "*_plan.json", MAX_LINKAGES)
 
@@ -248,6 +257,17 @@ def load_linkage(mechanism: dict, initial: dict | None, tol: float = 1e-12, max_
         The sections, as :func:`~csim.linkage.model.build_linkage` takes them.
     tol, max_iter : float, int
         Newton settings of the assembly.
+
+    Returns
+    -------
+    LightLinkage
+        With its symbolic linkage where it was built here (:attr:`LightLinkage.loaded`).
+
+    Raises
+    ------
+    CaseError
+        Bad tables, naming the row (:func:`~csim.linkage.model.build_linkage`; only where
+        the linkage is built: a plan is filed for a build that succeeded).
     """
     builder = Builder(mechanism, initial, tol, max_iter)
     key = builder.key
@@ -263,17 +283,17 @@ def load_linkage(mechanism: dict, initial: dict | None, tol: float = 1e-12, max_
 
 
 #: the fields of the plan a :class:`LightLinkage` answers as its own attributes
-PLAN_FIELDS = ("drive", "dof", "planar", "start", "parameters", "cache_key", "build_key", "definition_key")
+PLAN_FIELDS = ("drive_names", "dof", "planar", "start", "parameters", "cache_key", "build_key")
 
 
 class LightLinkage:
     """A linkage for a run: its plan (:class:`LinkagePlan`), and its symbolic
     :class:`~csim.linkage.model.Linkage` built (read back from the cache) on first use.
 
-    The plan's fields named in :data:`PLAN_FIELDS` (``drive``: the driven joint variables'
-    names, where the symbolic linkage's maps each to its expression; ``parameters``: the
-    tables' values [SI], a value written with a unit converted; ``dof``, ``start``, ...), the
-    properties and methods below are read without sympy; any other attribute (``tables``,
+    The plan's fields named in :data:`PLAN_FIELDS` (``drive_names``: the driven joint
+    variables' names; ``parameters``: the tables' values [SI], a value written with a unit
+    converted; ``dof``, ``start``, ...), the properties and methods below are read without
+    sympy; any other attribute (``drive``: each driven variable's expression, ``tables``,
     ``topology``, ``frames``, ``reduction``, ...) is the symbolic linkage's (:meth:`full`).
 
     Parameters
@@ -289,14 +309,39 @@ class LightLinkage:
         self.plan = plan
         self._builder = builder
         self._full = full
-        self.definition = None if plan.definition is None else \
-            LightDefinition(plan.definition, self._full_definition, None if full is None else full.definition)
+        self.definition = LightDefinition(plan.definition, self._full_definition)
+        if full is not None:
+            self._attach(full)
 
     def full(self):
-        """The symbolic linkage (built, or read back from the cache, with sympy, on the first call)."""
+        """The symbolic linkage (built, or read back from the cache, with sympy, on the first call).
+
+        Raises
+        ------
+        RuntimeError
+            It does not match the plan (:meth:`_attach`).
+        """
         if self._full is None:
-            self._full = self._builder()
+            self._attach(self._builder())
         return self._full
+
+    def _attach(self, full) -> None:
+        """Take ``full`` as the symbolic linkage, after a cheap check that it is the plan's
+        (:func:`_differences`): the plan is read from its own file, the symbolic linkage from its
+        pickle or a new build, and a plan filed by another build would have run numbers that are
+        not this linkage's. Such a plan is removed (the next run builds it again) and the run
+        stops. The definition's plain fields a case set are set on its symbolic one
+        (:meth:`csim.model.light.LightDefinition.attach`)."""
+        differ = _differences(self.plan, full)
+        if differ:
+            if self.plan.build_key:
+                with contextlib.suppress(OSError):
+                    plan_path(self.plan.build_key).unlink()
+            raise RuntimeError(f"the symbolic linkage does not match its plan (csim.linkage.plan): "
+                               f"{', '.join(differ)} differ; the plan was removed from the cache, and the next "
+                               f"run builds it again")
+        self._full = full
+        self.definition.attach(full.definition)
 
     @property
     def loaded(self) -> bool:
@@ -318,9 +363,6 @@ class LightLinkage:
         """The fields, less the numeric functions the reactions keep on it (``_reaction_*``: closures)."""
         return {k: v for k, v in vars(self).items() if not k.startswith("_reaction_")}
 
-    def __setstate__(self, state: dict) -> None:
-        self.__dict__.update(state)
-
     # -- the plan's data ------------------------------------------------------------------
     @property
     def has_mass(self) -> bool:
@@ -329,11 +371,13 @@ class LightLinkage:
 
     @property
     def variable_names(self) -> list[str]:
+        """The joint variables' names, the model's coordinates in their order."""
         return self.plan.variables
 
     @property
     def driven_indices(self) -> list[int]:
-        return [self.plan.variables.index(n) for n in self.plan.drive]
+        """The driven joint variables' indices among :attr:`variable_names`, in the drives' order."""
+        return [self.plan.variables.index(n) for n in self.plan.drive_names]
 
     @property
     def redundant(self) -> bool:
@@ -342,10 +386,12 @@ class LightLinkage:
 
     @property
     def kept(self) -> list[EquationRecord]:
+        """The kept cut-joint equations, the model's constraint rows in their order."""
         return [e for e in self.plan.equations if e.status == KEPT]
 
     @property
     def equation_labels(self) -> list[str]:
+        """The labels of :attr:`kept` (``joint NAME COMPONENT``)."""
         return [e.label for e in self.kept]
 
     # -- numeric functions ----------------------------------------------------------------
@@ -377,6 +423,19 @@ class LightLinkage:
 
         return constraint_watch(self.plan.equations, len(self.plan.variables), self.plan.generic_rank,
                                 list(values.values()), self.build_key, symbolic)
+
+
+def _differences(plan: LinkagePlan, full) -> list[str]:
+    """What of ``plan`` the symbolic linkage ``full`` does not match: its build key (where both
+    have one), joint variables, degrees of freedom, rank, cut-joint equations and their status."""
+    checks = {
+        "build_key": not (plan.build_key and full.build_key) or plan.build_key == full.build_key,
+        "variables": plan.variables == full.variable_names,
+        "dof": plan.dof == full.dof,
+        "generic_rank": plan.generic_rank == full.reduction.generic_rank,
+        "equations": plan.equations == [e.record() for e in full.reduction.equations],
+    }
+    return [name for name, same in checks.items() if not same]
 
 
 def drive_function(key: str, names: list[str], parameters: dict[str, float],

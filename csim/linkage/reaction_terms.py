@@ -91,7 +91,7 @@ class ReleasedGeometry(Geometry):
     released : Coupling
         The tree joint.
     below : frozenset of int
-        The links beyond it (:func:`csim.linkage.reactions.subtree`).
+        The links beyond it (:func:`csim.linkage.topology.subtree`).
     base : Frames
         The mechanism's own transforms (``frames`` holds the moved ones).
     """
@@ -155,8 +155,6 @@ class ReleasedGeometry(Geometry):
             return measure(g, lambda e: e)[slot]
 
         return JointCoordinate(found.value + measured(self.frames) - measured(self.base), found.unit, found.label)
-
-
 
 
 def element_terms(linkage, definition, raw_forces, coupling: Coupling, below: set[int], driven: list[str],

@@ -229,31 +229,21 @@ def joint_reactions(linkage, definition, par: np.ndarray, q: np.ndarray, lam: np
     return [_cut_reaction(linkage, c, values[c.number], equations[c.number], full) for c in cuts]
 
 
-def _label(linkage, c) -> str:
-    """``joint NAME (TYPE, LINK i on LINK j``: the start of a reaction's label."""
+def _label(linkage, c, how: str = "") -> str:
+    """``joint NAME (TYPE, LINK i on LINK j)``, or ``(TYPE, LINK i on LINK j; HOW)``: a reaction's label."""
     labels = linkage.plan.link_labels
-    return f"joint {c.name or c.number} ({c.type}, {labels[c.i]} on {labels[c.j]}"
+    return f"joint {c.name or c.number} ({c.type}, {labels[c.i]} on {labels[c.j]}{'; ' + how if how else ''})"
 
 
 def _cut_reaction(linkage, c, v: np.ndarray, equations, full: bool = False) -> JointReaction:
     """The JointReaction of cut joint c from its values (4, N, 3): F, M global; F, M in frame ik."""
-    return JointReaction(str(c.name or c.number), f"{_label(linkage, c)})", v[0], v[1], v[2], v[3],
+    return JointReaction(str(c.name or c.number), _label(linkage, c), v[0], v[1], v[2], v[3],
                          _removed(equations, full))
 
 
 # ---------------------------------------------------------------------------------------
 # tree joints: Newton-Euler of the subtree beyond the joint, with the joint released
 # ---------------------------------------------------------------------------------------
-def subtree(topology, child: int) -> set[int]:
-    """The links beyond a tree joint: ``child`` and every link reached from it away from link 0."""
-    below = {child}
-    for link in topology.order:
-        edge = topology.edges.get(link)
-        if edge is not None and edge.parent in below:
-            below.add(link)
-    return below
-
-
 def _kinematics(linkage, definition):
     """(links, kinematics): the L links with mass, and (q, qd, qdd (S, m), par) -> ((m (S, L),
     I (S, L, 3, 3), r_C (S, L, 3), a_C (S, L, 3), A (S, L, 3, 3), omega (S, L, 3), alpha (S, L, 3)),
@@ -293,8 +283,8 @@ def element_terms(linkage, definition, raw_forces, joint):
     (S, 6), B_eps (S, 6, k), D_eps (S, 6, d), the drives' columns (d,)) at eps = 0, or None when
     there are neither. V is the elements' potential, B_eps the eps rows of the loads' generalized
     directions (in the order of ``definition.loads``), D_eps those of the joint's driven
-    variables (in the order of ``linkage.drive``) (:func:`csim.linkage.reaction_terms.element_terms`)."""
-    driven = [name for name in linkage.drive if name in joint.variables]
+    variables (in the order of ``linkage.drive_names``) (:func:`csim.linkage.reaction_terms.element_terms`)."""
+    driven = [name for name in linkage.drive_names if name in joint.variables]
     if not raw_forces and not driven:
         return None
     n_loads = len(definition.loads)
@@ -307,7 +297,7 @@ def element_terms(linkage, definition, raw_forces, joint):
         return terms(full, full_definition(definition), raw_forces, coupling, set(joint.below), driven, n_loads)
 
     f = cached_lambdify(linkage.cache_key, f"elements_{joint.number}", make)
-    columns = [list(linkage.drive).index(name) for name in driven]
+    columns = [linkage.drive_names.index(name) for name in driven]
 
     def terms(q, qd, par):
         values = _at_samples(f, [q, qd], par)
@@ -449,7 +439,7 @@ def tree_reactions(linkage, definition, raw_forces, par, run, cut_reactions) -> 
             tau[rows] if tau is not None else None, beyond, on_subtree, outward, normal)
     out = []
     for a, c in enumerate(tree):
-        label = f"{_label(linkage, c)}; tree joint: Newton-Euler of the links beyond it)"
+        label = _label(linkage, c, "tree joint: Newton-Euler of the links beyond it")
         out.append(JointReaction(str(c.name or c.number), label, *values[a],
                                  list(PLANAR_UNDETERMINED) if normal is not None else []))
     return out

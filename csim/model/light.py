@@ -1,12 +1,13 @@
-"""A registered mechanism's plain data, kept on disk, so that a warm run needs no sympy.
+"""A mechanism definition's plain data, kept on disk, so that a warm run needs no sympy.
 
 Importing sympy and building a mechanism symbolically takes about half a second, which a
 run whose generated code is already cached does not need: validating a case file wants
 names, units, parameter defaults and the counts, and the code cache wants the key of the
-definition. :func:`light_definition` keeps these in a JSON snapshot under
-``<cache>/definitions/``, filed under a hash of the mechanism's source files, and returns a
-:class:`LightDefinition` built from it. Anything symbolic (coordinates, energies,
-constraints, drawing, ...) builds the full :class:`MechanismDefinition` on first use.
+definition. :func:`snapshot` takes these as JSON data and :class:`LightDefinition` answers
+them; anything symbolic (coordinates, energies, constraints, drawing, ...) builds the full
+:class:`MechanismDefinition` on first use. A registered mechanism's snapshot is filed under
+``<cache>/definitions/``, under a hash of its source files (:func:`light_definition`); a
+link-coupling mechanism's is part of its linkage's plan (:class:`csim.linkage.plan.LinkagePlan`).
 """
 from __future__ import annotations
 
@@ -24,7 +25,7 @@ from csim.io.units import declared_constraint_units
 from csim.model.definition import MechanismDefinition, Parameter
 
 #: bump when the snapshot's content changes
-SNAPSHOT_VERSION = "2"
+SNAPSHOT_VERSION = "3"
 
 #: the files every generated model depends on, beside the mechanism's own module
 MODEL_SOURCES = ("definition.py", "derive.py", "codegen.py", "cache.py", "light.py", "recursive.py")
@@ -32,18 +33,19 @@ MODEL_SOURCES = ("definition.py", "derive.py", "codegen.py", "cache.py", "light.
 
 @dataclass(frozen=True)
 class LoadInfo:
-    """A load's name, units and default law (its coordinate s_k(q) is on the full definition).
+    """A load's name, units and default values (its coordinate s_k(q) and law are on the full
+    definition, :class:`csim.model.definition.Load`).
 
-    A registered mechanism's loads are switched constants (``law`` None) of magnitude 0
-    unless the case names them; a link-coupling mechanism's force elements have a law (here
-    as text, ``str`` of the expression, which is on the full definition), magnitude 1.
+    A registered mechanism's loads are switched constants (no law) of magnitude 0 unless the
+    case names them; a link-coupling mechanism's force elements have a law (``has_law``),
+    magnitude 1.
     """
 
     name: str
     unit: str
     coordinate_unit: str
     description: str
-    law: str | None = None
+    has_law: bool = False
     magnitude: float = 0.0
     window: tuple[float, float] = (float("-inf"), float("inf"))
     velocity: str = "any"
@@ -57,6 +59,11 @@ class ObservableInfo:
     unit: str
     rate_unit: str
     description: str
+
+
+#: the plain fields a case sets on the definition it runs (:func:`csim.case._drive_start`: the
+#: drives' rates at t = 0), set on the symbolic definition too (:meth:`LightDefinition.attach`)
+CASE_FIELDS = ("default_independent", "default_independent_velocities", "default_guess")
 
 
 class LightDefinition:
@@ -78,7 +85,7 @@ class LightDefinition:
         self.coordinate_names: list[str] = list(data["coordinate_names"])
         self.coordinate_units: list[str] = list(data["coordinate_units"])
         self.parameters = [Parameter(**p) for p in data["parameters"]]
-        self.loads = [LoadInfo(**{**x, "window": tuple(x.get("window", LoadInfo.window))}) for x in data["loads"]]
+        self.loads = [LoadInfo(**{**x, "window": tuple(x["window"])}) for x in data["loads"]]
         self.observables = [ObservableInfo(**x) for x in data["observables"]]
         self.n_constraints: int = int(data["n_constraints"])
         self.default_independent: dict[str, float] = dict(data["default_independent"])
@@ -88,7 +95,22 @@ class LightDefinition:
         units = data.get("constraint_units")
         self.constraint_units: list[str] | None = None if units is None else [str(u) for u in units]
         self._factory = factory
+        self._full = None
+        if full is not None:
+            self.attach(full)
+
+    def __setattr__(self, name: str, value) -> None:
+        super().__setattr__(name, value)
+        if name in CASE_FIELDS and self.__dict__.get("_full") is not None:
+            setattr(self._full, name, value)
+
+    def attach(self, full: MechanismDefinition) -> None:
+        """Take ``full`` as the symbolic definition, with the values of :data:`CASE_FIELDS` set
+        here (a case's, :func:`csim.case._drive_start`), so that both answer the same."""
         self._full = full
+        for name in CASE_FIELDS:
+            if getattr(full, name) != getattr(self, name):
+                setattr(full, name, getattr(self, name))
 
     @property
     def parameter_names(self) -> list[str]:
@@ -103,7 +125,7 @@ class LightDefinition:
     def full(self) -> MechanismDefinition:
         """The symbolic definition (built, with sympy, on the first call)."""
         if self._full is None:
-            self._full = self._factory()
+            self.attach(self._factory())
         return self._full
 
     def __getattr__(self, attr: str):
@@ -130,7 +152,7 @@ def snapshot(definition: MechanismDefinition) -> dict:
         "coordinate_units": list(definition.coordinate_units),
         "parameters": [asdict(p) for p in definition.parameters],
         "loads": [asdict(LoadInfo(ld.name, ld.unit, ld.coordinate_unit, ld.description,
-                                  None if ld.law is None else str(ld.law), ld.magnitude, list(ld.window), ld.velocity))
+                                  ld.has_law, ld.magnitude, list(ld.window), ld.velocity))
                   for ld in definition.loads],
         "observables": [asdict(ObservableInfo(o.name, o.unit, o.rate_unit, o.description))
                         for o in definition.observables],
