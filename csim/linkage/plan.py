@@ -308,7 +308,7 @@ class LightLinkage:
     def __init__(self, plan: LinkagePlan, builder: Callable, full=None):
         self.plan = plan
         self._builder = builder
-        self._full = full
+        self._full = None
         self.definition = LightDefinition(plan.definition, self._full_definition)
         if full is not None:
             self._attach(full)
@@ -411,7 +411,11 @@ class LightLinkage:
     def constraint_watch(self, parameters, par: np.ndarray):
         """Every non-trivial cut-joint equation (:func:`csim.linkage.watch.constraint_watch`) at the
         run's parameter values: ``par`` (n_par,) of the definition's ``parameters`` (a
-        sequence of :class:`~csim.model.definition.Parameter`), the tables' values for the others."""
+        sequence of :class:`~csim.model.definition.Parameter`), the tables' values for the others.
+
+        The watch's functions are filed under the build key (``<key>_watch_*.py``), their
+        parameters in the order of the plan's ``parameters``: this is their one writer, so a
+        file read back takes its parameters in the order it was derived with."""
         from csim.linkage.watch import constraint_watch
 
         values = dict(self.plan.parameters)
