@@ -56,7 +56,7 @@ from csim.solver.methods import schema_fields as stabilization_fields
 from csim.solver.settings import IntegrationSettings
 
 if TYPE_CHECKING:
-    from csim.linkage.model import Linkage
+    from csim.linkage.plan import LightLinkage
 
 EPS = float(np.finfo(float).eps)
 #: the smallest simulation.atol: below it no state can be held to it in double precision
@@ -332,7 +332,7 @@ class Case:
     mechanism : MechanismDefinition
     source : str
         Where it came from (a path, or ``"<dict>"``).
-    linkage : csim.linkage.model.Linkage or None
+    linkage : csim.linkage.plan.LightLinkage or None
         What was derived from a link-coupling description (None for a registered mechanism).
     warnings : list of str
         Valid settings that will probably make the run fail, each naming the keys (a
@@ -342,7 +342,7 @@ class Case:
     data: dict
     mechanism: MechanismDefinition
     source: str = "<dict>"
-    linkage: Linkage | None = None
+    linkage: LightLinkage | None = None
     warnings: list[str] = field(default_factory=list)
 
     # ---- the validated sections as typed, frozen objects (attributes from the case schema)
@@ -375,13 +375,13 @@ class Case:
     def kinematic(self) -> bool:
         """True for a link-coupling case with prescribed drives and ``drive_mode: kinematic`` (a
         kinematic analysis)."""
-        return self.linkage is not None and bool(self.linkage.drive) and not self.driven
+        return self.linkage is not None and bool(self.linkage.drive_names) and not self.driven
 
     @property
     def driven(self) -> bool:
         """True for a link-coupling case with prescribed drives and ``drive_mode: dynamic``
         (driven dynamics, :mod:`csim.solver.driven`)."""
-        return (self.linkage is not None and bool(self.linkage.drive)
+        return (self.linkage is not None and bool(self.linkage.drive_names)
                 and self.data["mechanism"].get("drive_mode") == "dynamic")
 
     @property
@@ -615,21 +615,21 @@ def _is_linkage(section: dict) -> bool:
     return section.get("links") is not None or section.get("couplings") is not None
 
 
-def _build_linkage(out: dict, problems: list[str]) -> Linkage:
+def _build_linkage(out: dict, problems: list[str]) -> LightLinkage:
     """Derive the model of a link-coupling description; check what it needs to run.
 
     With ``mechanism.drive`` the run is a kinematic analysis: ``initial.q`` and ``qd`` come
     from the drive at t = 0 and may not be given. Without it the run is a simulation,
     which needs mass on some link.
     """
-    from csim.linkage.model import build_linkage
+    from csim.linkage.plan import load_linkage  # (no sympy where the linkage's plan is in the cache)
 
     ini = out["initial"]
-    linkage = build_linkage(out["mechanism"], ini, tol=ini.get("tol") or 1e-12, max_iter=ini.get("max_iter") or 50)
+    linkage = load_linkage(out["mechanism"], ini, tol=ini.get("tol") or 1e-12, max_iter=ini.get("max_iter") or 50)
     given = out["mechanism"].get("parameters")
     if isinstance(given, dict):  # as the tables read them: written with a unit (50 mm), converted (0.05)
-        out["mechanism"]["parameters"] = {k: linkage.tables.parameters.get(str(k), v) for k, v in given.items()}
-    if linkage.drive:
+        out["mechanism"]["parameters"] = {k: linkage.parameters.get(str(k), v) for k, v in given.items()}
+    if linkage.drive_names:
         _drive_start(out, linkage, problems)
         if out["mechanism"].get("drive_mode") is None:
             out["mechanism"]["drive_mode"] = "kinematic"
@@ -643,13 +643,13 @@ def _build_linkage(out: dict, problems: list[str]) -> Linkage:
         problems.append(f"mechanism.drive_mode: got {describe(out['mechanism']['drive_mode'])} without "
                         f"mechanism.drive; expected mechanism.drive (the prescribed joint variables) with it, or "
                         f"no drive_mode (forward dynamics)")
-    elif not any(link.has_mass for link in linkage.tables.links.values() if link.number != 0):
+    elif not linkage.has_mass:
         problems.append("mechanism.links: no link has mass or inertia, and there is no mechanism.drive; expected "
                         "mechanism.drive (a kinematic analysis) or mass and inertia on the moving links (dynamics)")
     return linkage
 
 
-def _drive_start(out: dict, linkage: Linkage, problems: list[str]) -> None:
+def _drive_start(out: dict, linkage: LightLinkage, problems: list[str]) -> None:
     """The start of a driven linkage: the drives at t = 0 set their variables and rates.
 
     With one drive per degree of freedom ``initial.q`` and ``qd`` are left out (a stored,
@@ -658,25 +658,25 @@ def _drive_start(out: dict, linkage: Linkage, problems: list[str]) -> None:
     and ``qd`` as a simulation does (default: the assembled values, at rest); they may not
     name a driven variable except with its drive's value.
     """
-    ini, mech = out["initial"], linkage.definition
-    u, ud, _ = linkage.drive_function(linkage.tables.parameters)(0.0)
-    at_start = {"q": dict(zip(linkage.drive, u.tolist())), "qd": dict(zip(linkage.drive, ud.tolist()))}
-    partial = len(linkage.drive) < linkage.dof
+    ini, mech, names = out["initial"], linkage.definition, linkage.drive_names
+    u, ud, _ = linkage.drive_function(linkage.parameters)(0.0)
+    at_start = {"q": dict(zip(names, u.tolist())), "qd": dict(zip(names, ud.tolist()))}
+    partial = len(names) < linkage.dof
     for key in ("q", "qd"):
         given = ini.get(key)
         if given is None:
             continue
-        driven = {k: v for k, v in given.items() if str(k) in linkage.drive} if isinstance(given, dict) else given
+        driven = {k: v for k, v in given.items() if str(k) in names} if isinstance(given, dict) else given
         if partial and isinstance(given, dict) and (not driven or _same_values(driven, at_start[key])):
-            free = {k: v for k, v in given.items() if str(k) not in linkage.drive}
-            needed = linkage.dof - len(linkage.drive)
+            free = {k: v for k, v in given.items() if str(k) not in names}
+            needed = linkage.dof - len(names)
             if key == "q" and len(free) != needed:  # counted here, not with the drives the user did not write
-                others = [n for n in linkage.variable_names if n not in linkage.drive]
+                others = [n for n in linkage.variable_names if n not in names]
                 named = ", ".join(map(str, free)) or "none"
                 problems.append(f"initial.q: got {len(free)} free joint variable(s) ({named}); "
                                 f"expected exactly {needed} of the joint variables not driven ({', '.join(others)}), "
                                 f"or initial.q left out (the assembled values); the drives set "
-                                f"{', '.join(linkage.drive)}")
+                                f"{', '.join(names)}")
                 ini[key] = None
                 continue
             ini[key] = {**at_start[key], **free}
@@ -688,7 +688,7 @@ def _drive_start(out: dict, linkage: Linkage, problems: list[str]) -> None:
         elif not _same_values(given, at_start[key]):
             # the drive's own values at t = 0 are what a validated (stored) case holds: they may stay
             problems.append(f"initial.{key}: got {describe(given)} with mechanism.drive; the driving joint "
-                            f"variables ({', '.join(linkage.drive)}) set the motion; expected initial.{key} left "
+                            f"variables ({', '.join(names)}) set the motion; expected initial.{key} left "
                             f"out (initial.guess chooses the assembly branch)")
     if partial and ini.get("q") is not None and ini.get("qd") is None:  # the free joints start at rest
         ini["qd"] = {**{k: 0.0 for k in ini["q"]}, **at_start["qd"]}
@@ -796,7 +796,7 @@ def _validate_loads(out, mech, problems):
             continue
         load = mech.loads[load_names.index(key)]
         unit = load.unit
-        if load.law is not None:
+        if load.has_law:
             problems.append(f"{path}: {key!r} is a force element of mechanism.forces, whose law is set there; "
                             f"expected no loads.{key} (change the element in mechanism.forces)")
             continue

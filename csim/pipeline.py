@@ -163,14 +163,8 @@ def constraint_watch(case: Case, model: NumericModel, par: np.ndarray):
     the model's own."""
     from csim.solver.integrity import ConstraintWatch
 
-    if case.linkage is not None:
-        from csim.linkage.constraints import constraint_watch as linkage_watch
-
-        linkage = case.linkage
-        values = dict(linkage.tables.values)  # with the run's parameter values
-        values.update({linkage.tables.symbols[p.name]: v for p, v in zip(case.mechanism.parameters, par)
-                       if p.name in linkage.tables.symbols})
-        return linkage_watch(linkage.reduction, linkage.topology.variables, values, linkage.build_key)
+    if case.linkage is not None:  # at the run's parameter values (csim.linkage.plan.LightLinkage)
+        return case.linkage.constraint_watch(case.mechanism.parameters, par)
     r = model.n_constraints
     return ConstraintWatch(phi=lambda q: model.phi(q, par), phi_q=lambda q: model.phi_q(q, par),
                            labels=[f"Phi_{i + 1}" for i in range(r)], kept=np.arange(r),

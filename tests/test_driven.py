@@ -252,7 +252,7 @@ def test_a_drive_on_one_of_two_degrees_of_freedom_keeps_its_motion_and_balances_
     drive torque (the drive multiplier, integrated with the motion) closes the energy balance:
     a wrong multiplier or a wrong free motion would leave T + V - T0 - V0 - W_drive != 0."""
     case, result = half_driven
-    assert case.linkage.dof == 2 and len(case.linkage.drive) == 1
+    assert case.linkage.dof == 2 and len(case.linkage.drive_names) == 1
     assert result.ok, result.message
     names = result.coordinate_names
     crank = names.index("q_A")

@@ -138,16 +138,23 @@ def test_other_values_or_start_build_again_a_damaged_file_too(cache, monkeypatch
 
 
 def test_the_constraint_watch_read_back_equals_the_one_derived(cache):
-    from csim.linkage.constraints import constraint_watch
+    import dataclasses
+
     from csim.linkage.model import build_linkage
+    from csim.linkage.plan import LightLinkage
 
     data = _bricard()
     linkage = build_linkage(data["mechanism"], data.get("initial"))
-    args = (linkage.reduction, linkage.topology.variables, dict(linkage.tables.values))
-    derived = constraint_watch(*args)                              # no key: derived here
+
+    def watch(key: str):
+        # at the tables' parameter values (none of the definition's given)
+        plan = dataclasses.replace(linkage.plan(), build_key=key)
+        return LightLinkage(plan, lambda: linkage, linkage).constraint_watch([], np.zeros(0))
+
+    derived = watch("")                                            # no key: derived here
     assert not list(cache.glob("*_watch_*.py"))
-    filed = constraint_watch(*args, key=linkage.build_key)         # derived, then filed
-    read = constraint_watch(*args, key=linkage.build_key)          # read back
+    filed = watch(linkage.build_key)                               # derived, then filed
+    read = watch(linkage.build_key)                                # read back
     assert {p.name.split("_", 1)[1] for p in cache.glob("*_watch_*.py")} == \
         {"watch_phi.py", "watch_pattern.py", "watch_jac.py", "watch_gamma.py"}
     rng = np.random.default_rng(3)
@@ -163,14 +170,14 @@ def test_the_constraint_watch_read_back_equals_the_one_derived(cache):
 def test_the_linkage_cache_keeps_the_newest(tmp_path):
     import os
 
-    from csim.linkage.lambdacache import _evict
+    from csim.linkage.lambdacache import evict
 
     for i in range(5):
         path = tmp_path / f"k{i}_linkage.pickle"
         path.write_bytes(b"x")
         os.utime(path, (1000 + i, 1000 + i))
     (tmp_path / "k0_watch_phi.py").write_text("")
-    _evict(tmp_path, "*_linkage.pickle", 2)
+    evict(tmp_path, "*_linkage.pickle", 2)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["k0_watch_phi.py", "k3_linkage.pickle",
                                                           "k4_linkage.pickle"]
 
@@ -180,8 +187,9 @@ QUICK = ["simulation.t_end=0.05", "simulation.backend=python"]
 
 
 def test_a_cached_linkage_keeps_its_symbolic_parts_pickled_until_they_are_read(cache):
-    # a warm run reads its linkage back from the cache and never its transforms, closure
-    # equations or energies (its functions are cached too): they stay blobs of bytes
+    # a warm run reads its linkage's plan back from the cache and never the symbolic linkage
+    # (its functions are cached too); read back, its transforms, closure equations and
+    # energies stay blobs of bytes until read
     from pathlib import Path
 
     from csim.case import load_case
@@ -190,15 +198,16 @@ def test_a_cached_linkage_keeps_its_symbolic_parts_pickled_until_they_are_read(c
     path = Path(__file__).resolve().parents[1] / "configs" / "fourbar_gravity.yaml"
     first = load_case(path, QUICK)
     assert run_case(first).ok  # every function derived and cached
-    built = first.linkage
+    assert first.linkage.loaded
+    built = first.linkage.full()
     assert "_deferred" not in vars(built.frames)
-    case = load_case(path, QUICK)  # read back from the cache
-    read = case.linkage
+    case = load_case(path, QUICK)  # its plan read back from the cache
+    assert run_case(case).ok
+    assert not case.linkage.loaded, "a warm run read the symbolic linkage"
+    read = case.linkage.full()  # read back from the cache
     deferred = [read.frames, read.definition, *read.reduction.equations]
     assert all("_deferred" in vars(x) for x in deferred)
     assert "links" not in vars(read.frames) and "kinetic_energy" not in vars(read.definition)
-    assert run_case(case).ok
-    assert all("_deferred" in vars(x) for x in deferred), "a warm run read a symbolic part"
     # read: unpickled, the same expressions
     assert read.frames.links.keys() == built.frames.links.keys()
     for key, T in built.frames.links.items():

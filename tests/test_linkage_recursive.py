@@ -13,6 +13,7 @@ import yaml
 from csim.case import load_case, validate_case
 from csim.model import derive as derive_module
 from csim.model.codegen import generate_source
+from csim.model.light import full_definition
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 TERMS = [("mass", "q"), ("velocity_terms", "qv"), ("gravity", "q"), ("phi", "q"), ("phi_q", "q"),
@@ -29,6 +30,7 @@ def functions(definition) -> dict:
 
 def compare(definition, seed: int = 0, samples: int = 3) -> None:
     """Recursive and whole-expression models agree at random states (relative 1e-12)."""
+    definition = full_definition(definition)  # (a case's is light: csim.linkage.plan)
     assert definition.recursive is not None
     recursive = functions(definition)
     whole = functions(dataclasses.replace(definition, recursive=None))

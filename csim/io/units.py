@@ -183,10 +183,12 @@ def declared_constraint_units(mechanism) -> list[str] | None:
     (:class:`csim.linkage.model.LinkageTerms`) keeps its kept cut-joint equations, each a
     position equation (``m``) or an orientation equation (``1``). (Its parameters carry no
     unit, so dimensional analysis could not tell its lengths.) A light definition is not
-    made to build its symbolic one to answer.
+    made to build its symbolic one to answer: it keeps them as ``constraint_units`` (None: a
+    registered mechanism's, which declares none).
     """
-    hook = getattr(mechanism, "__dict__", {}).get("recursive")
-    units = getattr(hook, "constraint_units", None)
+    own = getattr(mechanism, "__dict__", {})
+    units = own["constraint_units"] if "constraint_units" in own else \
+        getattr(own.get("recursive"), "constraint_units", None)
     return None if units is None else [str(u) for u in units]
 
 

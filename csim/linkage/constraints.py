@@ -24,14 +24,12 @@ from csim.errors import CaseError
 from csim.linkage.frames import Frames
 from csim.linkage.joints import JOINT_TYPES, CutGeometry
 from csim.linkage.kinematics import residual_report, solve_positions
-from csim.linkage.lambdacache import cached_lambdify
+from csim.linkage.plan import DEPENDENT, KEPT, ZERO, EquationRecord
 from csim.linkage.tables import Coupling, Tables
 from csim.linkage.topology import JointVariable
 from csim.linkage.transforms import simplify_entry
+from csim.linkage.watch import numeric_constraints
 from csim.model.deferred import DeferredFields
-from csim.model.recursive import sparse_jacobian
-
-KEPT, ZERO, DEPENDENT = "kept", "identically zero", "dependent"
 
 
 @dataclass
@@ -68,6 +66,11 @@ class Equation(DeferredFields):
     def unit(self) -> str:
         """``"m"`` for a component of the distance r_jm - r_ik, ``"1"`` for one between two axes."""
         return "m" if "(r_jm - r_ik)" in self.component else "1"
+
+    def record(self) -> EquationRecord:
+        """Its plain data (:class:`csim.linkage.plan.EquationRecord`)."""
+        return EquationRecord(self.coupling.number, str(self.coupling.name or self.coupling.number), self.component,
+                              self.reaction, self.status, self.unit)
 
 
 def cut_joint_equations(coupling: Coupling, frames: Frames) -> list[Equation]:
@@ -110,56 +113,12 @@ class Reduction:
         return [e for e in self.equations if e.status == KEPT]
 
 
-class _Expressions(Sequence):
-    """The expressions of equations, read only where indexed (a function read back from the
-    cache needs their count alone, and an unread expression stays pickled:
-    :class:`csim.model.deferred.DeferredFields`)."""
-
-    def __init__(self, equations: list[Equation]):
-        self._equations = equations
-
-    def __len__(self) -> int:
-        return len(self._equations)
-
-    def __getitem__(self, index):
-        if isinstance(index, slice):
-            return [e.expression for e in self._equations[index]]
-        return self._equations[index].expression
-
-
-def _numeric(exprs: Sequence[sp.Expr], q_syms: list[sp.Symbol], parameters: dict[sp.Symbol, float],
-             key: str = ""):
-    """phi(q) (r,) and phi_q(q) (r, n) as numpy functions at the given parameter values (their
-    source filed in the cache under ``key``, :func:`csim.linkage.lambdacache.cached_lambdify`;
-    "": derived here)."""
-    r, n = len(exprs), len(q_syms)
-    p_syms, p_vals = list(parameters), list(parameters.values())
-
-    derived: dict = {}
-
-    def nonzero():
-        # only the nonzero entries of Phi_q are generated (a long chain's is mostly zeros); their
-        # rows and columns are a function of their own (no arguments), cached as the entries are
-        if not derived:
-            jac = sparse_jacobian(exprs, q_syms)
-            derived["jac"], derived["at"] = jac, [(i, j) for i in range(r) for j in range(n) if jac[i, j] != 0]
-        return derived["jac"], derived["at"]
-
-    f = cached_lambdify(key, "watch_phi", lambda: ([q_syms, p_syms], sp.Matrix(list(exprs)) if r else sp.zeros(0, 1)))
-    pattern = cached_lambdify(key, "watch_pattern", lambda: ([], [[i for i, _ in nonzero()[1]],
-                                                                  [j for _, j in nonzero()[1]]]))
-    g = cached_lambdify(key, "watch_jac", lambda: ([q_syms, p_syms], [nonzero()[0][i, j] for i, j in nonzero()[1]]))
-    rows, cols = (np.asarray(ix, dtype=int) for ix in pattern())
-
-    def phi(q):
-        return np.asarray(f(list(q), p_vals), dtype=float).reshape(r)
-
-    def phi_q(q):
-        out = np.zeros((r, n))
-        out[rows, cols] = np.asarray(g(list(q), p_vals), dtype=float)
-        return out
-
-    return phi, phi_q
+def _numeric(exprs: Sequence[sp.Expr], q_syms: list[sp.Symbol], parameters: dict[sp.Symbol, float]):
+    """phi(q) (r,) and phi_q(q) (r, n) as numpy functions at the given parameter values, derived
+    here, not filed (:func:`csim.linkage.watch.numeric_constraints`: the constraint watch's are
+    filed, :meth:`csim.linkage.plan.LightLinkage.constraint_watch`)."""
+    return numeric_constraints(len(exprs), len(q_syms), list(parameters.values()), "",
+                               lambda: (exprs, q_syms, list(parameters)))
 
 
 def _rank(J: np.ndarray) -> int:
@@ -359,48 +318,3 @@ def plane_of_motion(tables: Tables, frames: Frames, variables: list[JointVariabl
     if not (parallel and normal_slides):
         return None
     return Plane(normal, {n: T[:3, :3].T @ normal for n, T in numeric.items()})
-
-
-def constraint_watch(reduction: Reduction, variables: list[JointVariable], values: dict[sp.Symbol, float],
-                     key: str = ""):
-    """Every non-trivial equation of ``reduction`` as a :class:`csim.solver.integrity.ConstraintWatch`:
-    the kept ones (the model's Phi, in its order) and the ones removed as dependent, with
-    gamma of the removed ones (derived here: the model derives the kept ones'), at the
-    parameter ``values``; the numeric functions filed in the cache under ``key`` (the
-    linkage's :attr:`~csim.linkage.model.Linkage.build_key`, which the equations' status
-    depends on; "": derived here)."""
-    from csim.solver.integrity import ConstraintWatch
-
-    live = [e for e in reduction.equations if e.status != ZERO]
-    q_syms = [v.symbol for v in variables]
-    phi, phi_q = _numeric(_Expressions(live), q_syms, values, key)
-    removed = [e for e in live if e.status == DEPENDENT]
-    return ConstraintWatch(phi=phi, phi_q=phi_q, labels=[e.label for e in live],
-                           kept=np.array([i for i, e in enumerate(live) if e.status == KEPT], dtype=int),
-                           removed=np.array([i for i, e in enumerate(live) if e.status == DEPENDENT], dtype=int),
-                           rank=reduction.generic_rank,
-                           gamma_removed=_numeric_gamma(_Expressions(removed), variables, values, key),
-                           units=[e.unit for e in live])
-
-
-def _numeric_gamma(exprs: Sequence[sp.Expr], variables: list[JointVariable], parameters: dict[sp.Symbol, float],
-                   key: str = ""):
-    """gamma(q, qd) (len(exprs),) = -(d(Phi_q qd)/dq) qd of ``exprs``, as a numpy function (filed
-    under ``key`` as :func:`_numeric`'s)."""
-    q_syms, qd_syms = [v.symbol for v in variables], [v.velocity for v in variables]
-    r = len(exprs)
-    if not r:
-        return lambda q, qd: np.zeros(0)
-    p_syms, p_vals = list(parameters), list(parameters.values())
-
-    def make():
-        qd_vec = sp.Matrix(qd_syms)
-        rate = sparse_jacobian(exprs, q_syms) * qd_vec  # Phi_q qd
-        return [q_syms, qd_syms, p_syms], -(sparse_jacobian(list(rate), q_syms) * qd_vec)
-
-    f = cached_lambdify(key, "watch_gamma", make)
-
-    def gamma_removed(q, qd):
-        return np.asarray(f(list(q), list(qd), p_vals), dtype=float).reshape(r)
-
-    return gamma_removed

@@ -75,7 +75,7 @@ def cached_build(key: str, build: Callable[[], object]):
     linkage = build()
     with contextlib.suppress(Exception):  # a cache that cannot be written costs the next run the build
         write_atomically(path, pickle.dumps(linkage, protocol=pickle.HIGHEST_PROTOCOL))
-        _evict(path.parent, "*_linkage.pickle", MAX_LINKAGES)
+        evict(path.parent, "*_linkage.pickle", MAX_LINKAGES)
     return linkage
 
 
@@ -84,7 +84,7 @@ def cached_build(key: str, build: Callable[[], object]):
 MAX_LINKAGES = 200
 
 
-def _evict(folder: Path, pattern: str, keep: int) -> None:
+def evict(folder: Path, pattern: str, keep: int) -> None:
     """Remove all but the ``keep`` newest files of ``folder`` matching ``pattern``."""
     files = sorted(folder.glob(pattern), key=lambda p: p.stat().st_mtime)
     for old in files[:max(len(files) - keep, 0)]:

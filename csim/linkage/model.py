@@ -17,8 +17,6 @@ The result is handled by :mod:`csim.model` and the solvers like a hand-written m
 """
 from __future__ import annotations
 
-import hashlib
-from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -26,7 +24,6 @@ import sympy as sp
 
 from csim.errors import CaseError
 from csim.linkage.constraints import (
-    DEPENDENT,
     Equation,
     Plane,
     Reduction,
@@ -39,14 +36,16 @@ from csim.linkage.forces import Contribution, Geometry, build_forces
 from csim.linkage.frames import Frames, build_frames
 from csim.linkage.inertia import check_inertia
 from csim.linkage.joints import JOINT_TYPES
-from csim.linkage.lambdacache import build_key, cache_enabled, cached_build, cached_lambdify, linkage_key
+from csim.linkage.lambdacache import build_key, cache_enabled, cached_build, linkage_key
+from csim.linkage.plan import JointRecord, LinkagePlan
 from csim.linkage.recursive import recursive_terms
 from csim.linkage.tables import Coupling, Tables, parse_tables
-from csim.linkage.topology import Topology, analyse, grubler_kutzbach
+from csim.linkage.topology import Topology, analyse, grubler_kutzbach, subtree
 from csim.linkage.transforms import simplify_entry
 from csim.model.cache import definition_key, remember_key
 from csim.model.definition import Drawing, MechanismDefinition, Observable, Parameter
 from csim.model.derive import drive_rates
+from csim.model.light import snapshot
 from csim.model.recursive import sparse_jacobian
 from csim.quantities import convert, is_quantity
 from csim.schema import describe, finite_number
@@ -113,47 +112,19 @@ class Linkage:
     def variable_names(self) -> list[str]:
         return [v.name for v in self.topology.variables]
 
-    @property
-    def driven_indices(self) -> list[int]:
-        names = self.variable_names
-        return [names.index(n) for n in self.drive]
+    def drive_rows(self, names: list[str], values: list[float]) -> tuple[list, list]:
+        """The drives and their first two derivatives in t, with the parameters ``names`` given
+        ``values`` (:func:`csim.model.derive.drive_rates`): the arguments ([t]) and the three rows,
+        which :func:`csim.linkage.plan.drive_function` lambdifies (and files: a warm run of the same
+        case does no symbolic work for them; the derivation and lambdify took 50 ms of each driven run).
 
-    @property
-    def redundant(self) -> bool:
-        """Whether equations were removed as dependent (an overconstrained mechanism)."""
-        return any(e.status == DEPENDENT for e in self.reduction.equations)
-
-    @property
-    def equation_labels(self) -> list[str]:
-        return [e.label for e in self.reduction.kept]
-
-    def drive_function(self, parameters: dict[str, float]) -> Callable[[float], tuple]:
-        """t -> (u, ud, udd), each (d,) [rad or m, per s, per s^2], at the given parameter values (every
-        parameter of the tables, by name).
-
-        The drives are differentiated (:func:`csim.model.derive.drive_rates`) with the values put in, each
-        with 17 digits (it reads back as the same float, as the compiled drive rows have it): with the
-        parameters as symbols, the rates of w t^n with n = 1 are 0/0 and 0 * inf at t = 0 (helper-28). The
-        source is filed in the linkage cache under a hash of the values
-        (:func:`csim.linkage.lambdacache.cached_lambdify`): a warm run of the same case does no symbolic work
-        for them (the derivation and lambdify took 50 ms of each driven run).
+        Each value is put in with 17 digits (it reads back as the same float, as the compiled drive
+        rows have it): with the parameters as symbols, the rates of w t^n with n = 1 are 0/0 and
+        0 * inf at t = 0 (helper-28).
         """
-        names = sorted(self.tables.symbols)
-        values = [float(parameters[n]) for n in names]
-        tag = hashlib.sha256(repr(values).encode()).hexdigest()[:16]
-
-        def make():
-            subs = {self.tables.symbols[n]: sp.Float(v, 17) for n, v in zip(names, values)}
-            exprs = [sp.sympify(e).subs(subs) for e in self.drive.values()]
-            return [[T]], [exprs, *drive_rates(exprs, T)]
-
-        f = cached_lambdify(self.cache_key or None, f"drive_{tag}", make)
-
-        def drive(t: float):
-            u, ud, udd = f([t])
-            return (np.array(u, dtype=float), np.array(ud, dtype=float), np.array(udd, dtype=float))
-
-        return drive
+        subs = {self.tables.symbols[n]: sp.Float(v, 17) for n, v in zip(names, values)}
+        exprs = [sp.sympify(e).subs(subs) for e in self.drive.values()]
+        return [[T]], [exprs, *drive_rates(exprs, T)]
 
     def drive_expressions(self, parameters: dict[str, float], keep: list[str]) -> list[str]:
         """Each drive f_j(t) as sympy's ``srepr``, for the compiled model's drive rows
@@ -161,6 +132,32 @@ class Linkage:
         ``keep`` (the model's, read from its parameter vector), any other parameter's value put in."""
         subs = {self.tables.symbols[k]: v for k, v in parameters.items() if k in self.tables.symbols and k not in keep}
         return [sp.srepr(sp.sympify(e).subs(subs)) for e in self.drive.values()]
+
+    def plan(self) -> LinkagePlan:
+        """Its plain data (:class:`csim.linkage.plan.LinkagePlan`): what a run reads of it (a linkage
+        built with its definition, as a case's is: ``build_linkage(..., definition=True)``)."""
+        tables, topology = self.tables, self.topology
+
+        def record(c: Coupling, below: set[int] = frozenset()) -> JointRecord:
+            return JointRecord(c.number, c.name, c.type, c.i, c.k, c.j, c.m,
+                               tuple(v.name for v in topology.variables_of(c)), tuple(sorted(below)))
+
+        child = {e.coupling.number: n for n, e in topology.edges.items()}
+        normal = next((c for c in tables.couplings if JOINT_TYPES[c.type].planar_axis == "normal"), None)
+        drives = [sp.sympify(e) for e in self.drive.values()]
+        used = set().union(*(e.free_symbols for e in drives))
+        return LinkagePlan(
+            variables=self.variable_names, start=dict(self.start), drive_names=list(self.drive),
+            drive_expressions=[sp.srepr(e) for e in drives],
+            drive_parameters=[n for n, symbol in tables.symbols.items() if symbol in used],
+            dof=self.dof, planar=self.planar, parameters=dict(tables.parameters),
+            link_labels={n: link.label for n, link in sorted(tables.links.items())},
+            mass_links=[n for n, link in sorted(tables.links.items()) if n != 0 and link.has_mass],
+            equations=[e.record() for e in self.reduction.equations], generic_rank=self.reduction.generic_rank,
+            cut_joints=[record(c) for c in topology.cut_joints],
+            tree_joints=[record(c, subtree(topology, child[c.number])) for c in topology.tree_joints],
+            normal_joint=None if normal is None else [normal.i, normal.k],
+            definition=snapshot(self.definition), cache_key=self.cache_key, build_key=self.build_key)
 
 
 def _resolve_drive(tables: Tables, problems: list[str]) -> tuple[dict[int, list], dict]:

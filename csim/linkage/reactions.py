@@ -12,7 +12,10 @@ F . delta r + M . delta theta = -sum_e lambda_e delta Phi_e, so
 
 with the derivatives taken by sympy from the very functions csim builds for the joint
 (:data:`csim.linkage.joints.JOINT_TYPES`, :class:`~csim.linkage.joints.CutGeometry`),
-at symbolic poses of the two frames: no equation is transcribed here. At an assembled
+at symbolic poses of the two frames: no equation is transcribed here
+(:mod:`csim.linkage.reaction_terms`, the symbolic half, imported only where a function is
+not in the cache). This module evaluates them with the names and numbers of the linkage's
+plan (:class:`csim.linkage.plan.LightLinkage`): a warm run imports no sympy. At an assembled
 configuration this gives, e.g., for an R joint F = -(lambda_x, lambda_y, lambda_z) and
 M = lambda_4 x_ik - lambda_5 y_ik.
 
@@ -28,17 +31,12 @@ is reported as 0 and named in :attr:`JointReaction.undetermined`:
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass
 
 import numpy as np
-import sympy as sp
 
-from csim.linkage.constraints import KEPT, ZERO
-from csim.linkage.forces import Geometry, JointCoordinate, build_forces
-from csim.linkage.frames import Frames
-from csim.linkage.joints import JOINT_TYPES, CutGeometry
 from csim.linkage.lambdacache import cached_lambdify
-from csim.linkage.tables import Coupling
+from csim.linkage.plan import KEPT, ZERO
+from csim.model.light import full_definition
 from csim.result import JointReaction
 
 #: units of the recorded reactions
@@ -46,10 +44,6 @@ FORCE_UNIT, TORQUE_UNIT = "N", "N m"
 #: samples evaluated at once: each subexpression of the generated code is an array of a
 #: block's samples (the 81-link N-four-bar's kinematics: about 86 kB a sample)
 BLOCK = 1024
-
-
-def _skew(w: sp.Matrix) -> sp.Matrix:
-    return sp.Matrix([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
 
 
 def _at_samples(f, samples: list[np.ndarray], par: np.ndarray | None = None) -> np.ndarray:
@@ -83,44 +77,36 @@ def _at_samples(f, samples: list[np.ndarray], par: np.ndarray | None = None) -> 
     return out
 
 
-def _entries(matrices) -> list:
-    """The entries of sympy matrices, one flat list (each matrix row by row)."""
-    return [e for M in matrices for e in M]
-
-
 @functools.cache
-def wrench_jacobian(joint_type: str, key: str | None = None):
+def wrench_jacobian(joint_type: str, key: str | None = None, n: int | None = None):
     """The derivatives of a joint type's cut equations with respect to a virtual motion of frame jm.
 
     Parameters
     ----------
     joint_type : str
-        A type letter of :data:`JOINT_TYPES`.
+        A type letter of :data:`csim.linkage.joints.JOINT_TYPES`.
     key : str, optional
         A :func:`csim.linkage.lambdacache.linkage_key` under which the function's source is
         filed in the cache (None: derived by sympy in every process).
+    n : int, optional
+        The number of the type's cut equations (None: counted in its record, which imports sympy).
 
     Returns
     -------
     callable (r_ik (3,), A_ik (3, 3), r_jm (3,), A_jm (3, 3)) -> ndarray (6, n_eq)
         Column e holds dPhi_e/d r_jm [1 for position equations, 1/m for direction ones]
         (rows 0-2) and dPhi_e/d theta_j [m or 1 per rad] (rows 3-5), in global axes, for
-        the type's equations in their order.
+        the type's equations in their order (:func:`csim.linkage.reaction_terms.wrench_terms`).
     """
-    n = len(JOINT_TYPES[joint_type].cut_equations)
+    if n is None:
+        from csim.linkage.joints import JOINT_TYPES
+
+        n = len(JOINT_TYPES[joint_type].cut_equations)
 
     def make():
-        r_ik, r_jm = sp.Matrix(sp.symbols("rik0:3")), sp.Matrix(sp.symbols("rjm0:3"))
-        A_ik, A_jm = sp.Matrix(3, 3, sp.symbols("Aik0:9")), sp.Matrix(3, 3, sp.symbols("Ajm0:9"))
-        eps = sp.Symbol("eps")
-        dr, dth = sp.Matrix(sp.symbols("dr0:3")), sp.Matrix(sp.symbols("dth0:3"))
-        moved = CutGeometry(r_ik, r_jm + eps * dr, A_ik, (sp.eye(3) + eps * _skew(dth)) * A_jm)
-        columns = []
-        for eq in JOINT_TYPES[joint_type].cut_equations:
-            rate = sp.expand(sp.diff(eq.expression(moved), eps).subs(eps, 0))  # linear in dr, dth
-            columns.append([rate.coeff(s) for s in (*dr, *dth)])
-        entries = [columns[e][k] for k in range(6) for e in range(n)]  # (6, n_eq) row-major
-        return [list(r_ik), list(A_ik), list(r_jm), list(A_jm)], entries
+        from csim.linkage.reaction_terms import wrench_terms
+
+        return wrench_terms(joint_type)
 
     f = cached_lambdify(key, f"wrench_{joint_type}", make)
 
@@ -150,6 +136,18 @@ def _removed(equations, full: bool = False) -> list[str]:
     return out
 
 
+def _frames_function(linkage, definition, name: str, frames: list[tuple[int, int]]):
+    """The joint frames (i, k) in ``frames`` as a function of flat entries (q, par) (its source filed
+    in the cache under ``name``)."""
+
+    def make():
+        from csim.linkage.reaction_terms import frame_terms
+
+        return frame_terms(linkage.full(), full_definition(definition), frames)
+
+    return cached_lambdify(linkage.cache_key, name, make)
+
+
 def _pair_frames(linkage, definition, name: str, pairs):
     """(q (S, m), par) -> two ndarrays (S, P, 4, 4): the frames ``pairs`` [((i, k), (j, m)), ...]
     name at S samples, the first and the second of each pair (kept on the linkage: lambdifying
@@ -158,12 +156,7 @@ def _pair_frames(linkage, definition, name: str, pairs):
     if cached is not None:
         return cached
     P = len(pairs)
-
-    def make():
-        return ([list(definition.coordinates), list(definition.parameter_symbols)],
-                _entries(linkage.frames.joint_frame(*f) for pair in pairs for f in pair))
-
-    f = cached_lambdify(linkage.cache_key, name, make)
+    f = _frames_function(linkage, definition, name, [f for pair in pairs for f in pair])
 
     def frames(q, par):
         values = _at_samples(f, [q], par).reshape(-1, P, 2, 4, 4)
@@ -176,13 +169,13 @@ def _pair_frames(linkage, definition, name: str, pairs):
 def _frame_functions(linkage, definition):
     """(q (S, m), par) -> (T_ik, T_jm), each (S, C, 4, 4): the two frames of every cut joint."""
     return _pair_frames(linkage, definition, "cut_frames",
-                        [((c.i, c.k), (c.j, c.m)) for c in linkage.topology.cut_joints])
+                        [((c.i, c.k), (c.j, c.m)) for c in linkage.plan.cut_joints])
 
 
 def _tree_frames(linkage, definition):
     """(q (S, m), par) -> (T_jm, T_ik), each (S, T, 4, 4): the two frames of every tree joint."""
     return _pair_frames(linkage, definition, "tree_frames",
-                        [((c.j, c.m), (c.i, c.k)) for c in linkage.topology.tree_joints])
+                        [((c.j, c.m), (c.i, c.k)) for c in linkage.plan.tree_joints])
 
 
 def joint_reactions(linkage, definition, par: np.ndarray, q: np.ndarray, lam: np.ndarray) -> list[JointReaction]:
@@ -190,10 +183,10 @@ def joint_reactions(linkage, definition, par: np.ndarray, q: np.ndarray, lam: np
 
     Parameters
     ----------
-    linkage : csim.linkage.model.Linkage
-    definition : MechanismDefinition
-        The linkage's model (its coordinates and parameter symbols; its constraints are the
-        kept equations, in the order of ``lam``'s columns).
+    linkage : csim.linkage.plan.LightLinkage
+    definition : MechanismDefinition or LightDefinition
+        The linkage's model (its coordinates and parameter symbols, read only where a function
+        is derived; its constraints are the kept equations, in the order of ``lam``'s columns).
     par : ndarray (n_par,)
         Parameter values, in the order of ``definition.parameters``.
     q : ndarray (N, m)
@@ -205,17 +198,17 @@ def joint_reactions(linkage, definition, par: np.ndarray, q: np.ndarray, lam: np
     Returns
     -------
     list of JointReaction
-        One per cut joint, in the order of ``linkage.topology.cut_joints``.
+        One per cut joint, in the order of ``linkage.plan.cut_joints``.
     """
-    kept = linkage.reduction.kept
+    plan = linkage.plan
+    kept = linkage.kept
     full = lam.shape[1] != len(kept)
     if full:
-        kept = [eq for eq in linkage.reduction.equations if eq.status != ZERO]
+        kept = [eq for eq in plan.equations if eq.status != ZERO]
     column = {id(eq): n for n, eq in enumerate(kept)}
     frames = _frame_functions(linkage, definition)
-    cuts = linkage.topology.cut_joints
-    equations = {c.number: [eq for eq in linkage.reduction.equations if eq.coupling.number == c.number]
-                 for c in cuts}
+    cuts = plan.cut_joints
+    equations = {c.number: [eq for eq in plan.equations if eq.joint == c.number] for c in cuts}
     N = q.shape[0]
     values = {c.number: np.full((4, N, 3), np.nan) for c in cuts}  # F, M global; F, M in frame ik
     rows = np.flatnonzero(np.all(np.isfinite(q), axis=1))
@@ -227,7 +220,8 @@ def joint_reactions(linkage, definition, par: np.ndarray, q: np.ndarray, lam: np
         lam_eq = np.column_stack([lam[rows, column[id(eq)]] if id(eq) in column else np.zeros(rows.size)
                                   for eq in equations[c.number]] or [np.zeros((rows.size, 0))])
         ri, Ai, rj, Aj = T_ik[:, n, :3, 3], T_ik[:, n, :3, :3], T_jm[:, n, :3, 3], T_jm[:, n, :3, :3]
-        wrench = -np.einsum("ske,se->sk", wrench_jacobian(c.type, linkage.cache_key)(ri, Ai, rj, Aj), lam_eq)
+        jacobian = wrench_jacobian(c.type, linkage.cache_key, len(equations[c.number]))
+        wrench = -np.einsum("ske,se->sk", jacobian(ri, Ai, rj, Aj), lam_eq)
         F, M = wrench[:, :3], wrench[:, 3:]
         v = values[c.number]
         v[0, rows], v[1, rows] = F, M
@@ -235,57 +229,37 @@ def joint_reactions(linkage, definition, par: np.ndarray, q: np.ndarray, lam: np
     return [_cut_reaction(linkage, c, values[c.number], equations[c.number], full) for c in cuts]
 
 
+def _label(linkage, c, how: str = "") -> str:
+    """``joint NAME (TYPE, LINK i on LINK j)``, or ``(TYPE, LINK i on LINK j; HOW)``: a reaction's label."""
+    labels = linkage.plan.link_labels
+    return f"joint {c.name or c.number} ({c.type}, {labels[c.i]} on {labels[c.j]}{'; ' + how if how else ''})"
+
+
 def _cut_reaction(linkage, c, v: np.ndarray, equations, full: bool = False) -> JointReaction:
     """The JointReaction of cut joint c from its values (4, N, 3): F, M global; F, M in frame ik."""
-    name = str(c.name or c.number)
-    label = f"joint {name} ({c.type}, {linkage.tables.link_label(c.i)} on {linkage.tables.link_label(c.j)})"
-    return JointReaction(name, label, v[0], v[1], v[2], v[3], _removed(equations, full))
+    return JointReaction(str(c.name or c.number), _label(linkage, c), v[0], v[1], v[2], v[3],
+                         _removed(equations, full))
 
 
 # ---------------------------------------------------------------------------------------
 # tree joints: Newton-Euler of the subtree beyond the joint, with the joint released
 # ---------------------------------------------------------------------------------------
-def subtree(topology, child: int) -> set[int]:
-    """The links beyond a tree joint: ``child`` and every link reached from it away from link 0."""
-    below = {child}
-    for link in topology.order:
-        edge = topology.edges.get(link)
-        if edge is not None and edge.parent in below:
-            below.add(link)
-    return below
-
-
 def _kinematics(linkage, definition):
     """(links, kinematics): the L links with mass, and (q, qd, qdd (S, m), par) -> ((m (S, L),
     I (S, L, 3, 3), r_C (S, L, 3), a_C (S, L, 3), A (S, L, 3, 3), omega (S, L, 3), alpha (S, L, 3)),
     g (3,)) at S samples: each link's mass [kg] and inertia about the centre of mass in its axes
     [kg m^2], the centre of mass and its acceleration in global axes [m, m/s^2], the link's
     axes, its angular velocity and acceleration in its own axes [rad/s, rad/s^2]; and gravity
-    [m/s^2].
-    a_C = J qdd + d(J qd)/dq qd and alpha = d(omega)/dqd qdd + d(omega)/dq qd, by sympy."""
+    [m/s^2] (:func:`csim.linkage.reaction_terms.kinematics_terms`)."""
     cached = getattr(linkage, "_reaction_kinematics", None)
     if cached is not None:
         return cached
-    from csim.linkage.model import link_angular_velocities
-
-    links = [n for n, link in sorted(linkage.tables.links.items()) if n != 0 and link.has_mass]
+    links = list(linkage.plan.mass_links)
 
     def make():
-        q, qd = list(definition.coordinates), list(definition.velocities)
-        qdd = [sp.Symbol(f"{s}_ddot", real=True) for s in q]
-        omega = link_angular_velocities(linkage.topology, linkage.frames)
-        rows = []
-        for n in links:
-            T = linkage.frames.links[n]
-            r_c = (T * sp.Matrix([*linkage.tables.links[n].com, 1]))[:3, 0]
-            v_c = r_c.jacobian(q) * sp.Matrix(qd)
-            a_c = v_c.jacobian(qd) * sp.Matrix(qdd) + v_c.jacobian(q) * sp.Matrix(qd)
-            w = omega[n]
-            alpha = w.jacobian(qd) * sp.Matrix(qdd) + w.jacobian(q) * sp.Matrix(qd)
-            link = linkage.tables.links[n]
-            rows += [sp.Matrix([link.mass]), sp.Matrix(link.inertia), r_c, a_c, T[:3, :3], w, alpha]
-        rows.append(sp.Matrix(linkage.tables.gravity))
-        return [q, qd, qdd, list(definition.parameter_symbols)], _entries(rows)
+        from csim.linkage.reaction_terms import kinematics_terms
+
+        return kinematics_terms(linkage.full(), full_definition(definition), links)
 
     f = cached_lambdify(linkage.cache_key, "kinematics", make)
     shapes = [(), (3, 3), (3,), (3,), (3, 3), (3,), (3,)]
@@ -303,127 +277,27 @@ def _kinematics(linkage, definition):
     return links, kinematics
 
 
-#: the six virtual motions of a released subtree: translations along, rotations about global x, y, z
-EPS = sp.symbols("eps_tx eps_ty eps_tz eps_rx eps_ry eps_rz", real=True)
-EPS_DOT = sp.symbols("eps_tx_dot eps_ty_dot eps_tz_dot eps_rx_dot eps_ry_dot eps_rz_dot", real=True)
-
-
-@dataclass
-class ReleasedGeometry(Geometry):
-    """A link-coupling geometry with the subtree beyond one tree joint given a virtual rigid
-    motion eps (6) about the joint's point r_J: p -> p + tau + rho x (p - r_J), to first order
-    in eps (only derivatives at eps = 0 are taken). The force elements built on it
-    (:func:`csim.linkage.forces.build_forces`) have potentials and directions in (q, eps).
-    Build it with :meth:`released`.
-
-    Attributes
-    ----------
-    released : Coupling
-        The tree joint.
-    below : frozenset of int
-        The links beyond it (:func:`subtree`).
-    base : Frames
-        The mechanism's own transforms (``frames`` holds the moved ones).
-    """
-
-    released: Coupling | None = None
-    below: frozenset = frozenset()
-    base: Frames | None = None
-
-    @classmethod
-    def released_at(cls, linkage, coupling: Coupling, below: set[int]) -> ReleasedGeometry:
-        """The geometry of ``linkage`` with the links ``below`` the tree joint ``coupling`` moved by eps."""
-        frames = linkage.frames
-        r_J = frames.joint_frame(coupling.j, coupling.m)[:3, 3]
-        tau, rho = sp.Matrix(EPS[:3]), sp.Matrix(EPS[3:])
-        D = sp.eye(4)  # [[E + [rho]x, tau - [rho]x r_J], [0, 1]]
-        D[:3, :3] += _skew(rho)
-        D[:3, 3] = tau - _skew(rho) * r_J
-        links = {n: (D * T if n in below else T) for n, T in frames.links.items()}
-        moved = Frames(local=frames.local, joints=frames.joints, relative=frames.relative, links=links)
-        return cls(linkage.tables, linkage.topology, moved, released=coupling, below=frozenset(below), base=frames)
-
-    @property
-    def q(self):
-        return [v.symbol for v in self.topology.variables] + list(EPS)
-
-    # The reactions take the elements' potentials and their directions along eps only, with
-    # the load values the run recorded: the rates in the laws and the directions along q
-    # (sympy derivatives of long expressions, most of a run's reaction work) are not needed.
-    def rate(self, expr: sp.Expr) -> sp.Expr:
-        """A stand-in for d expr/dt (the laws are not evaluated here)."""
-        return sp.Dummy("rate")
-
-    def gradient(self, expr: sp.Expr) -> list[sp.Expr]:
-        """d expr/d(q, eps) with the q entries left 0 (only the eps rows are read)."""
-        m = len(self.topology.variables)
-        return [sp.Integer(0)] * m + [sp.diff(expr, e) for e in EPS]
-
-    @property
-    def qd(self):
-        return [v.velocity for v in self.topology.variables] + list(EPS_DOT)
-
-    def omega(self, link):
-        w = super().omega(link)  # the tree's own, from the joint rates
-        if link not in self.below:
-            return w
-        return w + self.base.links[link][:3, :3].T * sp.Matrix(EPS_DOT[3:])
-
-    def joint(self, path, raw, problems, unit=None):
-        found = super().joint(path, raw, problems, unit)
-        c = self.released
-        own = [v.symbol for v in self.topology.variables_of(c)]
-        if found is None or found.value not in own:
-            return found
-        # the released joint's own variable: q plus the change eps makes in the relative
-        # motion of its two frames (the joint type's measure)
-        slot = own.index(found.value)
-        measure = JOINT_TYPES[c.type].measure
-
-        def measured(frames):
-            g = CutGeometry.from_transforms(frames.joint_frame(c.i, c.k), frames.joint_frame(c.j, c.m))
-            return measure(g, lambda e: e)[slot]
-
-        return JointCoordinate(found.value + measured(self.frames) - measured(self.base), found.unit, found.label)
-
-
-def _element_terms(linkage, definition, raw_forces, coupling, below: set[int]):
-    """What the force elements and the joint's drives do on the released subtree:
-    (q, qd (S, m), par) -> (dV/deps (S, 6), B_eps (S, 6, k), D_eps (S, 6, d), the drives'
-    columns (d,)) at eps = 0, or None when there are neither. V is the elements' potential,
-    B_eps the eps rows of the loads' generalized directions (in the order of
-    ``definition.loads``), D_eps those of the joint's driven variables (in the order of
-    ``linkage.drive``)."""
-    own = {v.name for v in linkage.topology.variables_of(coupling)}
-    driven = [name for name in linkage.drive if name in own]
+def element_terms(linkage, definition, raw_forces, joint):
+    """What the force elements and the joint's drives do on the released subtree beyond the tree
+    joint ``joint`` (a :class:`~csim.linkage.plan.JointRecord`): (q, qd (S, m), par) -> (dV/deps
+    (S, 6), B_eps (S, 6, k), D_eps (S, 6, d), the drives' columns (d,)) at eps = 0, or None when
+    there are neither. V is the elements' potential, B_eps the eps rows of the loads' generalized
+    directions (in the order of ``definition.loads``), D_eps those of the joint's driven
+    variables (in the order of ``linkage.drive_names``) (:func:`csim.linkage.reaction_terms.element_terms`)."""
+    driven = [name for name in linkage.drive_names if name in joint.variables]
     if not raw_forces and not driven:
         return None
     n_loads = len(definition.loads)
 
     def make():  # the symbolic work (cached: csim.linkage.lambdacache)
-        geo = ReleasedGeometry.released_at(linkage, coupling, below)
-        problems: list[str] = []
-        part = build_forces(raw_forces, geo, problems)  # checked once already, by the model's build
-        if problems or len(part.loads) != n_loads:
-            raise RuntimeError(f"the force elements rebuilt for the reaction of {coupling.label} differ from the "
-                               f"model's: {'; '.join(problems) or 'another number of loads'}")
-        at_zero = {e: 0 for e in (*EPS, *EPS_DOT)}
-        m = len(definition.coordinates)
+        from csim.linkage.reaction_terms import element_terms as terms
 
-        def eps_rows(expr_or_direction) -> list:
-            direction = (geo.gradient(expr_or_direction) if not isinstance(expr_or_direction, list)
-                         else expr_or_direction)
-            return [sp.sympify(d).xreplace(at_zero) for d in direction[m:]]
+        full = linkage.full()
+        coupling = next(c for c in full.topology.tree_joints if c.number == joint.number)
+        return terms(full, full_definition(definition), raw_forces, coupling, set(joint.below), driven, n_loads)
 
-        dV = [sp.diff(part.potential, e).xreplace(at_zero) for e in EPS]
-        B = [eps_rows(ld.direction if ld.direction is not None else ld.coordinate) for ld in part.loads]
-        D = [eps_rows(geo.joint("drive", name, problems).value) for name in driven]
-        return ([list(definition.coordinates), list(definition.velocities), list(definition.parameter_symbols)],
-                _entries([sp.Matrix(dV), sp.Matrix(6, len(B), lambda i, k: B[k][i]),
-                          sp.Matrix(6, len(D), lambda i, k: D[k][i])]))
-
-    f = cached_lambdify(linkage.cache_key, f"elements_{coupling.number}", make)
-    columns = [list(linkage.drive).index(name) for name in driven]
+    f = cached_lambdify(linkage.cache_key, f"elements_{joint.number}", make)
+    columns = [linkage.drive_names.index(name) for name in driven]
 
     def terms(q, qd, par):
         values = _at_samples(f, [q, qd], par)
@@ -498,7 +372,8 @@ PLANAR_UNDETERMINED = ["force along the plane's normal, moments about in-plane a
 
 def tree_reactions(linkage, definition, raw_forces, par, run, cut_reactions) -> list[JointReaction]:
     """The reactions of every tree joint at the recorded samples, by Newton-Euler of the
-    subtree beyond the joint with the joint released (see :class:`ReleasedGeometry`).
+    subtree beyond the joint with the joint released (see
+    :class:`csim.linkage.reaction_terms.ReleasedGeometry`).
 
     The wrench W (force F, moment M about the origin of frame jm) that link i exerts on
     link j, from the virtual work of a rigid virtual motion eps of the subtree S beyond the
@@ -511,31 +386,32 @@ def tree_reactions(linkage, definition, raw_forces, par, run, cut_reactions) -> 
 
     Parameters
     ----------
-    linkage : Linkage
-    definition : MechanismDefinition
-        Its model (coordinates, velocities, parameter symbols, loads).
+    linkage : csim.linkage.plan.LightLinkage
+    definition : MechanismDefinition or LightDefinition
+        Its model (its loads; its coordinates, velocities and parameter symbols where a
+        function is derived).
     raw_forces : list or None
         ``mechanism.forces`` as written.
     par : ndarray (n_par,)
     run : mapping
         ``q``, ``qd``, ``qdd`` (N, m), ``loads`` (N, k), ``drive_forces`` (N, d) or None.
     cut_reactions : list of JointReaction
-        Of ``linkage.topology.cut_joints``, in their order.
+        Of ``linkage.plan.cut_joints``, in their order.
 
     Returns
     -------
     list of JointReaction, one per tree joint in table order
     """
-    topology = linkage.topology
-    if not topology.tree_joints:
+    plan = linkage.plan
+    if not plan.tree_joints:
         return []
     links, kinematics = _kinematics(linkage, definition)
     frames = _tree_frames(linkage, definition)
-    cut_frames = _frame_functions(linkage, definition) if topology.cut_joints else None
+    cut_frames = _frame_functions(linkage, definition) if plan.cut_joints else None
     normal = _plane_normal(linkage, definition, par, run["q"])
     q, qd, qdd, u = run["q"], run["qd"], run["qdd"], run["loads"]
     tau = run.get("drive_forces")
-    cuts, tree = topology.cut_joints, topology.tree_joints
+    cuts, tree = plan.cut_joints, plan.tree_joints
     # which links (columns) each tree joint's subtree holds, and the sign with which each cut
     # joint's wrench (i on j) acts on it: +1 with j beyond the joint, -1 with i, 0 both or neither
     beyond = np.zeros((len(tree), len(links)))
@@ -543,11 +419,11 @@ def tree_reactions(linkage, definition, raw_forces, par, run, cut_reactions) -> 
     outward = np.ones(len(tree))  # W = W_S with link j in S, -W_S otherwise
     terms = []
     for a, c in enumerate(tree):
-        below = subtree(topology, next(n for n, e in topology.edges.items() if e.coupling is c))
+        below = set(c.below)
         beyond[a] = [n in below for n in links]
         on_subtree[a] = [(cut.j in below) - (cut.i in below) for cut in cuts]
         outward[a] = 1.0 if c.j in below else -1.0
-        terms.append(_element_terms(linkage, definition, raw_forces, c, below))
+        terms.append(element_terms(linkage, definition, raw_forces, c))
     if cuts:  # the cut joints' reactions, (N, C, 3) each
         cut_F = np.stack([reaction.force_global for reaction in cut_reactions], axis=1)
         cut_M = np.stack([reaction.torque_global for reaction in cut_reactions], axis=1)
@@ -563,10 +439,8 @@ def tree_reactions(linkage, definition, raw_forces, par, run, cut_reactions) -> 
             tau[rows] if tau is not None else None, beyond, on_subtree, outward, normal)
     out = []
     for a, c in enumerate(tree):
-        name = str(c.name or c.number)
-        label = (f"joint {name} ({c.type}, {linkage.tables.link_label(c.i)} on {linkage.tables.link_label(c.j)}; "
-                 f"tree joint: Newton-Euler of the links beyond it)")
-        out.append(JointReaction(name, label, *values[a],
+        label = _label(linkage, c, "tree joint: Newton-Euler of the links beyond it")
+        out.append(JointReaction(str(c.name or c.number), label, *values[a],
                                  list(PLANAR_UNDETERMINED) if normal is not None else []))
     return out
 
@@ -576,13 +450,8 @@ def _plane_normal(linkage, definition, par, q) -> np.ndarray | None:
     of a joint frame whose axis is the normal (an R joint's), at the first finite sample (the
     plane does not move; a first sample of NaN, a failed start, would blank every reaction)."""
     finite = np.flatnonzero(np.all(np.isfinite(q), axis=1))
-    if not linkage.planar or not finite.size:
+    if not linkage.planar or not finite.size or linkage.plan.normal_joint is None:
         return None
-    c = next((c for c in linkage.tables.couplings if JOINT_TYPES[c.type].planar_axis == "normal"), None)
-    if c is None:
-        return None
-    T = cached_lambdify(linkage.cache_key, "plane_frame", lambda: (
-        [list(definition.coordinates), list(definition.parameter_symbols)],
-        _entries([linkage.frames.joint_frame(c.i, c.k)])))
+    T = _frames_function(linkage, definition, "plane_frame", [tuple(linkage.plan.normal_joint)])
     z = _at_samples(T, [q[finite[0]:finite[0] + 1]], par).reshape(4, 4)[:3, 2]
     return z / np.linalg.norm(z)

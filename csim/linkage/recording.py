@@ -29,10 +29,10 @@ def linkage_outputs(case, system, trajectory, result) -> None:
         from csim.solver.driven import record_drives
 
         units = [DRIVE_UNITS.get(case.mechanism.coordinate_units[i], "") for i in linkage.driven_indices]
-        record_drives(result, system, trajectory.t, trajectory.y, trajectory.mode, list(linkage.drive), units)
+        record_drives(result, system, trajectory.t, trajectory.y, trajectory.mode, list(linkage.drive_names), units)
     if not result.t.size:
         return
-    cut = joint_reactions(linkage, case.mechanism, system.par, result.q, result.lam) if linkage.topology.cut_joints \
+    cut = joint_reactions(linkage, case.mechanism, system.par, result.q, result.lam) if linkage.plan.cut_joints \
         else []
     run = {"q": result.q, "qd": result.qd, "qdd": result.qdd, "loads": result.loads,
            "drive_forces": result.drive_forces}

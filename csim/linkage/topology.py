@@ -222,3 +222,13 @@ def grubler_kutzbach(tables: Tables, planar: bool) -> int:
     lam = 3 if planar else 6
     n = len(tables.links)
     return lam * (n - 1) - sum(lam - c.freedoms for c in tables.couplings)
+
+
+def subtree(topology: Topology, child: int) -> set[int]:
+    """The links beyond a tree joint: ``child`` and every link reached from it away from link 0."""
+    below = {child}
+    for link in topology.order:
+        edge = topology.edges.get(link)
+        if edge is not None and edge.parent in below:
+            below.add(link)
+    return below

@@ -105,6 +105,11 @@ class Load:
     window: tuple[float, float] = (float("-inf"), float("inf"))
     velocity: str = "any"
 
+    @property
+    def has_law(self) -> bool:
+        """Whether the mechanism gives it a law (a force element's); else it is a switched constant."""
+        return self.law is not None
+
 
 #: the symbol of time in load laws [s]
 TIME = "t"

@@ -214,8 +214,9 @@ def _loads(definition: MechanismDefinition, q: sp.Matrix) -> tuple[sp.Matrix, sp
 def drive_rates(exprs: list, t: sp.Symbol) -> tuple[list, list]:
     """The first and second time derivatives of drives f_j(t) (of t and the parameters), powers combined:
     the derivative of w t^n reads n w t^(n - 1), not sympy's n w t^n / t, which is 0/0 at t = 0 for n = 1
-    (helper-28). The Python path's drives (:meth:`csim.linkage.model.Linkage.drive_function`) and the
-    compiled drive rows (:func:`with_drive_rows`) both take them from here."""
+    (helper-28). The Python path's drives (:meth:`csim.linkage.model.Linkage.drive_rows`, lambdified by
+    :func:`csim.linkage.plan.drive_function`) and the compiled drive rows (:func:`with_drive_rows`) both
+    take them from here."""
     first = [sp.powsimp(sp.diff(e, t)) for e in exprs]
     return first, [sp.powsimp(sp.diff(e, t)) for e in first]
 

@@ -1,12 +1,13 @@
-"""A registered mechanism's plain data, kept on disk, so that a warm run needs no sympy.
+"""A mechanism definition's plain data, kept on disk, so that a warm run needs no sympy.
 
 Importing sympy and building a mechanism symbolically takes about half a second, which a
 run whose generated code is already cached does not need: validating a case file wants
 names, units, parameter defaults and the counts, and the code cache wants the key of the
-definition. :func:`light_definition` keeps these in a JSON snapshot under
-``<cache>/definitions/``, filed under a hash of the mechanism's source files, and returns a
-:class:`LightDefinition` built from it. Anything symbolic (coordinates, energies,
-constraints, drawing, ...) builds the full :class:`MechanismDefinition` on first use.
+definition. :func:`snapshot` takes these as JSON data and :class:`LightDefinition` answers
+them; anything symbolic (coordinates, energies, constraints, drawing, ...) builds the full
+:class:`MechanismDefinition` on first use. A registered mechanism's snapshot is filed under
+``<cache>/definitions/``, under a hash of its source files (:func:`light_definition`); a
+link-coupling mechanism's is part of its linkage's plan (:class:`csim.linkage.plan.LinkagePlan`).
 """
 from __future__ import annotations
 
@@ -20,10 +21,11 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from csim.io.atomic import write_atomically
+from csim.io.units import declared_constraint_units
 from csim.model.definition import MechanismDefinition, Parameter
 
 #: bump when the snapshot's content changes
-SNAPSHOT_VERSION = "1"
+SNAPSHOT_VERSION = "3"
 
 #: the files every generated model depends on, beside the mechanism's own module
 MODEL_SOURCES = ("definition.py", "derive.py", "codegen.py", "cache.py", "light.py", "recursive.py")
@@ -31,17 +33,19 @@ MODEL_SOURCES = ("definition.py", "derive.py", "codegen.py", "cache.py", "light.
 
 @dataclass(frozen=True)
 class LoadInfo:
-    """A load's name, units and default law (its coordinate s_k(q) is on the full definition).
+    """A load's name, units and default values (its coordinate s_k(q) and law are on the full
+    definition, :class:`csim.model.definition.Load`).
 
-    A registered mechanism's loads are switched constants (``law`` None) of magnitude 0
-    unless the case names them.
+    A registered mechanism's loads are switched constants (no law) of magnitude 0 unless the
+    case names them; a link-coupling mechanism's force elements have a law (``has_law``),
+    magnitude 1.
     """
 
     name: str
     unit: str
     coordinate_unit: str
     description: str
-    law: None = None
+    has_law: bool = False
     magnitude: float = 0.0
     window: tuple[float, float] = (float("-inf"), float("inf"))
     velocity: str = "any"
@@ -57,14 +61,21 @@ class ObservableInfo:
     description: str
 
 
+#: the plain fields a case sets on the definition it runs (:func:`csim.case._drive_start`: the
+#: drives' rates at t = 0), set on the symbolic definition too (:meth:`LightDefinition.attach`)
+CASE_FIELDS = ("default_independent", "default_independent_velocities", "default_guess")
+
+
 class LightDefinition:
     """The plain data of a :class:`MechanismDefinition`; the rest from the full one, built on demand.
 
     Attributes read here without sympy: ``name``, ``description``, ``coordinate_names``,
     ``coordinate_units``, ``parameters``, ``parameter_names``, ``loads`` and ``observables``
-    (names and units), ``n_constraints``, the ``default_*`` initial values and ``key``
-    (the generated code's key, :func:`csim.model.cache.definition_key`). Every other
-    attribute is the full definition's (:meth:`full`).
+    (names and units), ``n_constraints``, the ``default_*`` initial values, ``key``
+    (the generated code's key, :func:`csim.model.cache.definition_key`) and
+    ``constraint_units`` (the unit of each constraint row where the mechanism declares them,
+    :func:`csim.io.units.declared_constraint_units`; else None). Every other attribute is the full definition's
+    (:meth:`full`).
     """
 
     def __init__(self, data: dict, factory: Callable[[], MechanismDefinition],
@@ -74,15 +85,32 @@ class LightDefinition:
         self.coordinate_names: list[str] = list(data["coordinate_names"])
         self.coordinate_units: list[str] = list(data["coordinate_units"])
         self.parameters = [Parameter(**p) for p in data["parameters"]]
-        self.loads = [LoadInfo(**x) for x in data["loads"]]
+        self.loads = [LoadInfo(**{**x, "window": tuple(x["window"])}) for x in data["loads"]]
         self.observables = [ObservableInfo(**x) for x in data["observables"]]
         self.n_constraints: int = int(data["n_constraints"])
         self.default_independent: dict[str, float] = dict(data["default_independent"])
         self.default_independent_velocities: dict[str, float] = dict(data["default_independent_velocities"])
         self.default_guess: dict[str, float] = dict(data["default_guess"])
         self.key: str = data["key"]
+        units = data.get("constraint_units")
+        self.constraint_units: list[str] | None = None if units is None else [str(u) for u in units]
         self._factory = factory
+        self._full = None
+        if full is not None:
+            self.attach(full)
+
+    def __setattr__(self, name: str, value) -> None:
+        super().__setattr__(name, value)
+        if name in CASE_FIELDS and self.__dict__.get("_full") is not None:
+            setattr(self._full, name, value)
+
+    def attach(self, full: MechanismDefinition) -> None:
+        """Take ``full`` as the symbolic definition, with the values of :data:`CASE_FIELDS` set
+        here (a case's, :func:`csim.case._drive_start`), so that both answer the same."""
         self._full = full
+        for name in CASE_FIELDS:
+            if getattr(full, name) != getattr(self, name):
+                setattr(full, name, getattr(self, name))
 
     @property
     def parameter_names(self) -> list[str]:
@@ -97,7 +125,7 @@ class LightDefinition:
     def full(self) -> MechanismDefinition:
         """The symbolic definition (built, with sympy, on the first call)."""
         if self._full is None:
-            self._full = self._factory()
+            self.attach(self._factory())
         return self._full
 
     def __getattr__(self, attr: str):
@@ -123,7 +151,9 @@ def snapshot(definition: MechanismDefinition) -> dict:
         "coordinate_names": definition.coordinate_names,
         "coordinate_units": list(definition.coordinate_units),
         "parameters": [asdict(p) for p in definition.parameters],
-        "loads": [asdict(LoadInfo(ld.name, ld.unit, ld.coordinate_unit, ld.description)) for ld in definition.loads],
+        "loads": [asdict(LoadInfo(ld.name, ld.unit, ld.coordinate_unit, ld.description,
+                                  ld.has_law, ld.magnitude, list(ld.window), ld.velocity))
+                  for ld in definition.loads],
         "observables": [asdict(ObservableInfo(o.name, o.unit, o.rate_unit, o.description))
                         for o in definition.observables],
         "n_constraints": definition.n_constraints,
@@ -131,6 +161,7 @@ def snapshot(definition: MechanismDefinition) -> dict:
         "default_independent_velocities": dict(definition.default_independent_velocities),
         "default_guess": dict(definition.default_guess),
         "key": definition_key(definition),
+        "constraint_units": declared_constraint_units(definition),
     }
 
 

@@ -6,7 +6,7 @@ dynamic``) adds the constraint
     Phi_d(q, t) = q_j - f_j(t) = 0
 
 to the mechanism's own Phi(q) = 0. Its derivatives, from sympy in
-:meth:`csim.linkage.model.Linkage.drive_function`, enter the acceleration equation:
+:meth:`csim.linkage.plan.LightLinkage.drive_function`, enter the acceleration equation:
 Phi_d,q = e_j^T (a constant row), Phi_d,t = -f_j', Phi_d,qt = 0, Phi_d,tt = -f_j'', so
 
     d/dt Phi_d = qd_j - f_j'(t),      Phi_d,q qdd = gamma_d = f_j''(t)
