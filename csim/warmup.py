@@ -122,8 +122,8 @@ def _all() -> int:
               "compile)")
         return 0
     start = time.perf_counter()
-    print(f"csim: compiling the kernels into {kernels_dir()} (once per installation; about 30 s on 2 cores, "
-          f"a minute on one) ...", flush=True)
+    print(f"csim: compiling the kernels into {kernels_dir()} (once per installation; about 40 s on 2 cores, "
+          f"80 s on one) ...", flush=True)
     failed = _run_slots(_slots(_cpus()))
     if failed:
         print(f"csim: {failed} of {len(PARTS)} jobs of the warm-up failed (see above); the runs that need what "
@@ -151,8 +151,8 @@ def _slots(cpus: int) -> list[list[str]]:
     Parameters
     ----------
     cpus : int
-        The CPUs to use: a slot a job on three or more; on two, the loop (about 30 s on the 2-core
-        machine) beside the right-hand side (25-33 s) and then the core functions (4-8 s); on one,
+        The CPUs to use: a slot a job on three or more; on two, the loop (36-39 s on the 2-core
+        machine, 2026-11-27) beside the right-hand side (31-33 s) and then the core functions (5-6 s); on one,
         every job in one slot.
 
     Returns
