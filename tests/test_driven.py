@@ -368,3 +368,21 @@ def test_a_drive_with_a_parameter_exponent_is_differentiated_at_the_values():
         assert run.ok, run.message
         np.testing.assert_allclose(run.q, linear.q, rtol=0, atol=1e-12)
         np.testing.assert_allclose(run.drive_forces, linear.drive_forces, rtol=0, atol=1e-9)
+
+
+def test_a_drive_with_a_parameter_exponent_runs_compiled_with_its_value():
+    """The compiled drive rows take the values of the parameters in an exponent (the plan's ``drive_exponents``):
+    with n a symbol, gamma_d = n (n - 1) w t^(n - 2) was 0 * inf at t = 0 for n = 1, a blow-up at t = 0 that
+    the Python path did not have. A parameter elsewhere in the drive (w) stays a parameter of the model."""
+    data = _data(t_end=0.3, rtol=1e-9, atol=1e-9, backend="compiled")
+    data["mechanism"]["parameters"]["n"] = 1
+    data["mechanism"]["drive"] = {"crank": "w*t^n + th0"}
+    case = validate_case(data)
+    assert case.linkage.plan.drive_exponents == ["n"]
+    powered = run_case(case)
+    linear = run_case(validate_case(_data(t_end=0.3, rtol=1e-9, atol=1e-9, backend="python")))
+    assert powered.ok and powered.backend == "compiled", powered.message
+    np.testing.assert_allclose(powered.q, linear.q, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(powered.drive_forces, linear.drive_forces, rtol=1e-7, atol=1e-7)
+    expressions = case.linkage.drive_expressions(case.parameters, case.mechanism.parameter_names)
+    assert "'n'" not in expressions[0] and "'w'" in expressions[0]

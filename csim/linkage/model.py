@@ -146,10 +146,12 @@ class Linkage:
         normal = next((c for c in tables.couplings if JOINT_TYPES[c.type].planar_axis == "normal"), None)
         drives = [sp.sympify(e) for e in self.drive.values()]
         used = set().union(*(e.free_symbols for e in drives))
+        exponents = set().union(*(p.exp.free_symbols for e in drives for p in e.atoms(sp.Pow)))
         return LinkagePlan(
             variables=self.variable_names, start=dict(self.start), drive_names=list(self.drive),
             drive_expressions=[sp.srepr(e) for e in drives],
             drive_parameters=[n for n, symbol in tables.symbols.items() if symbol in used],
+            drive_exponents=[n for n, symbol in tables.symbols.items() if symbol in exponents],
             dof=self.dof, planar=self.planar, parameters=dict(tables.parameters),
             link_labels={n: link.label for n, link in sorted(tables.links.items())},
             mass_links=[n for n, link in sorted(tables.links.items()) if n != 0 and link.has_mass],

@@ -37,7 +37,7 @@ from csim.model.cache import cache_dir
 from csim.model.light import LightDefinition
 
 #: bump when the plan's content changes
-PLAN_VERSION = "2"
+PLAN_VERSION = "3"
 
 #: the status of a cut-joint equation (:class:`csim.linkage.constraints.Equation`)
 KEPT, ZERO, DEPENDENT = "kept", "identically zero", "dependent"
@@ -114,6 +114,9 @@ class LinkagePlan:
         Each drive as sympy's ``srepr``, in ``t`` and the parameters (the compiled drive rows').
     drive_parameters : list of str
         The parameters the drives read.
+    drive_exponents : list of str
+        Those of them in an exponent (a drive w t^n): the compiled drive rows take their values, since
+        differentiated with n a symbol, f'' = n (n - 1) w t^(n - 2) is 0 * inf at t = 0 for n = 1.
     dof : int
     planar : bool
     parameters : dict str -> float
@@ -138,6 +141,7 @@ class LinkagePlan:
     drive_names: list[str]
     drive_expressions: list[str]
     drive_parameters: list[str]
+    drive_exponents: list[str]
     dof: int
     planar: bool
     parameters: dict[str, float]
@@ -402,8 +406,10 @@ class LightLinkage:
 
     def drive_expressions(self, parameters: dict[str, float], keep: list[str]) -> list[str]:
         """Each drive as sympy's ``srepr``, in ``t`` and the parameters named in ``keep``
-        (:meth:`csim.linkage.model.Linkage.drive_expressions`): the filed text where the drives
-        read no other parameter, else derived with the values of the others put in."""
+        (:meth:`csim.linkage.model.Linkage.drive_expressions`), but for those in an exponent
+        (``drive_exponents``), whose values are put in: the filed text where the drives read no other
+        parameter, else derived with the values of the others put in."""
+        keep = [name for name in keep if name not in self.plan.drive_exponents]
         if set(self.plan.drive_parameters) <= set(keep):
             return list(self.plan.drive_expressions)
         return self.full().drive_expressions(parameters, keep)
