@@ -975,12 +975,16 @@ def schema(
 def main() -> None:
     """Console-script entry point.
 
-    After Ctrl-C (exit 130) the process ends at once, without the interpreter's clean-up
+    An expected error (:class:`csim.errors.CsimError`) that reaches it is printed as a message,
+    exit 1. After Ctrl-C (exit 130) the process ends at once, without the interpreter's clean-up
     of its objects (up to half a second with a derived model loaded): every file is
     written and closed by then, and the user asked it to stop.
     """
     try:
         app(prog_name="csim")
+    except CsimError as exc:  # one a command did not turn into its own message: still a message, not a traceback
+        typer.echo(f"csim: error: {exc}", err=True)
+        sys.exit(EXIT_FAILED)
     except SystemExit as exc:
         if exc.code == EXIT_INTERRUPTED:
             sys.stdout.flush()

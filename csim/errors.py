@@ -43,6 +43,10 @@ class SimulationFailure(CsimError):
         self.kind = kind
 
 
+class CacheError(CsimError):
+    """A cached file disagrees with what it was built from (it is removed: the next run builds it again)."""
+
+
 class ResultFileError(CsimError):
     """A result file is missing, unreadable or not a csim result."""
 

@@ -542,3 +542,19 @@ def test_plot_output_named_like_a_figure_is_rejected(tmp_path):
     result = invoke("plot", tmp_path / "r.h5", "-o", tmp_path / "plot.png")
     assert_bad_input(result, "--output", "plot.png", "a folder")
     assert not (tmp_path / "plot.png").exists()
+
+
+def test_an_expected_error_no_command_words_is_still_a_message(monkeypatch, capsys):
+    """A csim error that reaches the entry point (a cached linkage that disagrees with its plan, raised while a run
+    builds it) is printed as a message, exit 1, not a traceback."""
+    import csim.cli as cli
+    from csim.errors import CacheError
+
+    def app(prog_name):
+        raise CacheError("the symbolic linkage does not match its plan")
+
+    monkeypatch.setattr(cli, "app", app)
+    with pytest.raises(SystemExit) as info:
+        cli.main()
+    assert info.value.code == cli.EXIT_FAILED
+    assert capsys.readouterr().err == "csim: error: the symbolic linkage does not match its plan\n"

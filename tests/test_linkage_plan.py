@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from conftest import CONFIGS, ROOT
 
+from csim.errors import CacheError
 from csim.linkage.plan import LightLinkage, LinkagePlan, load_linkage, plan_path, read_plan, write_plan
 
 #: a short run of each case
@@ -125,7 +126,7 @@ def test_a_symbolic_linkage_that_does_not_match_its_plan_stops_the_run(cache):
     _refile(path, filed)
     read = _load("iftomm/a04_bricard.yaml")
     assert not read.loaded
-    with pytest.raises(RuntimeError, match="equations differ"):
+    with pytest.raises(CacheError, match="equations differ"):
         read.full()
     assert not path.exists()
     assert _load("iftomm/a04_bricard.yaml").plan == first.plan

@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from csim.errors import CacheError
 from csim.io.atomic import write_atomically
 from csim.linkage.lambdacache import MAX_LINKAGES, build_key, cache_enabled, cached_lambdify, evict
 from csim.model.cache import cache_dir
@@ -322,7 +323,7 @@ class LightLinkage:
 
         Raises
         ------
-        RuntimeError
+        CacheError
             It does not match the plan (:meth:`_attach`).
         """
         if self._full is None:
@@ -341,7 +342,7 @@ class LightLinkage:
             if self.plan.build_key:
                 with contextlib.suppress(OSError):
                     plan_path(self.plan.build_key).unlink()
-            raise RuntimeError(f"the symbolic linkage does not match its plan (csim.linkage.plan): "
+            raise CacheError(f"the symbolic linkage does not match its plan (csim.linkage.plan): "
                                f"{', '.join(differ)} differ; the plan was removed from the cache, and the next "
                                f"run builds it again")
         self._full = full
