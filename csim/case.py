@@ -659,7 +659,16 @@ def _drive_start(out: dict, linkage: LightLinkage, problems: list[str]) -> None:
     name a driven variable except with its drive's value.
     """
     ini, mech, names = out["initial"], linkage.definition, linkage.drive_names
-    u, ud, _ = linkage.drive_function(linkage.parameters)(0.0)
+    try:
+        u, ud, udd = linkage.drive_function(linkage.parameters)(0.0)
+        finite = bool(np.all(np.isfinite(np.concatenate((u, ud, udd)))))
+    except (ArithmeticError, ValueError):  # e.g. 0.0 ** -0.5: the acceleration of t^1.5
+        finite = False
+    if not finite:
+        problems.append(f"mechanism.drive: got drives of {', '.join(names)} whose value, rate or acceleration is not "
+                        f"finite at t = 0; expected drives twice differentiable at t = 0 (t^1.5 is not: its "
+                        f"acceleration 0.75 t^-0.5 is infinite there; t^2 or a smooth start is)")
+        return
     at_start = {"q": dict(zip(names, u.tolist())), "qd": dict(zip(names, ud.tolist()))}
     partial = len(names) < linkage.dof
     for key in ("q", "qd"):

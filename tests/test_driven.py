@@ -386,3 +386,21 @@ def test_a_drive_with_a_parameter_exponent_runs_compiled_with_its_value():
     np.testing.assert_allclose(powered.drive_forces, linear.drive_forces, rtol=1e-7, atol=1e-7)
     expressions = case.linkage.drive_expressions(case.parameters, case.mechanism.parameter_names)
     assert "'n'" not in expressions[0] and "'w'" in expressions[0]
+    # a warm run writes the value into the filed text: no symbolic linkage (no sympy) for it (helper-33)
+    warm = validate_case(data)
+    assert warm.linkage.drive_expressions(warm.parameters, warm.mechanism.parameter_names) == expressions
+    assert warm.linkage._full is None
+
+
+@pytest.mark.parametrize("n", [1.5, 1.0000000000000002])
+def test_a_drive_with_an_infinite_acceleration_at_t0_is_bad_input(n):
+    """A drive w t^n with 1 < n < 2 has an infinite acceleration at t = 0 (0.0 ** negative raised a
+    ZeroDivisionError, a traceback of csim run and the end of a whole sweep, helper-33): the case is rejected,
+    naming the key and what is expected."""
+    from csim.errors import CaseError
+
+    data = _data(t_end=0.3, backend="python")
+    data["mechanism"]["parameters"]["n"] = n
+    data["mechanism"]["drive"] = {"crank": "w*t^n + th0"}
+    with pytest.raises(CaseError, match=r"mechanism.drive: got drives of .* not finite at t = 0"):
+        validate_case(data)

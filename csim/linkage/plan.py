@@ -25,6 +25,7 @@ import contextlib
 import copy
 import hashlib
 import json
+import re
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
@@ -408,11 +409,13 @@ class LightLinkage:
     def drive_expressions(self, parameters: dict[str, float], keep: list[str]) -> list[str]:
         """Each drive as sympy's ``srepr``, in ``t`` and the parameters named in ``keep``
         (:meth:`csim.linkage.model.Linkage.drive_expressions`), but for those in an exponent
-        (``drive_exponents``), whose values are put in: the filed text where the drives read no other
-        parameter, else derived with the values of the others put in."""
+        (``drive_exponents``), whose values are put in: the filed text (with the exponents' values
+        written in, :func:`_with_values`) where the drives read no other parameter, else derived with
+        the values of the others put in."""
         keep = [name for name in keep if name not in self.plan.drive_exponents]
-        if set(self.plan.drive_parameters) <= set(keep):
-            return list(self.plan.drive_expressions)
+        if set(self.plan.drive_parameters) - set(keep) <= set(self.plan.drive_exponents):
+            values = {name: parameters.get(name, self.plan.parameters.get(name)) for name in self.plan.drive_exponents}
+            return [_with_values(text, values) for text in self.plan.drive_expressions]
         return self.full().drive_expressions(parameters, keep)
 
     def constraint_watch(self, parameters, par: np.ndarray):
@@ -434,6 +437,15 @@ class LightLinkage:
 
         return constraint_watch(self.plan.equations, len(self.plan.variables), self.plan.generic_rank,
                                 list(values.values()), self.build_key, symbolic)
+
+
+def _with_values(text: str, values: dict[str, float]) -> str:
+    """A drive's ``srepr`` with each parameter of ``values`` written in as the Float of its value (as sympy's
+    ``subs`` of a float puts it in, 17 digits round-trip), without sympy: a warm run's drive rows."""
+    for name, value in values.items():
+        symbol = re.compile(r"Symbol\('" + re.escape(name) + r"'(?:, \w+=(?:True|False))*\)")
+        text = symbol.sub(f"Float('{float(value)!r}', precision=53)", text)
+    return text
 
 
 def _differences(plan: LinkagePlan, full) -> list[str]:

@@ -30,7 +30,7 @@ import sympy as sp
 import yaml
 
 from csim.case import parse_yaml, validate_case
-from csim.errors import CsimError, ResultFileError
+from csim.errors import CacheError, CsimError, ResultFileError
 from csim.io.hdf5 import COMPARISON_KIND, ComparisonFile, read_comparison, read_result
 from csim.mechanisms import MECHANISMS, get_mechanism
 from csim.model.definition import MechanismDefinition
@@ -301,7 +301,10 @@ def _definition(result: Result, rebuilds: Rebuilds) -> tuple[MechanismDefinition
     if rebuilds.expired:
         return None, {}, case, rebuilds.expired
     try:  # a registered mechanism, or a link-coupling description (rebuilt from its tables)
-        return (*_rebuild(case, rebuilds), "")
+        try:
+            return (*_rebuild(case, rebuilds), "")
+        except CacheError:  # a cached linkage disagreed with its plan, which is removed: built again once
+            return (*_rebuild(case, rebuilds), "")
     except _Deadline:
         rebuilds.expired = (f"rebuilding the mechanism from the case stored in the file took over "
                             f"{REBUILD_LIMIT_S:g} s, the limit of csim plot and csim animate (a link-coupling "
