@@ -120,7 +120,7 @@ class DifferenceJacobian:
 
 def _detail(reason: int, t: float, h: float = np.nan, value: float = np.nan, tol: float = np.nan,
             residual: float = np.nan, columns=()) -> np.ndarray:
-    """A failed step's details in the layout of :mod:`csim.physics.status` (DAE_REASON ...), which the compiled
+    """A failed step's details in the layout of :mod:`csim.physics.radau` (DAE_REASON ...), which the compiled
     Radau fills in too, for :func:`csim.solver.failures.dae_step_message`."""
     return np.array([reason, t, h, value, tol, residual, len(columns), *columns], dtype=float)
 

@@ -159,7 +159,7 @@ TOO_SMALL_STEP = "Required step size is less than spacing between numbers."
 def dae_step_message(detail) -> str:
     """Why Radau for DAEs stopped (:class:`csim.solver.dae.RadauDAE`'s message, and the compiled Radau's): its
     step fell below the smallest one after Newton failures (the last one's reason) or error-test failures, or
-    the iteration matrix is singular for every step. ``detail``: the layout of :mod:`csim.physics.status`
+    the iteration matrix is singular for every step. ``detail``: the layout of :mod:`csim.physics.radau`
     (DAE_REASON ...)."""
     reason, t, h = int(detail[DAE_REASON]), detail[DAE_T], detail[DAE_H]
     if reason == DAE_ZERO_COLUMNS:

@@ -1,7 +1,9 @@
 """Radau IIA of order 5: scipy's ``Radau`` (simplified Newton on the transformed stages,
 the difference Jacobian of ``num_jac`` capped as :class:`csim.solver.dae.DifferenceJacobian`
 caps it, the error estimate and step-size predictor), and on GGL's DAE ``D x' = F(t, x)``
-(:data:`csim.fast.layout.GGL`) :class:`csim.solver.dae.RadauDAE` step for step.
+(:data:`csim.fast.layout.GGL`) the algorithm of :class:`csim.solver.dae.RadauDAE` (whose steps it takes
+to a few in a thousand: where Newton's increments are at the round-off of the multipliers, the rate that
+decides on a new Jacobian is round-off, and LAPACK's LU and csim's round differently).
 
 On a DAE the first ``nd`` rows (:func:`_n_differential`) are differential (D_ii = 1) and the
 others algebraic of index 2. What RadauDAE adds to scipy's Radau, each marked ``dae`` below:
@@ -10,7 +12,7 @@ difference steps floored independently of atol; the Newton iteration continued u
 algebraic residual at the step's end is within its tolerance (the polish), and stopped as
 converged where its increments are down to the round-off of F; a smallest step not below
 10 eps times the interval; a rejected step where the error estimate is not finite; and the
-reason of a failure, in the details of STEP_TOO_SMALL (csim.physics.status, DAE_*).
+reason of a failure, in the details of STEP_TOO_SMALL (:mod:`csim.physics.radau`, DAE_*).
 """
 import numpy as np
 
@@ -116,7 +118,7 @@ def _n_differential(pi, n):
 
 @hot
 def _dae_failed(reason, t, h, value, tol, residual0, info):
-    """STEP_TOO_SMALL with the details of a failed Radau on a DAE (csim.physics.status, DAE_*): info[0] = t."""
+    """STEP_TOO_SMALL with the details of a failed Radau on a DAE (csim.physics.radau, DAE_*): info[0] = t."""
     info[0] = t
     d = info[2:]
     d[DAE_REASON], d[DAE_T], d[DAE_H], d[DAE_VALUE], d[DAE_TOL], d[DAE_RESIDUAL0] = reason, t, h, value, tol, residual0
