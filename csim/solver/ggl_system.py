@@ -18,12 +18,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from csim.errors import SimulationFailure
 from csim.physics.ggl import ggl_equations
 from csim.physics.kkt import constraint_rates
 from csim.physics.linalg import as_core
 from csim.physics.status import GGL_SINGULAR_MASS, PROJ_NO_CONVERGENCE, PROJ_SINGULAR, SINGULAR_MASS
-from csim.solver.failures import failure_message
+from csim.solver.failures import failure
 from csim.solver.methods.projection import Projection
 from csim.solver.system import ConstrainedSystem
 
@@ -106,6 +105,6 @@ class GGLSystem(ConstrainedSystem):
         F = np.empty(self.n_state)
         if not ggl_equations(M, phi_q, p, as_core(model.phi(q, par)), phi_dot, v, as_core(mu), as_core(lam),
                              np.empty(m * m), np.zeros(m, np.int64), F[:m], F[m:2 * m], F[2 * m + k:], m, r):
-            raise SimulationFailure(failure_message(GGL_SINGULAR_MASS, t, 0.0, None), "singular")
+            raise failure(GGL_SINGULAR_MASS, t, 0.0, None)
         F[2 * m:2 * m + k] = u * (B.T @ v)
         return F

@@ -236,6 +236,16 @@ def _radau_lu(h, RJ, RLR, RLC, rpiv, n, nd, cs):
     return lu_factor(RLC, n, rpiv[n:])
 
 
+@inlined
+def _row_size(RJ, y, i):
+    """sum_j |J_ij| |y_j|: the size of row i's terms at y (RJ, n * n row-major), for its round-off."""
+    n = y.size
+    acc = 0.0
+    for j in range(n):
+        acc += abs(RJ[i * n + j]) * abs(y[j])
+    return acc
+
+
 @hot
 def _radau_noise(y, scale, RM, RJ, RLR, rpiv):
     """dae: the scaled rms of the Newton increments that F's round-off alone makes, |(MU_REAL / h D - J)^-1 r|,
@@ -243,10 +253,7 @@ def _radau_noise(y, scale, RM, RJ, RLR, rpiv):
     n = y.size
     noise = RM[R_NOISE]
     for i in range(n):
-        acc = 0.0
-        for j in range(n):
-            acc += abs(RJ[i * n + j]) * abs(y[j])
-        noise[i] = RADAU_NOISE_FACTOR * EPS * acc
+        noise[i] = RADAU_NOISE_FACTOR * EPS * _row_size(RJ, y, i)
     lu_solve(RLR, n, rpiv[:n], noise)
     for i in range(n):
         noise[i] = abs(noise[i])
@@ -521,12 +528,8 @@ def _radau_error(t, h, y, f, y_new, tolv, rtol, rejected, nd, RM, RLR, rpiv, par
 def _radau_algebraic_tolerances(y, nd, algebraic_tol, RM, RJ):
     """dae: each algebraic row's tolerance at the step's end, algebraic_tol raised to the row's round-off
     ROUNDOFF_FACTOR eps |J_i| |y| (RadauDAE._step_impl), into RM[R_ALG_TOL]."""
-    n = y.size
-    for i in range(nd, n):
-        acc = 0.0
-        for j in range(n):
-            acc += abs(RJ[i * n + j]) * abs(y[j])
-        RM[R_ALG_TOL, i] = max(algebraic_tol, ROUNDOFF_FACTOR * EPS * acc)
+    for i in range(nd, y.size):
+        RM[R_ALG_TOL, i] = max(algebraic_tol, ROUNDOFF_FACTOR * EPS * _row_size(RJ, y, i))
 
 
 @hot
