@@ -123,7 +123,7 @@ def _all() -> int:
         return 0
     start = time.perf_counter()
     print(f"csim: compiling the kernels into {kernels_dir()} (once per installation; about 40 s on 2 cores, "
-          f"80 s on one) ...", flush=True)
+          f"twice that on one) ...", flush=True)
     failed = _run_slots(_slots(_cpus()))
     if failed:
         print(f"csim: {failed} of {len(PARTS)} jobs of the warm-up failed (see above); the runs that need what "
@@ -152,7 +152,7 @@ def _slots(cpus: int) -> list[list[str]]:
     ----------
     cpus : int
         The CPUs to use: a slot a job on three or more; on two, the loop (36-39 s on the 2-core
-        machine, 2026-11-27) beside the right-hand side (31-33 s) and then the core functions (5-6 s); on one,
+        machine, 2026-11-27) beside the right-hand side (31-34 s) and then the core functions (5-6 s); on one,
         every job in one slot.
 
     Returns
