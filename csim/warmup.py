@@ -3,8 +3,9 @@
 numba compiles the kernels' one copy (:mod:`csim.fast.module`) into
 :func:`csim.model.cache.kernels_dir`, so that no later command, test session included, waits
 for it. Its two halves share nothing that numba caches (:mod:`csim.fast.linking`: what an
-entry point calls is compiled into it): the loop, ``integrate``, and the right-hand side the
-loop calls by address with the samples' evaluation and the one-state entry points. A third
+entry point calls is compiled into it): the loop, ``integrate``, with the projection's entry
+point, and the right-hand side the loop calls by address with the elimination's solve, the
+samples' evaluation and the right-hand side's entry points. A third
 job compiles the core functions that the Python path calls on their own. Each job runs in a
 process of its own (numba compiles on one core; a process that has compiled the kernels has
 the core functions compiled inside them, as callees that are never cached, and its Python
@@ -23,8 +24,9 @@ import sys
 import time
 
 #: the jobs of the warm-up (:func:`compile_part`), each in a process of its own, with what its progress line says
-PARTS = {"loop": "the loop (integrate, every integrator and method) and the elimination's solve",
-         "rhs": "the right-hand side, the samples' evaluation and the one-state entries",
+PARTS = {"loop": "the loop (integrate, every integrator and method) and the projection's entry",
+         "rhs": "the right-hand side, the elimination's solve, the samples' evaluation and the right-hand side's "
+                "entries",
          "core": "the core functions of the Python path"}
 #: the methods of the check after the compile: one of the plain system, and minimal's partitioned one
 METHODS = ("none", "minimal")
@@ -42,14 +44,17 @@ def _case(method: str, backend: str):
 def compile_part(part: str) -> None:
     """Run one job of the warm-up (:data:`PARTS`).
 
-    ``loop``: ``integrate``, for minimal's partitioned system (the same types as every other
-    method's), then the elimination's solve it calls by address. ``rhs``: ``feval``,
-    ``evaluate_samples`` and the one-state entry points, for the plain system. ``core``: a
+    ``loop``: ``integrate`` and ``project_entry``, for minimal's partitioned system (the same
+    types as every other method's; :func:`csim.fast.runner.compile_loop`). ``rhs``: ``feval``,
+    ``eliminated``, ``evaluate_samples``, ``rhs_entry`` and ``rhs_repeat``, for the plain system
+    (:func:`csim.fast.runner.compile_rhs`). Neither gives the functions their entry points call
+    machine code of their own (:func:`csim.fast.linking.entry_points_only`). ``core``: a
     short run of the default case on the Python path with each of :data:`METHODS`, whose calls
     of the core functions (:mod:`csim.physics`) compile them on their own into numba's cache
     beside their sources (else a test session's workers would each compile them, about 15 s
     for three methods on the 2-core machine).
     """
+    from csim.fast import linking
     from csim.fast.runner import compile_loop, compile_rhs
     from csim.pipeline import build_system, initial_state, run_case
 
@@ -57,6 +62,7 @@ def compile_part(part: str) -> None:
         for method in METHODS:
             run_case(_case(method, "python"))
         return
+    linking.entry_points_only()  # this process calls only entry points: no machine code for their callees
     case = _case("minimal" if part == "loop" else "none", "compiled")
     system = build_system(case)
     y0 = initial_state(case, system)

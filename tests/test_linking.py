@@ -209,14 +209,22 @@ print(json.dumps(dict(installed=installed, same=before == after)))
     assert json.loads(done.stdout) == dict(installed=False, same=True)
 
 
-@pytest.mark.parametrize("change", ["signature", "source", "order"])
+@pytest.mark.parametrize("change", ["signature", "source", "order", "module"])
 def test_another_numba_is_recognised(change):
-    """_expected: numba's methods as install() wraps them, and three ways another numba could differ."""
+    """_expected: numba's methods as install() wraps them, and four ways another numba could differ."""
     from numba.core import caching, codegen, cpu
 
     numbas = [inspect.unwrap(method) for method in (  # install() may have wrapped them in this process
         cpu.CPUContext.get_executable, codegen.CPUCodeLibrary.finalize, codegen.CPUCodeLibrary._optimize_final_module,
-        caching.Cache.save_overload)]
+        codegen.CPUCodeLibrary._finalize_final_module, caching.Cache.save_overload)]
+    if change == "module":
+        def finalize_module(self):  # a numba that adds the module to the JIT engine before its checks
+            self._codegen._add_module(self._final_module)
+            self._finalize_dynamic_globals()
+            self._verify_declare_only_symbols()
+        assert linking._expected(*numbas)
+        assert not linking._expected(*numbas[:3], finalize_module, numbas[4])
+        return
     if change == "signature":
         def finalize(self, strict=True):  # a numba whose finalize takes an argument
             return None
@@ -230,6 +238,52 @@ def test_another_numba_is_recognised(change):
                 self._final_module.link_in(library._get_module_for_linking())
     assert linking._expected(*numbas)
     assert not linking._expected(numbas[0], finalize, *numbas[2:])
+
+
+ONLY = """
+import json, re, sys
+sys.path.insert(0, sys.argv[1])
+from csim.fast import linking
+if sys.argv[2] == "entry":
+    linking.entry_points_only()
+else:
+    linking.install()
+import csim_fast_kernels_tree as tree
+value = tree.entry(1.5)
+library = tree.entry.overloads[tree.entry.signatures[0]].library
+out = dict(value=value, hits=sum(tree.entry.stats.cache_hits.values()),
+           ir=re.sub(r"B[0-9]+v[0-9]+", "Bv", library.get_llvm_str()) if tree.middle.signatures else "")
+try:
+    out["middle"] = tree.middle(2.0)
+except RuntimeError as exc:
+    out["middle"] = str(exc)
+print(json.dumps(out))
+"""
+
+
+def _only(folder, mode: str) -> dict:
+    done = subprocess.run([sys.executable, "-c", ONLY, str(folder), mode], capture_output=True, text=True,
+                          timeout=300, env=dict(os.environ))
+    assert done.returncode == 0, f"exit {done.returncode}: {done.stderr}"
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.parametrize("source", [TREE, "import math\n" + NOT_INLINED], ids=["inlined", "not-inlined"])
+def test_entry_points_only_gives_the_entry_point_the_same_code_and_its_callees_none(tmp_path, source):
+    """entry_points_only (csim.warmup's jobs): the entry point's optimized module is the same as where its
+    callees get machine code of their own (they link in their modules as they are before LLVM's module
+    passes either way), a callee called from Python raises, and the cached entry point runs in a later
+    process, where its callee compiles when Python calls it."""
+    (tmp_path / "csim_fast_kernels_tree.py").write_text(source)
+    only = _only(tmp_path, "entry")
+    assert only["middle"] == linking.STUB_MESSAGE and only["hits"] == 0
+    assert _cached(tmp_path) == ["entry"]
+    later = _only(tmp_path, "plain")
+    assert later["hits"] == 1 and later["value"] == only["value"] and isinstance(later["middle"], float)
+    for path in (tmp_path / "__pycache__").iterdir():  # (numba's cache) compiled again, with machine code for each
+        path.unlink()
+    plain = _only(tmp_path, "plain")
+    assert plain["ir"] == only["ir"] and plain["value"] == only["value"] and plain["hits"] == 0
 
 
 RECURSIVE = '''

@@ -38,8 +38,12 @@ _CSIM_MODULES = ("csim.", "csim_fast_kernels")
 
 #: the globals through which numba calls a recursive function, which only the compiling process resolves
 _UNRESOLVED = ".numba.unresolved$"
-#: whether install() changed numba (False: not yet, or a numba whose methods differ from those it wraps)
-_STATE = {"installed": False, "tried": False}
+#: whether install() changed numba (False: not yet, or a numba whose methods differ from those it wraps), and
+#: whether a csim callee gets machine code of its own (:func:`entry_points_only`)
+_STATE = {"installed": False, "tried": False, "callee_code": True}
+#: what numba's ``_finalize_final_module`` does before it adds the module to the JIT engine (a callee
+#: without machine code of its own does only this)
+_SCANS = ("_finalize_dynamic_globals", "_verify_declare_only_symbols")
 #: how many numba:compile events are open in this thread (1: a function compiled from the outermost level)
 _DEPTH = threading.local()
 
@@ -53,30 +57,90 @@ def install() -> bool:
     from numba.core import caching, codegen, cpu, event
 
     if not _expected(cpu.CPUContext.get_executable, codegen.CPUCodeLibrary.finalize,
-                     codegen.CPUCodeLibrary._optimize_final_module, caching.Cache.save_overload):
+                     codegen.CPUCodeLibrary._optimize_final_module, codegen.CPUCodeLibrary._finalize_final_module,
+                     caching.Cache.save_overload):
         return False
     event.register("numba:compile", _depth_listener())
     _wrap(cpu.CPUContext, "get_executable", _get_executable)
     _wrap(codegen.CPUCodeLibrary, "finalize", _finalize)
     _wrap(codegen.CPUCodeLibrary, "_optimize_final_module", _optimize_final_module)
+    _wrap(codegen.CPUCodeLibrary, "_finalize_final_module", _finalize_final_module)
     _wrap(caching.Cache, "save_overload", _save_overload)
     _STATE["installed"] = True
     return True
 
 
-def _expected(get_executable, finalize, optimize, save_overload) -> bool:
-    """Whether numba's methods take the arguments the wrappers pass, and ``finalize`` links
-    ``self._linking_libraries`` and then calls ``self._optimize_final_module()``, as numba 0.68's does."""
+def _expected(get_executable, finalize, optimize, finalize_module, save_overload) -> bool:
+    """Whether numba's methods take the arguments the wrappers pass, ``finalize`` links
+    ``self._linking_libraries`` and then calls ``self._optimize_final_module()``, and
+    ``_finalize_final_module`` scans the module and then adds it to the JIT engine, as numba 0.68's do."""
     def parameters(fn):
         return list(inspect.signature(fn).parameters)
     try:
-        source = inspect.getsource(finalize)
+        source, module_source = inspect.getsource(finalize), inspect.getsource(finalize_module)
     except (OSError, TypeError):
         return False
     links, optimizes = source.find("in self._linking_libraries"), source.find("self._optimize_final_module()")
+    scans = [module_source.find(f"self.{step}()") for step in _SCANS]
+    adds = module_source.find("self._codegen._add_module(self._final_module)")
     return (parameters(get_executable) == ["self", "library", "fndesc", "env"] and parameters(finalize) == ["self"]
-            and parameters(optimize) == ["self"] and parameters(save_overload)[:2] == ["self", "sig"]
-            and 0 <= links < optimizes)
+            and parameters(optimize) == ["self"] and parameters(finalize_module) == ["self"]
+            and parameters(save_overload)[:2] == ["self", "sig"] and 0 <= links < optimizes
+            and 0 <= scans[0] < scans[1] < adds)
+
+
+def entry_points_only() -> None:
+    """From now on in this process, a csim callee gets no machine code of its own: its callers link in
+    its module (:func:`_optimize_final_module`), and Python calls only entry points (:mod:`csim.warmup`'s
+    jobs), so that machine code would never run.
+
+    On the 2-core machine (2026-11-27) emitting the callees' machine code took 4.4 s of the
+    loop job's 36 s and 2.2 s of the right-hand side's 28 s, and their modules' optimization 3.1 s
+    and 1.8 s. Calling such a callee from Python in this process raises a RuntimeError that says
+    so, never a crash: the overload its dispatcher keeps for typing its callers runs a stub.
+    """
+    if install():
+        _stub_pointer()
+        _STATE["callee_code"] = False
+
+
+#: what a call from Python of a callee without machine code raises (:func:`entry_points_only`)
+STUB_MESSAGE = ("csim compiled this function only into the entry points that call it, in this process "
+                "(csim.fast.linking.entry_points_only): it has no machine code of its own to call from Python here")
+
+
+def _stub_pointer() -> int:
+    """The address of a CPython function ``(self, args, kwargs)`` that raises RuntimeError(:data:`STUB_MESSAGE`),
+    the machine code of every callee without its own (:func:`entry_points_only`); built once per process, with
+    this process's addresses of ``PyErr_SetString`` and ``RuntimeError`` in it (never cached)."""
+    if "stub" not in _STATE:
+        import ctypes
+
+        from llvmlite import ir
+        from numba.core.compiler_lock import global_compiler_lock
+        from numba.core.registry import cpu_target
+
+        library = cpu_target.target_context.codegen().create_library("csim_callee_stub")
+        module = library.create_ir_module("csim_callee_stub")
+        obj, address = ir.IntType(8).as_pointer(), ir.IntType(64)
+        text = bytearray(STUB_MESSAGE.encode() + b"\0")
+        message = ir.GlobalVariable(module, ir.ArrayType(ir.IntType(8), len(text)), "csim_callee_stub_message")
+        message.global_constant, message.linkage = True, "internal"
+        message.initializer = ir.Constant(message.type.pointee, text)
+        stub = ir.Function(module, ir.FunctionType(obj, [obj, obj, obj]), "csim_callee_without_machine_code")
+        builder = ir.IRBuilder(stub.append_basic_block())
+        # PyErr_SetString(RuntimeError, message); return NULL
+        set_string = builder.inttoptr(ir.Constant(address, ctypes.cast(ctypes.pythonapi.PyErr_SetString,
+                                                                       ctypes.c_void_p).value),
+                                      ir.FunctionType(ir.VoidType(), [obj, obj]).as_pointer())
+        builder.call(set_string, [builder.inttoptr(ir.Constant(address, id(RuntimeError)), obj),
+                                  builder.bitcast(message, obj)])
+        builder.ret(ir.Constant(obj, None))
+        with global_compiler_lock:
+            library.add_ir_module(module)
+            library.finalize()
+        _STATE["stub"] = (library.get_pointer_to_function(stub.name), library)
+    return _STATE["stub"][0]
 
 
 def _wrap(cls, name, replacement):
@@ -114,6 +178,13 @@ def _get_executable(original, context, library, fndesc, env):
     if (getattr(_DEPTH, "n", 0) > 1 and fndesc.modname.startswith(_CSIM_MODULES)
             and not getattr(library, "_finalized", True)):
         library._csim_own_code = True
+        if not _STATE["callee_code"]:  # (entry_points_only) finalized without machine code, a stub for Python
+            from numba import _dynfunc
+
+            library.finalize()
+            return _dynfunc.make_function(fndesc.lookup_module(), fndesc.qualname.split(".")[-1],
+                                          f"{fndesc.qualname!r}, compiled into its callers only", _stub_pointer(),
+                                          env, (library, _STATE["stub"][1]))
     return original(context, library, fndesc, env)
 
 
@@ -133,11 +204,42 @@ def _finalize(original, library):
 
 
 def _optimize_final_module(original, library):
-    """numba's ``CPUCodeLibrary._optimize_final_module``, after linking in the library's tree of csim
-    callees (:func:`_link_tree`), where it has one."""
+    """numba's ``CPUCodeLibrary._optimize_final_module`` (LLVM's module passes), after linking in the
+    library's tree of csim callees (:func:`_link_tree`), where it has one.
+
+    A csim callee's callers link in its module as it is *before* these passes (numba's: after), and
+    optimize it once, inside theirs: the entry points' machine code is the same whether or not their
+    callees get machine code of their own, which needs the passes, and where they do not
+    (:func:`entry_points_only`) the passes are skipped (3.1 s of the loop job's 32 s, 1.8 s of the
+    right-hand side's 25 s; the entry points' own passes took no longer).
+    """
     tree = getattr(library, "_csim_tree", None)
     if tree:
         _link_tree(library, tree)
+    if own_code_only(library):
+        library._shared_module = _for_linking(library._final_module.clone())
+        if not _STATE["callee_code"]:
+            return None
+    return original(library)
+
+
+def _for_linking(module):
+    """``module`` with its exported functions made ``linkonce_odr``, as numba's ``_get_module_for_linking``
+    makes them (each caller may link in a copy; LLVM drops those it does not call)."""
+    for fn in module.functions:
+        if not fn.is_declaration and fn.linkage.name == "external":
+            fn.linkage = "linkonce_odr"
+    return module
+
+
+def _finalize_final_module(original, library):
+    """numba's ``CPUCodeLibrary._finalize_final_module``, which adds the module to the JIT engine (its
+    machine code), except for a csim callee where :func:`entry_points_only` holds: only its checks."""
+    if own_code_only(library) and not _STATE["callee_code"]:
+        for step in _SCANS:
+            getattr(library, step)()
+        library._finalized = True
+        return None
     return original(library)
 
 

@@ -15,7 +15,7 @@ from contextlib import contextmanager, nullcontext, suppress
 
 import numpy as np
 
-from csim.fast.layout import CONSTRAINED, ELIMINATION, GGL, KKT, PARTITIONED, PI_FEVAL, PI_HEAD, workspace
+from csim.fast.layout import CONSTRAINED, ELIMINATION, GGL, KKT, PARTITIONED, PI_HEAD, workspace
 from csim.fast.module import (
     Drives,
     addressed_function,
@@ -38,13 +38,16 @@ from csim.solver.system import ConstrainedSystem
 INTEGRATOR_CODES = {"DOP853": 0, "RK4": 1, "Radau": 3, "RK45": 4, "Tsit5": 5, "Vern7": 6}
 
 
-def pack_problem(system: ConstrainedSystem, interpreted: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def pack_problem(system: ConstrainedSystem, interpreted: bool = False,
+                 feval: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(par, pf, pi)``: the problem as the flat arrays of :mod:`csim.fast.kernels` (``interpreted``: for the
-    interpreted kernels, whose model functions and gamma* may be Python functions).
+    interpreted kernels, whose model functions and gamma* may be Python functions; ``feval`` False: feval's
+    address left 0, for compiling an entry point from these arrays' types without compiling ``feval``: such
+    arrays must never run).
 
     pf = [magnitudes (k), sw_value (n_sw), fpar (F), gains (G * r), the formulation's floats];
     pi = [mk, n_sw, at(ipar), I, at(fpar), F, at(gains), G * r, m, r, k, o, gamma* address, system kind, d,
-    at(driven), feval's address (0 here: :func:`_arguments` sets it), formulation, at(its integers), at(its
+    at(driven), feval's address, formulation, at(its integers), at(its
     floats), the elimination's address (0 for KKT), model function addresses, workspace offsets, sw_load
     (n_sw), sw_kind (n_sw), ipar (I), driven (d), the formulation's integers]
     (:mod:`csim.fast.layout`), where mk is the method's dispatch code and ``at(x)`` where x
@@ -70,11 +73,14 @@ def pack_problem(system: ConstrainedSystem, interpreted: bool = False) -> tuple[
             else CONSTRAINED)
     driven = np.zeros(0, np.int64) if drives is None else np.array(drives.driven, np.int64)
     form, form_i, form_f = _formulation(system.formulation, m - r)
-    # the elimination's solve, called by address (compiled or loaded here, on the first run that needs it)
-    elim = addressed_function(load_kernels(compiled=not interpreted), "eliminated") if form == ELIMINATION else 0
+    # the right-hand side and the elimination's solve, called by address (compiled or loaded here, on the first
+    # run that needs them)
+    kernels = load_kernels(compiled=not interpreted)
+    feval_at = addressed_function(kernels, "feval") if feval else 0
+    elim = addressed_function(kernels, "eliminated") if form == ELIMINATION else 0
     at_form_i, at_form_f = at_ipar + ipar.size + d, at_fpar + fpar.size + gains.size
     header = [code, n_sw, at_ipar, ipar.size, at_fpar, fpar.size, at_fpar + fpar.size, gains.size, m, r, k, o,
-              gamma_fn, kind, d, at_ipar + ipar.size, 0, form, at_form_i, at_form_f, elim, *model.addresses,
+              gamma_fn, kind, d, at_ipar + ipar.size, feval_at, form, at_form_i, at_form_f, elim, *model.addresses,
               *workspace(m, r, k, n_sw)]
     pf = np.concatenate((loads.magnitudes, loads.sw_value, fpar, gains, form_f)).astype(float)
     pi = np.concatenate((header, loads.sw_load, loads.sw_kind, ipar, driven, form_i)).astype(np.int64)
@@ -112,8 +118,7 @@ def _arguments(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationS
     fset = np.array([settings.t_end, settings.rtol, settings.atol, settings.step, settings.max_step,
                      np.nan if settings.first_step is None else settings.first_step, settings.max_phi,
                      settings.min_step], dtype=float)
-    par, pf, pi = pack_problem(system, interpreted=not kernels.COMPILED)
-    pi[PI_FEVAL] = addressed_function(kernels, "feval") if feval else 0  # (0: for compiling integrate, never to run it)
+    par, pf, pi = pack_problem(system, interpreted=not kernels.COMPILED, feval=feval)
     return (INTEGRATOR_CODES[settings.integrator], np.ascontiguousarray(y0, dtype=float), t_out,
             par, pf, pi, system.stabilizer.projects, iset, fset, np.zeros(2))
 
@@ -149,43 +154,43 @@ def prepare(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSett
 
 
 def compile_loop(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSettings) -> None:
-    """Compile (or load) the kernels' loop, ``integrate``, for the types of its arguments, without calling it
-    and without compiling the right-hand side it calls by address (``feval``: :func:`compile_rhs`), which
-    another process may compile at the same time (:mod:`csim.warmup`); then the elimination's solve
-    (``eliminated``), whose partition choice the loop's ``minimal`` has just typed (5 s in the right-hand
-    side's process, which types it for nothing else; about 2 s here)."""
+    """Compile (or load) the kernels' loop, ``integrate``, and the projection's entry point
+    (``project_entry``, of the tests), for the types of their arguments, without calling them and without
+    compiling the right-hand side they call by address (``feval``: :func:`compile_rhs`), which another
+    process may compile at the same time (:mod:`csim.warmup`). The projection's call tree is the loop's:
+    typed here already, it costs the entry point 0.6 s, and 3 s in the right-hand side's process."""
     from numba import typeof
 
     mod = _kernels_for(system)
-    mod.integrate.compile(tuple(typeof(value) for value in _arguments(system, y0, settings, 0, mod, feval=False)))
-    addressed_function(mod, "eliminated")
+    arguments = _arguments(system, y0, settings, 0, mod, feval=False)
+    mod.integrate.compile(tuple(typeof(value) for value in arguments))
+    y, par, pf, pi = arguments[1], arguments[3], arguments[4], arguments[5]
+    mod.project_entry.compile(tuple(typeof(value) for value in (y, par, pf, pi)))
 
 
 def compile_rhs(system: ConstrainedSystem, y0: np.ndarray) -> None:
-    """Compile (or load) what the kernels hold besides the loop, for the full state ``y0`` of a system that
-    is not partitioned (their types are every method's): the right-hand side the loop calls by address
-    (``feval``), the samples' evaluation (``evaluate_samples``) and the one-state entry points
-    (:func:`compile_entries`)."""
-    mod = _kernels_for(system)
-    addressed_function(mod, "feval")
-    n_sw = system.loads.n_switches
-    evaluate_compiled(system, np.zeros(1), np.asarray(y0, dtype=float)[None], np.zeros((1, n_sw), dtype=bool))
-    compile_entries(system, y0)
+    """Compile (or load) what the kernels hold besides :func:`compile_loop`'s, for the full state ``y0`` of a
+    system that is not partitioned (their types are every method's): the right-hand side the loop calls by
+    address (``feval``), the elimination's solve it calls by address (``eliminated``), the samples'
+    evaluation (``evaluate_samples``) and the right-hand side's entry points (``rhs_entry`` of the tests,
+    ``rhs_repeat`` of ``make bench``), each called once.
 
-
-def compile_entries(system: ConstrainedSystem, y0: np.ndarray) -> None:
-    """Compile (or load) the kernels' one-state entry points for ``system`` by calling each once: the
-    right-hand side (``rhs_entry``, ``rhs_repeat``, of the tests and ``make bench``) and the projection
-    (``project_entry``). What an entry point calls is compiled with it and never cached on its own
-    (:mod:`csim.fast.linking`), so each one links and optimizes the right-hand side's call tree anew
-    (5 s for the three on the 2-core machine)."""
+    What an entry point calls is compiled with it and never cached on its own
+    (:mod:`csim.fast.linking`). The Python side's work (the mode at ``y0``: the core function
+    ``switching_functions``) comes first: in the warm-up's job the kernels' callees get no machine
+    code (:func:`csim.fast.linking.entry_points_only`), and Python can call none of them once an
+    entry point has compiled it.
+    """
     mod = _kernels_for(system)
-    par, pf, pi = pack_problem(system)
     mode = system.mode_at(y0)
+    n_sw = system.loads.n_switches
+    addressed_function(mod, "feval")
+    addressed_function(mod, "eliminated")
+    evaluate_compiled(system, np.zeros(1), np.asarray(y0, dtype=float)[None], np.zeros((1, n_sw), dtype=bool))
+    par, pf, pi = pack_problem(system)
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         mod.rhs_entry(0.0, y0, mode, par, pf, pi)
         mod.rhs_repeat(y0, mode, par, pf, pi, 1)
-        mod.project_entry(y0.copy(), par, pf, pi)
 
 
 def _plain_core(kernels):
