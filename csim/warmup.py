@@ -4,7 +4,7 @@ numba compiles the kernels' one copy (:mod:`csim.fast.module`) into
 :func:`csim.model.cache.kernels_dir`, so that no later command, test session included, waits
 for it. Its two halves share nothing that numba caches (:mod:`csim.fast.linking`: what an
 entry point calls is compiled into it): the loop, ``integrate``, with the projection's entry
-point, and the right-hand side the loop calls by address with the elimination's solve, the
+point and the elimination's solve, and the right-hand side the loop calls by address with the
 samples' evaluation and the right-hand side's entry points. A third
 job compiles the core functions that the Python path calls on their own. Each job runs in a
 process of its own (numba compiles on one core; a process that has compiled the kernels has
@@ -24,9 +24,9 @@ import sys
 import time
 
 #: the jobs of the warm-up (:func:`compile_part`), each in a process of its own, with what its progress line says
-PARTS = {"loop": "the loop (integrate, every integrator and method) and the projection's entry",
-         "rhs": "the right-hand side, the elimination's solve, the samples' evaluation and the right-hand side's "
-                "entries",
+PARTS = {"loop": "the loop (integrate, every integrator and method), the projection's entry and the "
+                 "elimination's solve",
+         "rhs": "the right-hand side, the samples' evaluation and the right-hand side's entries",
          "core": "the core functions of the Python path"}
 #: the methods of the check after the compile: one of the plain system, and minimal's partitioned one
 METHODS = ("none", "minimal")
@@ -44,9 +44,9 @@ def _case(method: str, backend: str):
 def compile_part(part: str) -> None:
     """Run one job of the warm-up (:data:`PARTS`).
 
-    ``loop``: ``integrate`` and ``project_entry``, for minimal's partitioned system (the same
-    types as every other method's; :func:`csim.fast.runner.compile_loop`). ``rhs``: ``feval``,
-    ``eliminated``, ``evaluate_samples``, ``rhs_entry`` and ``rhs_repeat``, for the plain system
+    ``loop``: ``integrate``, ``project_entry`` and ``eliminated``, for minimal's partitioned system
+    (the same types as every other method's; :func:`csim.fast.runner.compile_loop`). ``rhs``:
+    ``feval``, ``evaluate_samples``, ``rhs_entry`` and ``rhs_repeat``, for the plain system
     (:func:`csim.fast.runner.compile_rhs`). Neither gives the functions their entry points call
     machine code of their own (:func:`csim.fast.linking.entry_points_only`). ``core``: a
     short run of the default case on the Python path with each of :data:`METHODS`, whose calls

@@ -141,12 +141,12 @@ def _start(y0, y, yp, mode, projects, par, pf, pi, w, piv, tr, ys, modes, info):
         code = project(y, yp, 0.0, par, pf, pi, w, piv, info)
         if code != OK:
             return code
-        copy_row(yp, ys, 0)
+        copy_row(yp, ys, np.int64(0))  # (not a literal: copy_row is compiled once, for int64)
     else:
         code, yv = full_state(y, par, pf, pi, w, piv)
         if code != OK:
             return code
-        copy_row(yv, ys, 0)
+        copy_row(yv, ys, np.int64(0))
     tr[0] = 0.0
     for jj in range(mode.size):
         modes[0, jj] = mode[jj]

@@ -447,12 +447,12 @@ def _radau_singular(t, n, nd, RJ, cs, info):
                 d[DAE_COLS + count] = j
                 count += 1
         if count:
-            status = _dae_failed(DAE_ZERO_COLUMNS, t, np.nan, np.nan, np.nan, np.nan, info)
+            status = _dae_failed(np.int64(DAE_ZERO_COLUMNS), t, np.nan, np.nan, np.nan, np.nan, info)
             d[DAE_NCOLS] = count
             return status
     cs[R_NSING] += 1
     if cs[R_NSING] >= MAX_SINGULAR:
-        return _dae_failed(DAE_SINGULAR_REPEATED, t, np.nan, cs[R_NSING], np.nan, np.nan, info)
+        return _dae_failed(np.int64(DAE_SINGULAR_REPEATED), t, np.nan, float(cs[R_NSING]), np.nan, np.nan, info)
     return OK
 
 
@@ -564,9 +564,11 @@ def _radau_step(ts_, t_end, rtol, tolv, max_step, y, f, F, y_old, y_new, f_new, 
     if dae:
         _radau_algebraic_tolerances(y, nd, pf[pi[PI_FPAR] + 1], RM, RJ)  # (GGL's fpar: [projection tol, ggl_tol])
     scale = RM[R_SCALE]
-    rejected = False
+    # (numpy's scalars, not literals: a callee passed a literal False or 0 was compiled once for it and again for
+    # the variable's type; so RADAU, the reasons and OK below)
+    rejected = np.bool_(False)
     converged = False
-    newton_failure = 0  # dae: the reason of the last failed Newton attempt (0: none since the last error test)
+    newton_failure = np.int64(0)  # dae: the reason of the last failed Newton attempt (0: none since the error test)
     cs[R_NSING] = 0
     n_iter, rate, err_norm, safety, t_new = 0, np.nan, 0.0, 0.0, t
     while True:
@@ -581,7 +583,7 @@ def _radau_step(ts_, t_end, rtol, tolv, max_step, y, f, F, y_old, y_new, f_new, 
         h_abs = abs(h)
         for a in range(3):  # Z0: the last step's dense output at t + c h, less y (zero at a start)
             if cs[R_SOL] == 1:
-                dense_eval(RADAU, t + h * RAD_C[a], ts_[R_SOL_T], ts_[R_SOL_H], y_old, F, RM[R_Z0 + a])
+                dense_eval(np.int64(RADAU), t + h * RAD_C[a], ts_[R_SOL_T], ts_[R_SOL_H], y_old, F, RM[R_Z0 + a])
             for i in range(n):
                 RM[R_Z0 + a, i] = RM[R_Z0 + a, i] - y[i] if cs[R_SOL] == 1 else 0.0
         for i in range(n):

@@ -188,7 +188,7 @@ def _failure_details(pi, w, piv, info):
 def _pending(pi, w, piv):
     """The breakdown of a full state met where no code could be returned (a switching function's value), cleared."""
     if pi[PI_SYS] == PARTITIONED:
-        return _set_pending(pi, w, piv, OK)
+        return _set_pending(pi, w, piv, np.int64(OK))  # (not a literal: compiled once, for int64)
     return OK
 
 
