@@ -15,6 +15,7 @@ import signal
 import sys
 import tempfile
 import threading
+import traceback
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -82,11 +83,16 @@ RESULT_SUFFIXES = (".h5", ".hdf5")
 
 
 def _fail_input(exc: CsimError) -> NoReturn:
-    lines = exc.problems if isinstance(exc, CaseError) else [str(exc)]
-    typer.echo(f"csim: error: {len(lines)} problem(s):" if len(lines) > 1 else "csim: error:", err=True)
-    for line in lines:
-        typer.echo(f"  {line}", err=True)
+    for line in _input_lines(exc):
+        typer.echo(line, err=True)
     raise typer.Exit(EXIT_BAD_INPUT)
+
+
+def _input_lines(exc: CsimError) -> list[str]:
+    """The lines of bad input's message: a header, then each problem (a CaseError's, or the error itself)."""
+    problems = exc.problems if isinstance(exc, CaseError) else [str(exc)]
+    header = f"csim: error: {len(problems)} problem(s):" if len(problems) > 1 else "csim: error:"
+    return [header, *(f"  {line}" for line in problems)]
 
 
 def check_writable(out: Path, protect: list[Path] = (), suffixes: tuple[str, ...] = (), option: str = "--output",
@@ -975,14 +981,21 @@ def schema(
 def main() -> None:
     """Console-script entry point.
 
-    An expected error (:class:`csim.errors.CsimError`) that reaches it is printed as a message,
-    exit 1. After Ctrl-C (exit 130) the process ends at once, without the interpreter's clean-up
-    of its objects (up to half a second with a derived model loaded): every file is
-    written and closed by then, and the user asked it to stop.
+    An expected error (:class:`csim.errors.CsimError`) that reaches it is printed as a message:
+    exit 2 for bad input (:class:`~csim.errors.CaseError`), 1 for any other; ``CSIM_TRACEBACK=1``
+    prints its traceback too, for a bug report. After Ctrl-C (exit 130) the process ends at once,
+    without the interpreter's clean-up of its objects (up to half a second with a derived model
+    loaded): every file is written and closed by then, and the user asked it to stop.
     """
     try:
         app(prog_name="csim")
     except CsimError as exc:  # one a command did not turn into its own message: still a message, not a traceback
+        if os.environ.get("CSIM_TRACEBACK", "") not in ("", "0"):
+            traceback.print_exc()
+        if isinstance(exc, CaseError):
+            for line in _input_lines(exc):
+                typer.echo(line, err=True)
+            sys.exit(EXIT_BAD_INPUT)
         typer.echo(f"csim: error: {exc}", err=True)
         sys.exit(EXIT_FAILED)
     except SystemExit as exc:

@@ -554,7 +554,30 @@ def test_an_expected_error_no_command_words_is_still_a_message(monkeypatch, caps
         raise CacheError("the symbolic linkage does not match its plan")
 
     monkeypatch.setattr(cli, "app", app)
+    monkeypatch.delenv("CSIM_TRACEBACK", raising=False)
     with pytest.raises(SystemExit) as info:
         cli.main()
     assert info.value.code == cli.EXIT_FAILED
     assert capsys.readouterr().err == "csim: error: the symbolic linkage does not match its plan\n"
+
+
+@pytest.mark.parametrize("traceback", ["", "1"])
+def test_bad_input_that_reaches_the_entry_point_exits_2_and_csim_traceback_shows_where(monkeypatch, capsys,
+                                                                                      traceback):
+    """A CaseError no command turned into its own message is bad input (exit 2, its problems listed);
+    CSIM_TRACEBACK=1 adds the traceback, for a bug report."""
+    import csim.cli as cli
+    from csim.errors import CaseError
+
+    def app(prog_name):
+        raise CaseError(["mechanism.drive: 'w*t**1.5' has no finite acceleration at t = 0", "simulation.rtol: -1"])
+
+    monkeypatch.setattr(cli, "app", app)
+    monkeypatch.setenv("CSIM_TRACEBACK", traceback)
+    with pytest.raises(SystemExit) as info:
+        cli.main()
+    assert info.value.code == cli.EXIT_BAD_INPUT
+    err = capsys.readouterr().err
+    assert err.endswith("csim: error: 2 problem(s):\n  mechanism.drive: 'w*t**1.5' has no finite acceleration at "
+                        "t = 0\n  simulation.rtol: -1\n")
+    assert ("Traceback (most recent call last)" in err) == bool(traceback)
