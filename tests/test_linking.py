@@ -318,3 +318,15 @@ def test_a_recursive_tree_is_not_cached(tmp_path):
     assert _load(tmp_path)["value"] == 10.0  # entry(3.0): even(3) = 0, odd(3) = 1
     assert _cached(tmp_path) == []
     assert _load(tmp_path)["value"] == 10.0
+
+
+def test_a_recursive_tree_does_not_run_where_callees_have_no_machine_code(tmp_path):
+    """Under entry_points_only numba cannot resolve the recursive call (it points at the callee's machine code):
+    a RuntimeError, not a crash; a later process compiles and runs it as before."""
+    (tmp_path / "csim_fast_kernels_tree.py").write_text(RECURSIVE)
+    code = ("import sys; sys.path.insert(0, sys.argv[1]); from csim.fast import linking; linking.entry_points_only()\n"
+            "import csim_fast_kernels_tree as tree\ntree.entry(3.0)")
+    done = subprocess.run([sys.executable, "-c", code, str(tmp_path)], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 1 and "RuntimeError" in done.stderr and "unresolved symbol" in done.stderr, done.stderr
+    assert _cached(tmp_path) == []
+    assert _load(tmp_path)["value"] == 10.0

@@ -38,7 +38,7 @@ def test_the_warm_up_leaves_every_entry_point_compiled(warmed):
         assert list(cache.glob(f"{entry}-*.nbi")), entry
 
 
-#: compile_rhs (feval, the elimination, the samples' evaluation, the right-hand side's entries) in a fresh
+#: compile_rhs (feval, the samples' evaluation, the right-hand side's entries) in a fresh
 #: kernels' cache; the types of ``located`` that numba compiled ``rhs`` for
 RHS_TYPES = """
 import json

@@ -98,6 +98,10 @@ def entry_points_only() -> None:
     loop job's 36 s and 2.2 s of the right-hand side's 28 s, and their modules' optimization 3.1 s
     and 1.8 s. Calling such a callee from Python in this process raises a RuntimeError that says
     so, never a crash: the overload its dispatcher keeps for typing its callers runs a stub.
+    A recursive function does not run in such a process either (numba resolves the recursive call
+    to the callee's machine code, which it has not got: "unresolved symbol", a RuntimeError); the
+    kernels have none, and a recursive tree is never cached anyway (:func:`_link_tree`): a later
+    process compiles it on first use, as it would have (tests/test_linking.py).
     """
     if install():
         _stub_pointer()

@@ -121,7 +121,8 @@ def _as_plain(pi):
 @allocating
 def rhs_entry(t, y, mode, par, pf, pi):
     """dy/dt and [qdd, lambda] at time t and one state [q, qd, W] (mode held), for comparison with the Python
-    path: the status (NONFINITE_RHS where dy/dt is not finite), dy/dt and [qdd, lambda]."""
+    path: the status (NONFINITE_RHS where dy/dt is not finite), dy/dt and [qdd, lambda]. Its arguments have
+    feval's types (``FEVAL_TYPES``: a float t, writable contiguous float arrays), as it calls feval by address."""
     w = np.zeros(pi[W_END])
     piv = np.zeros(int_workspace(pi), np.int64)
     f = np.empty(y.size)
