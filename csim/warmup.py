@@ -128,7 +128,7 @@ def _all() -> int:
               "compile)")
         return 0
     start = time.perf_counter()
-    print(f"csim: compiling the kernels into {kernels_dir()} (once per installation; about 35 s on 2 cores, "
+    print(f"csim: compiling the kernels into {kernels_dir()} (once per installation; about 30 s on 2 cores, "
           f"twice that on one) ...", flush=True)
     failed = _run_slots(_slots(_cpus()))
     if failed:
@@ -157,8 +157,8 @@ def _slots(cpus: int) -> list[list[str]]:
     Parameters
     ----------
     cpus : int
-        The CPUs to use: a slot a job on three or more; on two, the loop (29-30 s on the 2-core
-        machine, 2026-11-27) beside the right-hand side (26 s) and then the core functions (5-6 s); on one,
+        The CPUs to use: a slot a job on three or more; on two, the loop (28-30 s on the 2-core
+        machine, 2026-11-27) beside the right-hand side (22 s) and then the core functions (5 s); on one,
         every job in one slot.
 
     Returns
