@@ -174,7 +174,7 @@ def test_the_light_definition_says_which_loads_have_a_law(cache):
 
 def test_the_plan_reads_back_as_written():
     plan = LinkagePlan(variables=["q1"], start={"q1": 0.5}, drive_names=[], drive_expressions=[], drive_parameters=[],
-                       drive_exponents=[],
+                       drive_substituted=[],
                        dof=1, planar=True, parameters={"a": 0.1}, link_labels={0: "ground", 1: "crank"},
                        mass_links=[1], equations=[], generic_rank=0, cut_joints=[], tree_joints=[],
                        definition={"name": "m"}, build_key="k")

@@ -146,12 +146,12 @@ class Linkage:
         normal = next((c for c in tables.couplings if JOINT_TYPES[c.type].planar_axis == "normal"), None)
         drives = [sp.sympify(e) for e in self.drive.values()]
         used = set().union(*(e.free_symbols for e in drives))
-        exponents = set().union(*(p.exp.free_symbols for e in drives for p in e.atoms(sp.Pow)))
+        substituted = _drive_parameters_put_in(drives)
         return LinkagePlan(
             variables=self.variable_names, start=dict(self.start), drive_names=list(self.drive),
             drive_expressions=[sp.srepr(e) for e in drives],
             drive_parameters=[n for n, symbol in tables.symbols.items() if symbol in used],
-            drive_exponents=[n for n, symbol in tables.symbols.items() if symbol in exponents],
+            drive_substituted=[n for n, symbol in tables.symbols.items() if symbol in substituted],
             dof=self.dof, planar=self.planar, parameters=dict(tables.parameters),
             link_labels={n: link.label for n, link in sorted(tables.links.items())},
             mass_links=[n for n, link in sorted(tables.links.items()) if n != 0 and link.has_mass],
@@ -160,6 +160,21 @@ class Linkage:
             tree_joints=[record(c, subtree(topology, child[c.number])) for c in topology.tree_joints],
             normal_joint=None if normal is None else [normal.i, normal.k],
             definition=snapshot(self.definition), cache_key=self.cache_key, build_key=self.build_key)
+
+
+def _drive_parameters_put_in(drives: list) -> set:
+    """The parameters whose values the compiled drive rows must take (:attr:`LinkagePlan.drive_substituted`):
+    those in an exponent (w t^n: differentiated with n a symbol, n (n - 1) w t^(n - 2) is 0 * inf at
+    t = 0 for n = 1), and those in a term of a drive or its first two derivatives that is not finite at
+    t = 0 (b t^1.5: 0.75 b / sqrt(t) is 0 * inf there for b = 0, where the Python path, which puts every
+    value in first, runs w t + b t^1.5 as w t; for b != 0 the case is rejected, csim.case)."""
+    put_in = set().union(*(p.exp.free_symbols for e in drives for p in e.atoms(sp.Pow)))
+    for row in (drives, *drive_rates(drives, T)):
+        for expr in row:
+            for term in sp.Add.make_args(sp.expand(expr)):
+                if term.subs(T, 0).has(sp.zoo, sp.oo, -sp.oo, sp.nan):
+                    put_in |= term.free_symbols - {T}
+    return put_in
 
 
 def _resolve_drive(tables: Tables, problems: list[str]) -> tuple[dict[int, list], dict]:

@@ -39,7 +39,7 @@ from csim.model.cache import cache_dir
 from csim.model.light import LightDefinition
 
 #: bump when the plan's content changes
-PLAN_VERSION = "3"
+PLAN_VERSION = "4"
 
 #: the status of a cut-joint equation (:class:`csim.linkage.constraints.Equation`)
 KEPT, ZERO, DEPENDENT = "kept", "identically zero", "dependent"
@@ -116,9 +116,11 @@ class LinkagePlan:
         Each drive as sympy's ``srepr``, in ``t`` and the parameters (the compiled drive rows').
     drive_parameters : list of str
         The parameters the drives read.
-    drive_exponents : list of str
-        Those of them in an exponent (a drive w t^n): the compiled drive rows take their values, since
-        differentiated with n a symbol, f'' = n (n - 1) w t^(n - 2) is 0 * inf at t = 0 for n = 1.
+    drive_substituted : list of str
+        Those of them whose values the compiled drive rows take, where the others stay parameters of
+        the model: those in an exponent (a drive w t^n: differentiated with n a symbol, f'' = n (n - 1)
+        w t^(n - 2) is 0 * inf at t = 0 for n = 1), and those in a term not finite at t = 0 (b t^1.5
+        with b = 0: f'' = 0.75 b / sqrt(t)) (:func:`csim.linkage.model._drive_parameters_put_in`).
     dof : int
     planar : bool
     parameters : dict str -> float
@@ -143,7 +145,7 @@ class LinkagePlan:
     drive_names: list[str]
     drive_expressions: list[str]
     drive_parameters: list[str]
-    drive_exponents: list[str]
+    drive_substituted: list[str]
     dof: int
     planar: bool
     parameters: dict[str, float]
@@ -408,13 +410,13 @@ class LightLinkage:
 
     def drive_expressions(self, parameters: dict[str, float], keep: list[str]) -> list[str]:
         """Each drive as sympy's ``srepr``, in ``t`` and the parameters named in ``keep``
-        (:meth:`csim.linkage.model.Linkage.drive_expressions`), but for those in an exponent
-        (``drive_exponents``), whose values are put in: the filed text (with the exponents' values
-        written in, :func:`_with_values`) where the drives read no other parameter, else derived with
-        the values of the others put in."""
-        keep = [name for name in keep if name not in self.plan.drive_exponents]
-        if set(self.plan.drive_parameters) - set(keep) <= set(self.plan.drive_exponents):
-            values = {name: parameters.get(name, self.plan.parameters.get(name)) for name in self.plan.drive_exponents}
+        (:meth:`csim.linkage.model.Linkage.drive_expressions`), but for those of ``drive_substituted``,
+        whose values are put in: the filed text (with their values written in, :func:`_with_values`)
+        where the drives read no other parameter, else derived with the values of the others put in."""
+        substituted = self.plan.drive_substituted
+        keep = [name for name in keep if name not in substituted]
+        if set(self.plan.drive_parameters) - set(keep) <= set(substituted):
+            values = {name: parameters.get(name, self.plan.parameters.get(name)) for name in substituted}
             return [_with_values(text, values) for text in self.plan.drive_expressions]
         return self.full().drive_expressions(parameters, keep)
 
