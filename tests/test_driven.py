@@ -370,44 +370,30 @@ def test_a_drive_with_a_parameter_exponent_is_differentiated_at_the_values():
         np.testing.assert_allclose(run.drive_forces, linear.drive_forces, rtol=0, atol=1e-9)
 
 
-def test_a_drive_with_a_parameter_exponent_runs_compiled_with_its_value():
-    """The compiled drive rows take the values of the parameters in an exponent (the plan's ``drive_substituted``):
-    with n a symbol, gamma_d = n (n - 1) w t^(n - 2) was 0 * inf at t = 0 for n = 1, a blow-up at t = 0 that
-    the Python path did not have. A parameter elsewhere in the drive (w) stays a parameter of the model."""
+@pytest.mark.parametrize("name, value, drive", [("n", 1, "w*t^n + th0"), ("b", 0, "w*t + b*t^1.5 + th0")],
+                         ids=["exponent", "singular-term"])
+def test_a_drive_parameter_the_rows_are_singular_in_runs_compiled_with_its_value(name, value, drive):
+    """The compiled drive rows take the values of the parameters in an exponent, or in a term not finite at t = 0
+    (the plan's ``drive_substituted``): with n a symbol, gamma_d = n (n - 1) w t^(n - 2) was 0 * inf at t = 0 for
+    n = 1, and with b one, 0.75 b / sqrt(t) for b = 0, blow-ups at t = 0 that the Python path (which puts every
+    value in first and runs w t) did not have. A parameter elsewhere in the drive (w) stays a parameter of the
+    model."""
     data = _data(t_end=0.3, rtol=1e-9, atol=1e-9, backend="compiled")
-    data["mechanism"]["parameters"]["n"] = 1
-    data["mechanism"]["drive"] = {"crank": "w*t^n + th0"}
+    data["mechanism"]["parameters"][name] = value
+    data["mechanism"]["drive"] = {"crank": drive}
     case = validate_case(data)
-    assert case.linkage.plan.drive_substituted == ["n"]
-    powered = run_case(case)
-    linear = run_case(validate_case(_data(t_end=0.3, rtol=1e-9, atol=1e-9, backend="python")))
-    assert powered.ok and powered.backend == "compiled", powered.message
-    np.testing.assert_allclose(powered.q, linear.q, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(powered.drive_forces, linear.drive_forces, rtol=1e-7, atol=1e-7)
-    expressions = case.linkage.drive_expressions(case.parameters, case.mechanism.parameter_names)
-    assert "'n'" not in expressions[0] and "'w'" in expressions[0]
-    # a warm run writes the value into the filed text: no symbolic linkage (no sympy) for it (helper-33)
-    warm = validate_case(data)
-    assert warm.linkage.drive_expressions(warm.parameters, warm.mechanism.parameter_names) == expressions
-    assert warm.linkage._full is None
-
-
-def test_a_parameter_that_removes_a_singular_term_is_put_in_the_compiled_drive_rows():
-    """w t + b t^1.5 with b = 0: the Python path puts b in first and runs w t; the compiled drive rows kept b as a
-    parameter, and gamma_d = 0.75 b / sqrt(t) was 0 * inf at t = 0, a blow-up the Python path did not have (the
-    last session's note). b's value is put in (the plan's ``drive_substituted``); w stays a parameter."""
-    data = _data(t_end=0.3, rtol=1e-9, atol=1e-9, backend="compiled")
-    data["mechanism"]["parameters"]["b"] = 0
-    data["mechanism"]["drive"] = {"crank": "w*t + b*t^1.5 + th0"}
-    case = validate_case(data)
-    assert case.linkage.plan.drive_substituted == ["b"]
+    assert case.linkage.plan.drive_substituted == [name]
     run = run_case(case)
     linear = run_case(validate_case(_data(t_end=0.3, rtol=1e-9, atol=1e-9, backend="python")))
     assert run.ok and run.backend == "compiled", run.message
     np.testing.assert_allclose(run.q, linear.q, rtol=0, atol=1e-9)
     np.testing.assert_allclose(run.drive_forces, linear.drive_forces, rtol=1e-7, atol=1e-7)
     expressions = case.linkage.drive_expressions(case.parameters, case.mechanism.parameter_names)
-    assert "'b'" not in expressions[0] and "'w'" in expressions[0]
+    assert f"'{name}'" not in expressions[0] and "'w'" in expressions[0]
+    # a warm run writes the value into the filed text: no symbolic linkage (no sympy) for it (helper-33)
+    warm = validate_case(data)
+    assert warm.linkage.drive_expressions(warm.parameters, warm.mechanism.parameter_names) == expressions
+    assert warm.linkage._full is None
 
 
 @pytest.mark.parametrize("n", [1.5, 1.0000000000000002])
