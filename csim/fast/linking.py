@@ -22,6 +22,11 @@ is as before one module per entry point with its callees inlined where LLVM find
 (:func:`_link_tree` says why the copies are private, and why it links until nothing of the
 tree is left declared).
 
+A callee's callers link in its module as it was before LLVM's module passes (:func:`_optimize_final_module`),
+so that what an entry point runs does not depend on whether its callees got machine code of their
+own: in a process that calls only entry points (:func:`entry_points_only`, the warm-up's jobs) they
+get none, and no module passes either.
+
 A callee finalized so is not written to numba's cache: its machine code needs its callees'
 symbols, which a later process that loads it alone would not have. A later process that needs
 it compiles it again (only when an entry point compiles: a warm run loads the entry points,
