@@ -4,22 +4,20 @@ and the projection at one state, for the tests and the benchmark.
 
 :func:`evaluate_samples` and :func:`rhs_entry` call the right-hand side through feval's address
 (pi[PI_FEVAL], :func:`csim.fast.runner.pack_problem` sets it), as the loop does, as the plain
-system's (pi[PI_SYS] = CONSTRAINED for the call: every method's samples are full states [q, qd,
-W]); each linking the right-hand side's whole call tree into its own and optimizing it again took
-2 s more of the cold compile on the 2-core machine (2026-11-27). :func:`rhs_repeat`, the
+system's (:func:`.system.plain_feval`: every method's samples are full states [q, qd, W]); each
+linking the right-hand side's whole call tree into its own and optimizing it again took 2 s more
+of the cold compile on the 2-core machine (2026-11-27). :func:`rhs_repeat`, the
 benchmark's timing loop, calls it directly: what it times is the right-hand side alone.
 """
 import numpy as np
 
 from csim.fast.layout import (
-    CONSTRAINED,
     PI_FEVAL,
     PI_NC,
     PI_NL,
     PI_NO,
     PI_NQ,
     PI_NSW,
-    PI_SYS,
     W_B,
     W_END,
     W_PD,
@@ -31,7 +29,7 @@ from csim.physics.status import NONFINITE_RHS, OK
 
 from .calls import kinetic, observe, potential
 from .common import LOCATED, allocating, inlined
-from .system import feval_call, int_workspace, project, rhs
+from .system import int_workspace, plain_feval, project, rhs
 
 
 # ---------------------------------------------------------------------------------------
@@ -81,13 +79,13 @@ def evaluate_samples(ts, ys, modes, par, pf, pi):
     u, energy = np.full((N, nl), np.nan), np.full((N, 2), np.nan)
     obs = np.empty((N, 2 * no))
     info = np.zeros(2)
-    system = _as_plain(pi)
+    _require_feval(pi)
     for i in range(N):
         y = ys[i]
         if no > 0:
             observe(y, par, pi, obs[i])
         mode[:] = modes[i]
-        if feval_call(ts[i], y, mode, LOCATED, par, pf, pi, w, piv, f, info) not in (OK, NONFINITE_RHS):
+        if plain_feval(ts[i], y, mode, LOCATED, par, pf, pi, w, piv, f, info) not in (OK, NONFINITE_RHS):
             ok[i] = False  # (a non-finite result is recorded as it is)
             continue
         x[i] = w[pi[W_X]:pi[W_X] + nk]
@@ -101,18 +99,14 @@ def evaluate_samples(ts, ys, modes, par, pf, pi):
             Q[i, a] = acc
         energy[i, 0] = kinetic(y, par, pi, w)
         energy[i, 1] = potential(y, par, pi, w)
-    pi[PI_SYS] = system
     return ok, x, phi, phi_dot, u, Q, energy, obs
 
 
 @inlined
-def _as_plain(pi):
-    """pi[PI_SYS] set to CONSTRAINED, for feval's address (pi[PI_FEVAL], which must be set); returns what it was."""
+def _require_feval(pi):
+    """A ValueError where feval's address pi[PI_FEVAL] is not set (a call through 0 would crash)."""
     if pi[PI_FEVAL] == 0:
         raise ValueError("pi[PI_FEVAL], the address of feval, is not set (csim.fast.runner.pack_problem sets it)")
-    system = pi[PI_SYS]
-    pi[PI_SYS] = CONSTRAINED
-    return system
 
 
 # ---------------------------------------------------------------------------------------
@@ -126,9 +120,8 @@ def rhs_entry(t, y, mode, par, pf, pi):
     w = np.zeros(pi[W_END])
     piv = np.zeros(int_workspace(pi), np.int64)
     f = np.empty(y.size)
-    system = _as_plain(pi)
-    code = feval_call(t, y, mode.copy(), LOCATED, par, pf, pi, w, piv, f, np.zeros(2))
-    pi[PI_SYS] = system
+    _require_feval(pi)
+    code = plain_feval(t, y, mode.copy(), LOCATED, par, pf, pi, w, piv, f, np.zeros(2))
     return code, f, w[pi[W_X]:pi[W_X] + pi[PI_NQ] + pi[PI_NC]].copy()
 
 

@@ -334,6 +334,18 @@ def feval_call(t, y, mode, located, par, pf, pi, w, piv, f, info):
     return call_feval(pi[PI_FEVAL], t, y, mode, located, par, pf, pi, w, piv, f, info)
 
 
+@inlined
+def plain_feval(t, y, mode, located, par, pf, pi, w, piv, f, info):
+    """:func:`feval_call` as the plain system's right-hand side at a full state [q, qd, W], whatever the
+    system integrated (pi[PI_SYS], which feval reads, set to CONSTRAINED for the call and then restored):
+    GGL's multipliers, and the samples' recorded quantities of every method."""
+    system = pi[PI_SYS]
+    pi[PI_SYS] = CONSTRAINED
+    code = feval_call(t, y, mode, located, par, pf, pi, w, piv, f, info)
+    pi[PI_SYS] = system
+    return code
+
+
 # ---------------------------------------------------------------------------------------
 # GGL's DAE (csim.solver.ggl_system.GGLSystem): x = [q, v, W, mu, lambda]
 # ---------------------------------------------------------------------------------------
@@ -368,11 +380,9 @@ def ggl_consistent(t, y, mode, yp, par, pf, pi, w, piv, info):
     n0 = 2 * nq + pi[PI_NL]
     for i in range(n0):
         y[i] = yp[i]
-    # lambda: the KKT solve of the plain system's right-hand side at [q, v, W], called through feval's address as
-    # the plain system (pi[PI_SYS] is read there), so that the loop links none of it
-    pi[PI_SYS] = CONSTRAINED
-    code = feval_call(t, y[:n0], mode, LOCATED, par, pf, pi, w, piv, yp[:n0], info)
-    pi[PI_SYS] = GGL
+    # lambda: the KKT solve of the plain system's right-hand side at [q, v, W], through feval's address, so that
+    # the loop links none of it
+    code = plain_feval(t, y[:n0], mode, LOCATED, par, pf, pi, w, piv, yp[:n0], info)
     if code != OK:
         return code
     for i in range(nc):
