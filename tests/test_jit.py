@@ -78,6 +78,37 @@ def test_a_lazy_kernel_compiles_on_first_call_and_is_typed_in_compiled_callers()
     assert np.isclose(twice(np.float64(0.25)), 0.5)
 
 
+def test_an_inline_kernel_is_inlined_in_numbas_ir_into_an_inlining_root_only():
+    """Into a root, numba inlines the function's IR (it never compiles it on its own); into any other
+    caller, a call (it compiles it for the caller). The same numbers either way."""
+    pytest.importorskip("numba")
+    from numba import njit
+
+    from csim.physics import jit
+    if jit.pure_python():
+        pytest.skip("CSIM_PURE_PYTHON: nothing compiles")
+
+    def _add_one(x):
+        return x + 1.0
+    add_one = jit.inline_kernel(_add_one)
+    add_one = add_one.compiled() if isinstance(add_one, LazyKernel) else add_one  # what a csim module binds
+
+    @njit
+    @jit.inlining_root
+    def root(x):
+        return add_one(x) * 2.0
+
+    @njit
+    def other(x):
+        return add_one(x) * 3.0
+
+    assert root(1.0) == 4.0
+    assert not add_one.signatures  # inlined into the root: no compile of its own
+    assert other(1.0) == 6.0
+    assert add_one.signatures  # called by the other one
+    assert jit._INLINING["open"] == [] and not jit._INLINING["on"]
+
+
 def test_plain_runs_a_core_function_not_yet_compiled_as_python(monkeypatch):
     """Inside ``plain()`` a LazyKernel that has not been compiled calls its Python function and
     leaves numba alone; outside, or once compiled, it is the compiled one."""

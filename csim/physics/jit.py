@@ -36,6 +36,9 @@ _NUMBA = {"njit": None, "tried": False, "bound": False}
 _JITABLES: list = []
 #: how many :func:`plain` blocks are open
 _PLAIN = {"depth": 0}
+#: the :func:`inline_kernel` functions (their LazyKernels), and for each numba:compile event open whether
+#: it is an :func:`inlining_root`'s (:func:`_switch_inlining`)
+_INLINING = {"kernels": [], "open": [], "on": False}
 
 
 def pure_python() -> bool:
@@ -65,6 +68,7 @@ def activate():
     for fn in _JITABLES:
         _register_jitable(fn)
     _bind_at_first_compile()
+    _switch_inlining()
     return njit
 
 
@@ -98,6 +102,44 @@ def _bind_dispatchers():
                 setattr(module, key, value.compiled())
 
 
+def _switch_inlining():
+    """Have every compile (numba's numba:compile event, which it broadcasts before it types a function,
+    and again when done) switch the :func:`inline_kernel` functions' inlining in numba's IR on where
+    the function compiled is an :func:`inlining_root`, off for any other, and back when it ends (a
+    callee compiles inside its caller's compile: its caller's inlining ran before, its own is its own).
+    (Listed after the binding's listener: the dispatchers exist when it switches them.)"""
+    from numba.core import event
+
+    class InliningListener(event.Listener):
+        def on_start(self, ev):
+            py_func = getattr(ev.data.get("dispatcher"), "py_func", None)
+            _INLINING["open"].append(getattr(py_func, "_csim_inlining_root", False))
+            _set_inlining(_INLINING["open"][-1])
+
+        def on_end(self, ev):
+            _INLINING["open"].pop()
+            _set_inlining(bool(_INLINING["open"]) and _INLINING["open"][-1])
+    event.register("numba:compile", InliningListener())
+
+
+def _set_inlining(on: bool) -> None:
+    """Whether numba inlines the :func:`inline_kernel` functions in its IR into the callers it compiles
+    from now on (its ``inline`` option, which it reads from the callee's dispatcher at each call site)."""
+    _INLINING["on"] = on
+    for lazy in _INLINING["kernels"]:
+        if lazy._compiled is not None and hasattr(lazy._compiled, "targetoptions"):
+            lazy._compiled.targetoptions["inline"] = "always" if on else "never"
+
+
+def inlining_root(fn):
+    """Decorator: numba inlines the :func:`inline_kernel` functions ``fn`` calls in its IR into ``fn``
+    (and so the ones those call, and so on: their calls are ``fn``'s once inlined), where sizes passed
+    as constants fix their loops (the right-hand side: :func:`inline_kernel`). Returns ``fn`` marked,
+    for the decorator that compiles it."""
+    fn._csim_inlining_root = True
+    return fn
+
+
 def compiled() -> bool:
     """Whether the core functions are compiled in this process (imports numba)."""
     return activate() is not None
@@ -124,7 +166,10 @@ class LazyKernel:
         """The numba dispatcher (or the plain function where numba does not load)."""
         if self._compiled is None:
             njit = activate()
-            self._compiled = self.python if njit is None else njit(**self._options)(self.py_func)
+            options = dict(self._options)
+            if "inline" in options:  # an inline_kernel: as the compile under way has it (_switch_inlining)
+                options["inline"] = "always" if _INLINING["on"] else "never"
+            self._compiled = self.python if njit is None else njit(**options)(self.py_func)
         return self._compiled
 
     def __call__(self, *args):
@@ -157,23 +202,27 @@ def kernel(fn):
 def _lazy(fn, options, python=None):
     """A LazyKernel, or the dispatcher itself once the dispatchers are bound (:func:`_bind_dispatchers`)."""
     lazy = LazyKernel(fn, options, python)
+    if "inline" in options:
+        _INLINING["kernels"].append(lazy)
     return lazy.compiled() if _NUMBA["bound"] else lazy
 
 
 def inline_kernel(fn=None, *, python=None):
-    """:func:`kernel`, and inlined into compiled callers in numba's IR, so that the sizes they pass
-    as constants fix its loop lengths (the KKT solve of a right-hand side: about 0.6x the time of a
-    call). Only for the few functions on the right-hand side's path: inlining costs compile time.
+    """:func:`kernel`, and inlined in numba's IR into an :func:`inlining_root` (the right-hand side),
+    so that the sizes it passes as constants fix its loop lengths (the KKT solve of a right-hand side:
+    about 0.6x the time of a call). Elsewhere (the loop, the Python path's calls) a call, which LLVM
+    inlines where it pays: there the IR inlining made no run faster and took 4-5 s of the loop's
+    compile on the 2-core machine (compiled rows alternated, 2026-11-27).
 
     ``python`` (``@inline_kernel(python=twin)``): what runs in its place where it is not compiled,
     for the rare operation whose Python scalars compute otherwise than compiled code (numpy's
     complex division, :func:`csim.physics.linalg.quotient`)."""
     if fn is None:
         return lambda f: inline_kernel(f, python=python)
-    return _lazy(fn, dict(inline="always", **NJIT_OPTIONS), python)
+    return _lazy(fn, dict(inline="never", **NJIT_OPTIONS), python)
 
 
-def jitable(fn=None, *, inline: bool = False):
+def jitable(fn):
     """Decorator for a core function that evaluates the model (:mod:`csim.physics.model`): ``fn`` itself
     to a Python caller, compiled into the compiled callers that call it.
 
@@ -181,16 +230,10 @@ def jitable(fn=None, *, inline: bool = False):
     call its methods); the compiled kernels pass their tuple (model functions called through
     their addresses, :mod:`csim.fast.kernels`), for which the kernels overload those functions.
     The function is compiled as part of each compiled caller (numba's ``register_jitable``), so
-    it is cached with the caller, never on its own. It must not allocate.
-
-    ``inline=True`` (``@jitable(inline=True)``) inlines it in numba's IR into its compiled
-    callers: a call of a numba function passes every array argument as a struct of seven
-    words, which for a function of twenty arrays called once per step (the projection) costs
-    more than its body's small loops. Only for functions with one or two compiled callers.
+    it is cached with the caller, never on its own. It must not allocate. (Not inlined in numba's
+    IR: LLVM inlines the projection, whose caller is the only one in its module, and the IR inlining
+    of it made no run faster, 2026-11-27.)
     """
-    if fn is None:
-        return lambda f: jitable(f, inline=inline)
-    fn._csim_inline = inline
     _JITABLES.append(fn)
     if _NUMBA["njit"] is not None:
         _register_jitable(fn)
@@ -200,5 +243,4 @@ def jitable(fn=None, *, inline: bool = False):
 def _register_jitable(fn):
     from numba.extending import register_jitable
 
-    inline = "always" if getattr(fn, "_csim_inline", False) else "never"
-    register_jitable(error_model="numpy", _nrt=False, inline=inline)(fn)
+    register_jitable(error_model="numpy", _nrt=False)(fn)

@@ -10,6 +10,8 @@ import math
 
 import numpy as np
 
+from csim.physics.jit import inlining_root
+
 from .variant import COMPILED
 
 if COMPILED:
@@ -25,8 +27,9 @@ if COMPILED:
     #: A core function's decorator: a dispatcher from the first compile on, which a warm run never
     #: makes (it loads the entry points below, whose machine code holds what they call)
     hot = kernel
-    #: the same, inlined into its callers in numba's IR: a call passes every array argument as a
-    #: struct of seven words, which for the small functions of every step costs more than their body
+    #: the same, inlined in numba's IR into the right-hand side (:data:`rhs_root`), where sizes
+    #: passed as constants fix its loops; elsewhere a call, which LLVM inlines where it pays
+    #: (:func:`csim.physics.jit.inline_kernel`)
     inlined = inline_kernel
     #: a function that allocates nothing and is compiled on its own, whose address the loop calls
     #: (``feval``): a dispatcher at once, as the entry points below
@@ -42,8 +45,12 @@ else:
     inlined = addressed = allocating = loop = hot
 #: inlined, for functions whose callers pass their sizes as constants (the copy's loops have fixed lengths)
 sized = inlined
+#: the right-hand side: the :data:`inlined` functions it calls (its copies with constant sizes) are
+#: inlined in numba's IR (:func:`csim.physics.jit.inlining_root`)
+rhs_root = inlining_root
 #: the (m, r) whose right-hand side has a copy with constant sizes: the planar one-loop linkages
-#: (quick-return, four-bar, slider-crank) and the Cartesian pendulum
+#: (quick-return, four-bar, slider-crank) and the Cartesian pendulum (without its copy: 1.5x the
+#: time of its RK4 run, for 2.5 s less of the right-hand side's compile, 2026-11-27)
 SIZED = ((3, 2), (2, 1))
 
 

@@ -28,7 +28,7 @@ from csim.fast.layout import (
 from csim.physics.status import NONFINITE_RHS, OK
 
 from .calls import kinetic, observe, potential
-from .common import LOCATED, allocating, inlined
+from .common import LOCATED, allocating, copy_row, inlined
 from .system import int_workspace, plain_feval, project, rhs
 
 
@@ -84,14 +84,15 @@ def evaluate_samples(ts, ys, modes, par, pf, pi):
         y = ys[i]
         if no > 0:
             observe(y, par, pi, obs[i])
-        mode[:] = modes[i]
+        for j in range(mode.size):  # (element by element: numba's slice assignment from an array compiles
+            mode[j] = modes[i, j]  # the formatting of its shape mismatch message, 1.5 s of the warm-up)
         if plain_feval(ts[i], y, mode, LOCATED, par, pf, pi, w, piv, f, info) not in (OK, NONFINITE_RHS):
             ok[i] = False  # (a non-finite result is recorded as it is)
             continue
-        x[i] = w[pi[W_X]:pi[W_X] + nk]
-        phi[i] = w[pi[W_PHI]:pi[W_PHI] + nc]
-        phi_dot[i] = w[pi[W_PD]:pi[W_PD] + nc]
-        u[i] = w[pi[W_U]:pi[W_U] + nl]
+        copy_row(w[pi[W_X]:], x, i)
+        copy_row(w[pi[W_PHI]:], phi, i)
+        copy_row(w[pi[W_PD]:], phi_dot, i)
+        copy_row(w[pi[W_U]:], u, i)
         for a in range(nq):  # Q = B u, B (m, k) row-major
             acc = 0.0
             for kk in range(nl):

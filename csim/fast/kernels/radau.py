@@ -222,17 +222,18 @@ def _radau_lu(h, RJ, RLR, RLC, rpiv, n, nd, cs):
         if i < nd:
             RLR[i * n + i] += mr
             RLC[i * n + i] += mc
+    # (each factorization written once: lu_factor is inlined, and every call site is a copy to compile)
     if nd == n:  # scipy factors both, and counts both
         cs[NLU] += 2
-        ok_real = lu_factor(RLR, n, rpiv[:n])
-        return ok_real and lu_factor(RLC, n, rpiv[n:])
-    cs[NLU] += 1  # dae: RadauDAE counts the factorizations it makes, and takes a non-finite J for singular
-    for i in range(n * n):
-        if not RJ[i] < np.inf or not RJ[i] > -np.inf:
-            return False
+    else:  # dae: RadauDAE counts the factorizations it makes, and takes a non-finite J for singular
+        cs[NLU] += 1
+        for i in range(n * n):
+            if not RJ[i] < np.inf or not RJ[i] > -np.inf:
+                return False
     if not lu_factor(RLR, n, rpiv[:n]):
         return False
-    cs[NLU] += 1
+    if nd != n:
+        cs[NLU] += 1
     return lu_factor(RLC, n, rpiv[n:])
 
 

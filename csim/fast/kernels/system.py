@@ -71,7 +71,7 @@ from csim.physics.status import GGL_SINGULAR_MASS, NONFINITE_RHS, OK, SINGULAR_K
 from csim.physics.steps import all_finite
 
 from .calls import call_eliminated, call_feval, loads_, method_gamma_star, model_handle, phi_at, terms
-from .common import LOCATED, addressed, hot, inlined, sized
+from .common import LOCATED, addressed, hot, inlined, rhs_root, sized
 
 
 # ---------------------------------------------------------------------------------------
@@ -289,6 +289,7 @@ def _rhs_sized(t, y, mode, located, par, pf, pi, w, piv, f, nq, nc):
 
 
 @hot
+@rhs_root
 def rhs(t, y, mode, located, par, pf, pi, w, piv, f):
     """dy/dt = [qd, qdd, u * B^T qd] at time t into f; [qdd, lambda] left in w[W_X:] (by the KKT system, or the
     elimination). Returns OK or the solve's failure code.
