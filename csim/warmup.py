@@ -4,16 +4,16 @@ numba compiles the kernels' one copy (:mod:`csim.fast.module`) into
 :func:`csim.model.cache.kernels_dir`, so that no later command, test session included, waits
 for it. Its two halves share nothing that numba caches (:mod:`csim.fast.linking`: what an
 entry point calls is compiled into it): the loop, ``integrate``, with the projection's entry
-point and the elimination's solve, and the right-hand side the loop calls by address with the
-samples' evaluation and the right-hand side's entry points. A third
-job compiles the core functions that the Python path calls on their own. Each job runs in a
-process of its own (numba compiles on one core; a process that has compiled the kernels has
-the core functions compiled inside them, as callees that are never cached, and its Python
-path would cache almost nothing), as many at once as there are CPUs (:func:`_slots`): on two,
-the loop beside the right-hand side and then the core functions, about half the wait. Then a
-short compiled run of the default case, with ``none`` and with ``minimal``, checks that both
-halves load and run. Exits 0 with a note when numba is not installed (csim then runs the
-kernels interpreted, or on the Python path).
+point, and the right-hand side the loop calls by address with the elimination's solve, the
+samples' evaluation and the right-hand side's entry points. The second job first compiles the
+core functions that the Python path calls on their own (a short Python-path run), which its
+right-hand side then calls as they are (typed once, not twice: 2 s less). Each job runs in a
+process of its own (numba compiles on one core; in a process that has compiled the kernels the
+functions they call have no machine code of their own, :func:`csim.fast.linking.entry_points_only`),
+both at once where there are two CPUs (:func:`_slots`), about half the wait. Then a short
+compiled run of the default case, with ``none`` and with ``minimal``, checks that both halves
+load and run. Exits 0 with a note when numba is not installed (csim then runs the kernels
+interpreted, or on the Python path).
 """
 from __future__ import annotations
 
@@ -24,10 +24,9 @@ import sys
 import time
 
 #: the jobs of the warm-up (:func:`compile_part`), each in a process of its own, with what its progress line says
-PARTS = {"loop": "the loop (integrate, every integrator and method), the projection's entry and the "
-                 "elimination's solve",
-         "rhs": "the right-hand side, the samples' evaluation and the right-hand side's entries",
-         "core": "the core functions of the Python path"}
+PARTS = {"loop": "the loop (integrate, every integrator and method) and the projection's entry",
+         "rhs": "the Python path's core functions, then the right-hand side, the elimination's solve, the "
+                "samples' evaluation and the right-hand side's entries"}
 #: the methods of the check after the compile: one of the plain system, and minimal's partitioned one
 METHODS = ("none", "minimal")
 
@@ -44,24 +43,23 @@ def _case(method: str, backend: str):
 def compile_part(part: str) -> None:
     """Run one job of the warm-up (:data:`PARTS`).
 
-    ``loop``: ``integrate``, ``project_entry`` and ``eliminated``, for minimal's partitioned system
-    (the same types as every other method's; :func:`csim.fast.runner.compile_loop`). ``rhs``:
-    ``feval``, ``evaluate_samples``, ``rhs_entry`` and ``rhs_repeat``, for the plain system
-    (:func:`csim.fast.runner.compile_rhs`). Neither gives the functions their entry points call
-    machine code of their own (:func:`csim.fast.linking.entry_points_only`). ``core``: a
-    short run of the default case on the Python path with each of :data:`METHODS`, whose calls
-    of the core functions (:mod:`csim.physics`) compile them on their own into numba's cache
-    beside their sources (else a test session's workers would each compile them, about 15 s
-    for three methods on the 2-core machine).
+    ``loop``: ``integrate`` and ``project_entry``, for minimal's partitioned system (the same types as
+    every other method's; :func:`csim.fast.runner.compile_loop`). ``rhs``: first a short run of the
+    default case on the Python path with each of :data:`METHODS`, whose calls of the core functions
+    (:mod:`csim.physics`) compile them on their own into numba's cache beside their sources (else a
+    test session's workers would each compile them, about 15 s for three methods on the 2-core
+    machine); then ``feval``, ``eliminated``, ``evaluate_samples``, ``rhs_entry`` and ``rhs_repeat``, for
+    the plain system (:func:`csim.fast.runner.compile_rhs`), which call those core functions as they
+    are. Neither gives the functions their entry points call machine code of their own
+    (:func:`csim.fast.linking.entry_points_only`), from the kernels' compile on.
     """
     from csim.fast import linking
     from csim.fast.runner import compile_loop, compile_rhs
     from csim.pipeline import build_system, initial_state, run_case
 
-    if part == "core":
+    if part == "rhs":
         for method in METHODS:
             run_case(_case(method, "python"))
-        return
     linking.entry_points_only()  # this process calls only entry points: no machine code for their callees
     case = _case("minimal" if part == "loop" else "none", "compiled")
     system = build_system(case)
@@ -157,19 +155,16 @@ def _slots(cpus: int) -> list[list[str]]:
     Parameters
     ----------
     cpus : int
-        The CPUs to use: a slot a job on three or more; on two, the loop (28-30 s on the 2-core
-        machine, 2026-11-27) beside the right-hand side (22 s) and then the core functions (5 s); on one,
-        every job in one slot.
+        The CPUs to use: a slot a job on two or more (on the 2-core machine, 2026-11-27, the loop
+        27 s beside the core functions and the right-hand side 5 + 21 s); on one, both jobs in one slot.
 
     Returns
     -------
     list of list of str
         The slots, each a list of job names.
     """
-    if cpus >= 3:
+    if cpus >= 2:
         return [[part] for part in PARTS]
-    if cpus == 2:
-        return [["loop"], ["rhs", "core"]]
     return [list(PARTS)]
 
 

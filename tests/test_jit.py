@@ -102,8 +102,18 @@ def test_an_inline_kernel_is_inlined_in_numbas_ir_into_an_inlining_root_only():
     def other(x):
         return add_one(x) * 3.0
 
+    @njit
+    def callee(x):
+        return add_one(x) - 1.0
+
+    @njit
+    @jit.inlining_root
+    def root_of_callee(x):
+        return callee(x) * 4.0
+
     assert root(1.0) == 4.0
-    assert not add_one.signatures  # inlined into the root: no compile of its own
+    assert root_of_callee(1.0) == 4.0
+    assert not add_one.signatures  # inlined into the root and into its callee: no compile of its own
     assert other(1.0) == 6.0
     assert add_one.signatures  # called by the other one
     assert jit._INLINING["open"] == [] and not jit._INLINING["on"]

@@ -111,7 +111,7 @@ print(json.dumps(dict(problem=problem, compiles=len(compiled.buffer),
 
 def test_runs_after_the_warm_up_compile_nothing(warmed):
     """The loop was compiled from its arguments' types without being called (csim.fast.runner.compile_loop),
-    and the core functions by a Python-path run in a process of their own: compiled runs with minimal and
+    and the core functions by a Python-path run before the right-hand side: compiled runs with minimal and
     none, and the same on the Python path, in a new process load every function from the cache."""
     done = subprocess.run([sys.executable, "-c", CHECK], cwd=ROOT, env=dict(os.environ, PYTHONPATH=str(ROOT)),
                           capture_output=True, text=True, timeout=600)
@@ -121,9 +121,9 @@ def test_runs_after_the_warm_up_compile_nothing(warmed):
 
 
 def test_the_slots_use_the_cpus():
-    assert warmup._slots(1) == [["loop", "rhs", "core"]]
-    assert warmup._slots(2) == [["loop"], ["rhs", "core"]]
-    assert warmup._slots(16) == [["loop"], ["rhs"], ["core"]]
+    assert warmup._slots(1) == [["loop", "rhs"]]
+    assert warmup._slots(2) == [["loop"], ["rhs"]]
+    assert warmup._slots(16) == [["loop"], ["rhs"]]
 
 
 class _FakeJob:
@@ -137,15 +137,15 @@ class _FakeJob:
         return self.returncode
 
 
-@pytest.mark.parametrize("cpus", [1, 2, 3])
+@pytest.mark.parametrize("cpus", [1, 2])
 def test_every_job_runs_whatever_the_others_do(monkeypatch, cpus):
     """The jobs are independent: a failed one is counted, the others all run (each in a process group of its
     own, so that a Ctrl-C at the terminal reaches only the parent)."""
-    log, codes = [], {"loop": 0, "rhs": 1, "core": 0}
+    log, codes = [], {"loop": 1, "rhs": 0}
     monkeypatch.setattr(warmup.subprocess, "Popen", lambda command, **kw: _FakeJob(command, log=log, codes=codes,
                                                                                    **kw))
     assert warmup._run_slots(warmup._slots(cpus)) == 1
-    assert sorted(log) == [("core", 0), ("loop", 0), ("rhs", 0)]
+    assert sorted(log) == [("loop", 0), ("rhs", 0)]
 
 
 @pytest.mark.parametrize("argv", [["--part"], ["--bogus"], ["--part", "loop", "extra"], ["--part", "nope"], ["-h"]])
@@ -153,7 +153,7 @@ def test_a_command_line_it_does_not_take_is_refused(argv, capsys, monkeypatch):
     monkeypatch.setattr(warmup, "_all", lambda: pytest.fail("ran the warm-up"))
     monkeypatch.setattr(warmup, "_part", lambda part: pytest.fail("ran a job"))
     assert warmup.main(argv) == 2
-    assert "usage: python -m csim.warmup [--part {loop,rhs,core}]" in capsys.readouterr().err
+    assert "usage: python -m csim.warmup [--part {loop,rhs}]" in capsys.readouterr().err
 
 
 @pytest.mark.slow
@@ -169,8 +169,8 @@ def test_ctrl_c_ends_the_warm_up_and_its_compiling_children_without_a_traceback(
     children = [int(pid) for pid in subprocess.run(["pgrep", "-P", str(process.pid)], capture_output=True,
                                                    text=True).stdout.split()]
     jobs = {Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")[-2].decode() for pid in children}
-    slots = warmup._slots(warmup._cpus())  # the first job of each slot runs (the core may be done already)
-    assert {slot[0] for slot in slots} - {"core"} <= jobs and len(children) <= len(slots), jobs
+    slots = warmup._slots(warmup._cpus())  # the first job of each slot runs
+    assert {slot[0] for slot in slots} <= jobs and len(children) <= len(slots), jobs
     os.killpg(process.pid, signal.SIGINT)
     out, err = process.communicate(timeout=60)
     assert process.returncode == 130, (out, err)

@@ -154,13 +154,10 @@ def prepare(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSett
 
 
 def compile_loop(system: ConstrainedSystem, y0: np.ndarray, settings: IntegrationSettings) -> None:
-    """Compile (or load) the kernels' loop, ``integrate``, the projection's entry point (``project_entry``, of
-    the tests) and the elimination's solve (``eliminated``, which the right-hand side calls by address), for
-    the types of their arguments, without calling them and without compiling the right-hand side
-    (``feval``: :func:`compile_rhs`), which another process may compile at the same time
-    (:mod:`csim.warmup`). Their call trees are largely the loop's (the projection, the partition's choice):
-    typed here already, they cost 0.6 s and 1.9 s, against 3 s and 1.8 s in the right-hand side's process,
-    which is the longer one with the core functions after it (2026-11-27)."""
+    """Compile (or load) the kernels' loop, ``integrate``, and the projection's entry point (``project_entry``,
+    of the tests), whose call tree is largely the loop's, for the types of their arguments, without calling
+    them and without compiling the right-hand side (``feval``: :func:`compile_rhs`), which another process
+    may compile at the same time (:mod:`csim.warmup`)."""
     from numba import typeof
 
     mod = _kernels_for(system)
@@ -168,14 +165,14 @@ def compile_loop(system: ConstrainedSystem, y0: np.ndarray, settings: Integratio
     mod.integrate.compile(tuple(typeof(value) for value in arguments))
     y, par, pf, pi = arguments[1], arguments[3], arguments[4], arguments[5]
     mod.project_entry.compile(tuple(typeof(value) for value in (y, par, pf, pi)))
-    addressed_function(mod, "eliminated")
 
 
 def compile_rhs(system: ConstrainedSystem, y0: np.ndarray) -> None:
     """Compile (or load) what the kernels hold besides :func:`compile_loop`'s, for the full state ``y0`` of a
     system that is not partitioned (their types are every method's): the right-hand side the loop calls by
-    address (``feval``), the samples' evaluation (``evaluate_samples``) and the right-hand side's entry
-    points (``rhs_entry`` of the tests, ``rhs_repeat`` of ``make bench``), each called once.
+    address (``feval``), the elimination's solve it calls by address (``eliminated``), the samples'
+    evaluation (``evaluate_samples``) and the right-hand side's entry points (``rhs_entry`` of the tests,
+    ``rhs_repeat`` of ``make bench``), each called once.
 
     What an entry point calls is compiled with it and never cached on its own
     (:mod:`csim.fast.linking`). The Python side's work (the mode at ``y0``: the core function
@@ -187,6 +184,7 @@ def compile_rhs(system: ConstrainedSystem, y0: np.ndarray) -> None:
     mode = system.mode_at(y0)
     n_sw = system.loads.n_switches
     addressed_function(mod, "feval")
+    addressed_function(mod, "eliminated")
     evaluate_compiled(system, np.zeros(1), np.asarray(y0, dtype=float)[None], np.zeros((1, n_sw), dtype=bool))
     par, pf, pi = pack_problem(system)
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):

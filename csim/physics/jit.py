@@ -105,15 +105,16 @@ def _bind_dispatchers():
 def _switch_inlining():
     """Have every compile (numba's numba:compile event, which it broadcasts before it types a function,
     and again when done) switch the :func:`inline_kernel` functions' inlining in numba's IR on where
-    the function compiled is an :func:`inlining_root`, off for any other, and back when it ends (a
-    callee compiles inside its caller's compile: its caller's inlining ran before, its own is its own).
-    (Listed after the binding's listener: the dispatchers exist when it switches them.)"""
+    the function compiled is an :func:`inlining_root` or is compiled inside one's compile (a callee it
+    types), off for any other, and back when it ends. (Listed after the binding's listener: the
+    dispatchers exist when it switches them.)"""
     from numba.core import event
 
     class InliningListener(event.Listener):
         def on_start(self, ev):
             py_func = getattr(ev.data.get("dispatcher"), "py_func", None)
-            _INLINING["open"].append(getattr(py_func, "_csim_inlining_root", False))
+            inside = bool(_INLINING["open"]) and _INLINING["open"][-1]
+            _INLINING["open"].append(inside or getattr(py_func, "_csim_inlining_root", False))
             _set_inlining(_INLINING["open"][-1])
 
         def on_end(self, ev):
@@ -132,10 +133,9 @@ def _set_inlining(on: bool) -> None:
 
 
 def inlining_root(fn):
-    """Decorator: numba inlines the :func:`inline_kernel` functions ``fn`` calls in its IR into ``fn``
-    (and so the ones those call, and so on: their calls are ``fn``'s once inlined), where sizes passed
-    as constants fix their loops (the right-hand side: :func:`inline_kernel`). Returns ``fn`` marked,
-    for the decorator that compiles it."""
+    """Decorator: numba inlines the :func:`inline_kernel` functions in its IR into ``fn`` and into the
+    functions compiled as ``fn``'s callees, where sizes passed as constants fix their loops (the
+    right-hand side: :func:`inline_kernel`). Returns ``fn`` marked, for the decorator that compiles it."""
     fn._csim_inlining_root = True
     return fn
 
@@ -167,7 +167,7 @@ class LazyKernel:
         if self._compiled is None:
             njit = activate()
             options = dict(self._options)
-            if "inline" in options:  # an inline_kernel: as the compile under way has it (_switch_inlining)
+            if options.get("inline") == "switched":  # an inline_kernel: as the compile under way has it
                 options["inline"] = "always" if _INLINING["on"] else "never"
             self._compiled = self.python if njit is None else njit(**options)(self.py_func)
         return self._compiled
@@ -202,27 +202,34 @@ def kernel(fn):
 def _lazy(fn, options, python=None):
     """A LazyKernel, or the dispatcher itself once the dispatchers are bound (:func:`_bind_dispatchers`)."""
     lazy = LazyKernel(fn, options, python)
-    if "inline" in options:
+    if options.get("inline") == "switched":  # an inline_kernel (_set_inlining)
         _INLINING["kernels"].append(lazy)
     return lazy.compiled() if _NUMBA["bound"] else lazy
 
 
+def inline_always(fn):
+    """:func:`kernel`, and inlined in numba's IR into every compiled caller: for the small functions
+    that pass many arrays on (a call passes each as a struct of seven words, which costs more than
+    their body), cheap to inline."""
+    return _lazy(fn, dict(inline="always", **NJIT_OPTIONS))
+
+
 def inline_kernel(fn=None, *, python=None):
-    """:func:`kernel`, and inlined in numba's IR into an :func:`inlining_root` (the right-hand side),
-    so that the sizes it passes as constants fix its loop lengths (the KKT solve of a right-hand side:
-    about 0.6x the time of a call). Elsewhere (the loop, the Python path's calls) a call, which LLVM
-    inlines where it pays: there the IR inlining made no run faster and took 4-5 s of the loop's
-    compile on the 2-core machine (compiled rows alternated, 2026-11-27).
+    """:func:`kernel`, and inlined in numba's IR into an :func:`inlining_root`'s compile (the right-hand
+    side), so that the sizes it passes as constants fix its loop lengths (the KKT solve of a right-hand
+    side: about 0.6x the time of a call). Elsewhere (the loop, the Python path's calls) a call, which
+    LLVM inlines where it pays: without the IR inlining there the loop compiled 4-5 s faster on the
+    2-core machine, and the compiled rows took 0-2 % longer (alternated, 2026-11-27).
 
     ``python`` (``@inline_kernel(python=twin)``): what runs in its place where it is not compiled,
     for the rare operation whose Python scalars compute otherwise than compiled code (numpy's
     complex division, :func:`csim.physics.linalg.quotient`)."""
     if fn is None:
         return lambda f: inline_kernel(f, python=python)
-    return _lazy(fn, dict(inline="never", **NJIT_OPTIONS), python)
+    return _lazy(fn, dict(inline="switched", **NJIT_OPTIONS), python)
 
 
-def jitable(fn):
+def jitable(fn=None, *, inline: bool = False):
     """Decorator for a core function that evaluates the model (:mod:`csim.physics.model`): ``fn`` itself
     to a Python caller, compiled into the compiled callers that call it.
 
@@ -230,10 +237,17 @@ def jitable(fn):
     call its methods); the compiled kernels pass their tuple (model functions called through
     their addresses, :mod:`csim.fast.kernels`), for which the kernels overload those functions.
     The function is compiled as part of each compiled caller (numba's ``register_jitable``), so
-    it is cached with the caller, never on its own. It must not allocate. (Not inlined in numba's
-    IR: LLVM inlines the projection, whose caller is the only one in its module, and the IR inlining
-    of it made no run faster, 2026-11-27.)
+    it is cached with the caller, never on its own. It must not allocate.
+
+    ``inline=True`` (``@jitable(inline=True)``) inlines it in numba's IR into its compiled
+    callers: a call of a numba function passes every array argument as a struct of seven
+    words, which for a function of twenty arrays called once per step (the projection) costs
+    more than its body's small loops (without it the projection's RK4 row took 3 % longer,
+    2026-11-27). Only for functions with one or two compiled callers.
     """
+    if fn is None:
+        return lambda f: jitable(f, inline=inline)
+    fn._csim_inline = inline
     _JITABLES.append(fn)
     if _NUMBA["njit"] is not None:
         _register_jitable(fn)
@@ -243,4 +257,5 @@ def jitable(fn):
 def _register_jitable(fn):
     from numba.extending import register_jitable
 
-    register_jitable(error_model="numpy", _nrt=False)(fn)
+    inline = "always" if getattr(fn, "_csim_inline", False) else "never"
+    register_jitable(error_model="numpy", _nrt=False, inline=inline)(fn)

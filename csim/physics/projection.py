@@ -114,7 +114,7 @@ def correction(J, Winv, mass_metric, res, WJt, S, z, piv, dq, r, m):
     return True
 
 
-@jitable
+@jitable(inline=True)  # one compiled caller per backend, called once per step
 def project(model, q, qd, tol, mass_metric, max_iter, m, r, M, LU, Winv, piv, col, phi, J, WJt, S, z, dq, phi_dot):
     """Project (q, qd) (m,) in place onto Phi = 0 and Phi_q qd + Phi_t = 0. Returns (code, max |Phi| of the last
     iterate). Phi and Phi_t are the model's at the handle's time (a drive row q_j - f_j(t) and its -f_j'(t)).

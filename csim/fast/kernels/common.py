@@ -17,7 +17,7 @@ from .variant import COMPILED
 if COMPILED:
     from numba import njit
 
-    from csim.physics.jit import NJIT_OPTIONS, activate, inline_kernel, kernel
+    from csim.physics.jit import NJIT_OPTIONS, activate, inline_always, kernel
 
     activate()  # the core functions compile, and numba types them, from here on
 
@@ -27,10 +27,10 @@ if COMPILED:
     #: A core function's decorator: a dispatcher from the first compile on, which a warm run never
     #: makes (it loads the entry points below, whose machine code holds what they call)
     hot = kernel
-    #: the same, inlined in numba's IR into the right-hand side (:data:`rhs_root`), where sizes
-    #: passed as constants fix its loops; elsewhere a call, which LLVM inlines where it pays
-    #: (:func:`csim.physics.jit.inline_kernel`)
-    inlined = inline_kernel
+    #: the same, inlined in numba's IR into its callers: a call passes every array argument as a
+    #: struct of seven words, which for the small functions of every step costs more than their body
+    #: (the core's larger ones are inlined only into the right-hand side, :data:`rhs_root`)
+    inlined = inline_always
     #: a function that allocates nothing and is compiled on its own, whose address the loop calls
     #: (``feval``): a dispatcher at once, as the entry points below
     addressed = njit(**NJIT_OPTIONS)
@@ -45,8 +45,8 @@ else:
     inlined = addressed = allocating = loop = hot
 #: inlined, for functions whose callers pass their sizes as constants (the copy's loops have fixed lengths)
 sized = inlined
-#: the right-hand side: the :data:`inlined` functions it calls (its copies with constant sizes) are
-#: inlined in numba's IR (:func:`csim.physics.jit.inlining_root`)
+#: the right-hand side, whose copies with constant sizes need the core's functions inlined in numba's IR
+#: (:func:`csim.physics.jit.inline_kernel`, :func:`csim.physics.jit.inlining_root`)
 rhs_root = inlining_root
 #: the (m, r) whose right-hand side has a copy with constant sizes: the planar one-loop linkages
 #: (quick-return, four-bar, slider-crank) and the Cartesian pendulum (without its copy: 1.5x the
