@@ -74,7 +74,7 @@ def unsupported(case) -> list[str]:
     integrator = case.simulation.integrator
     if integrator not in INTEGRATORS:
         reasons.append(f"simulation.integrator {integrator!r}: the compiled backend implements "
-                       f"{', '.join(INTEGRATORS)} (scipy's {integrator} runs on the Python path)")
+                       f"{', '.join(INTEGRATORS)} ({integrator} runs on the Python path only)")
     return reasons
 
 
