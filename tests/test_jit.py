@@ -119,6 +119,19 @@ def test_an_inline_kernel_is_inlined_in_numbas_ir_into_an_inlining_root_only():
     assert jit._INLINING["open"] == [] and not jit._INLINING["on"]
 
 
+def test_the_inlining_switch_takes_the_end_of_a_compile_it_did_not_see_start():
+    """csim's listeners may come in while a compile is under way (numba loaded inside another
+    package's typing): that compile's end finds nothing open, and nothing is left switched on."""
+    pytest.importorskip("numba")
+    from numba.core import event
+
+    from csim.physics import jit
+    if jit.activate() is None:
+        pytest.skip("CSIM_PURE_PYTHON: nothing compiles")
+    event.end_event("numba:compile", data={"dispatcher": None, "args": (), "return_type": None})
+    assert jit._INLINING["open"] == [] and not jit._INLINING["on"]
+
+
 def test_plain_runs_a_core_function_not_yet_compiled_as_python(monkeypatch):
     """Inside ``plain()`` a LazyKernel that has not been compiled calls its Python function and
     leaves numba alone; outside, or once compiled, it is the compiled one."""

@@ -148,6 +148,23 @@ def test_every_job_runs_whatever_the_others_do(monkeypatch, cpus):
     assert sorted(log) == [("loop", 0), ("rhs", 0)]
 
 
+def test_a_failed_python_path_run_still_compiles_the_right_hand_side_then_fails_the_job(monkeypatch):
+    import csim.fast.runner
+    import csim.pipeline
+    from csim.fast import linking
+
+    compiled = []
+
+    def broken(case):
+        raise ValueError("core broke")
+    monkeypatch.setattr(csim.pipeline, "run_case", broken)
+    monkeypatch.setattr(csim.fast.runner, "compile_rhs", lambda system, y0: compiled.append("rhs"))
+    monkeypatch.setattr(linking, "entry_points_only", lambda: None)  # (this process goes on calling callees)
+    with pytest.raises(RuntimeError, match=r"the Python path's run .*ValueError: core broke"):
+        warmup.compile_part("rhs")
+    assert compiled == ["rhs"]
+
+
 @pytest.mark.parametrize("argv", [["--part"], ["--bogus"], ["--part", "loop", "extra"], ["--part", "nope"], ["-h"]])
 def test_a_command_line_it_does_not_take_is_refused(argv, capsys, monkeypatch):
     monkeypatch.setattr(warmup, "_all", lambda: pytest.fail("ran the warm-up"))

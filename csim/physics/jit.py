@@ -118,7 +118,8 @@ def _switch_inlining():
             _set_inlining(_INLINING["open"][-1])
 
         def on_end(self, ev):
-            _INLINING["open"].pop()
+            if _INLINING["open"]:  # (none where the listener came in during a compile under way)
+                _INLINING["open"].pop()
             _set_inlining(bool(_INLINING["open"]) and _INLINING["open"][-1])
     event.register("numba:compile", InliningListener())
 

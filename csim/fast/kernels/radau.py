@@ -222,7 +222,7 @@ def _radau_lu(h, RJ, RLR, RLC, rpiv, n, nd, cs):
         if i < nd:
             RLR[i * n + i] += mr
             RLC[i * n + i] += mc
-    # (each factorization written once: lu_factor is inlined, and every call site is a copy to compile)
+    # (one call site per factorization: an inlined function's every call site is a copy to compile)
     if nd == n:  # scipy factors both, and counts both
         cs[NLU] += 2
     else:  # dae: RadauDAE counts the factorizations it makes, and takes a non-finite J for singular
