@@ -70,6 +70,23 @@ def test_compiled_radau_takes_scipys_steps_one_for_one(overrides):
     np.testing.assert_allclose(fast.y, ref.y, rtol=0, atol=1e-9)
 
 
+def test_a_failed_radau_says_the_right_hand_side_was_non_finite_at_trial_states_on_both_backends():
+    """The governor's shaft driven by w t - 4 (0.3 - t)^1.5, not defined after t = 0.3 s: Radau's trial
+    states beyond it are not finite, it halves its step until it is too small, and both backends say
+    so, in the same words (the compiled one said only that the step was too small before)."""
+    messages = {}
+    for backend in ("python", "compiled"):
+        case = load_case(CONFIGS / "iftomm" / "a05_flyball_governor.yaml",
+                         ["mechanism.drive={shaft: w*t - 4*(0.3 - t)^1.5}", "simulation.t_end=0.5",
+                          "simulation.min_step=1e-300", f"simulation.backend={backend}"])
+        result = run_case(case)
+        assert result.backend == backend and result.status == "failed"
+        messages[backend] = result.message
+    assert messages["compiled"] == messages["python"]
+    assert messages["compiled"].startswith("integrator Radau failed at t = 0.3 s: Required step size")
+    assert messages["compiled"].endswith("(the right-hand side was non-finite at trial states, last at t = 0.3 s)")
+
+
 def test_compiled_radau_follows_scipys_through_the_events():
     """The quick-return mechanism with its cutting-force switches over 2 s: the same events, the
     steps within a few percent, the states equal to well within the tolerance."""

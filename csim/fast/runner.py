@@ -28,7 +28,7 @@ from csim.physics.events import chattering_switches
 from csim.physics.jit import plain
 from csim.physics.status import OK, STEP_TOO_SMALL, code_kind
 from csim.solver.driven import DrivenSystem
-from csim.solver.failures import failure_message
+from csim.solver.failures import failure_message, non_finite_note
 from csim.solver.formulations import Elimination
 from csim.solver.ggl_system import GGLSystem
 from csim.solver.partitioned import PartitionedSystem
@@ -228,6 +228,8 @@ def integrate_compiled(system: ConstrainedSystem, y0: np.ndarray, settings: Inte
         message = failure_message(int(code), float(info[0]), float(info[1]), settings, system.failure_method(int(code)),
                                   switches=_chattering_labels(ev_sw, n_ev, settings.chatter_events, labels),
                                   detail=detail, coordinates=system.model.definition.coordinate_names)
+        if code == STEP_TOO_SMALL and np.isfinite(info[-1]):  # Radau rejected non-finite trial states
+            message += non_finite_note(float(info[-1]))
     return Trajectory(
         t=ts[:n_rec].copy(), y=ys[:n_rec].copy(), mode=modes[:n_rec].copy(),
         status=status, message=message, failure=failure, nfev=int(nfev), njev=int(njev), nlu=int(nlu),
@@ -242,7 +244,7 @@ def failure_detail(system: ConstrainedSystem, code: int, info: np.ndarray) -> np
     which may be left from a breakdown the run got past)."""
     if code == STEP_TOO_SMALL and not isinstance(system, GGLSystem):
         return None
-    return info[2:]
+    return info[2:-1]
 
 
 class _PythonArithmetic(Exception):

@@ -156,6 +156,12 @@ def failure_message(code: int, a: float, b: float, settings, method=None, switch
 TOO_SMALL_STEP = "Required step size is less than spacing between numbers."
 
 
+def non_finite_note(t: float) -> str:
+    """What a failed implicit integrator's message adds where the right-hand side was non-finite at
+    trial states (Newton iterates, Jacobian columns) it rejected, the last at time ``t`` [s]."""
+    return f" (the right-hand side was non-finite at trial states, last at t = {t:.6g} s)"
+
+
 def dae_step_message(detail) -> str:
     """Why Radau for DAEs stopped (:class:`csim.solver.dae.RadauDAE`'s message, and the compiled Radau's): its
     step fell below the smallest one after Newton failures (the last one's reason) or error-test failures, or

@@ -163,8 +163,7 @@ class _Run:
             raise failures.failure(st.MAX_STEPS, solver.t, 0.0, settings)
         if solver.status == "failed":
             if counter.non_finite_at is not None:
-                msg += (f" (the right-hand side was non-finite at trial states, last at "
-                        f"t = {counter.non_finite_at:.6g} s)")
+                msg += failures.non_finite_note(counter.non_finite_at)
             raise SimulationFailure(
                 f"integrator {settings.integrator} failed at t = {solver.t:.6g} s: {msg}",
                 st.KINDS[st.RK4_RESOLUTION if settings.integrator == "RK4" else st.STEP_TOO_SMALL])

@@ -347,7 +347,7 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset, control):
     first_step (NaN: automatic), max_phi, min_step]; ``control`` (2,), shared with the calling thread (this
     runs without the GIL): every POLL_STEPS steps control[1] = the time reached, and a nonzero control[0]
     (Ctrl-C) ends the run, INTERRUPTED with the samples so far. Returns (n_rec, ts, ys, modes, n_ev, ev_t,
-    ev_switched, nfev, nsteps, status, info (2,), njev, nlu)."""
+    ev_switched, nfev, nsteps, status, info, njev, nlu)."""
     locate, n_interior, max_events, max_steps, n_chatter = iset[0] != 0, iset[1], iset[2], iset[3], iset[4]
     t_end, rtol, atol, fixed_h, max_step, first_step, max_phi, min_step = fset[0], fset[1], fset[2], fset[3], \
         fset[4], fset[5], fset[6], fset[7]
@@ -361,7 +361,9 @@ def integrate(method, y0, t_out, par, pf, pi, projects, iset, fset, control):
     piv = np.zeros(int_workspace(pi), np.int64)
     tr, ys, modes = np.empty(t_out.size), np.empty((t_out.size, y0.size)), np.zeros((t_out.size, n_sw), np.bool_)
     ev_t, ev_sw = np.empty(16), np.zeros((16, n_sw), np.bool_)
-    info, ts_, cs = np.zeros(2 + D_HEAD + 2 * n_free), np.zeros(N_TS), np.zeros(N_CS, np.int64)
+    # info: [t, a value, the failure's details..., the last time the right-hand side was non-finite (NaN: never)]
+    info, ts_, cs = np.zeros(3 + D_HEAD + 2 * n_free), np.zeros(N_TS), np.zeros(N_CS, np.int64)
+    info[info.size - 1] = np.nan
     y, ytmp, yp, f, f_new, y_new, y_old, ya = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n), \
         np.empty(n), np.empty(n), np.empty(n)
     K, F, Fh = np.empty((DOP_NX, n)), np.empty((DOP_POWER, n)), np.empty((4, n))

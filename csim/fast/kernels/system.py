@@ -314,7 +314,9 @@ def rhs(t, y, mode, located, par, pf, pi, w, piv, f):
 # 15 % slower, measured alternately.)
 @addressed
 def feval(t, y, mode, located, par, pf, pi, w, piv, f, info):
-    """rhs plus the driver's check of a non-finite result (info = [t, max |y|] then)."""
+    """rhs plus the driver's check of a non-finite result (info = [t, max |y|] then, and t also in info's last
+    slot, which only a non-finite result writes: the integrate's message of a failed Radau names it, as the
+    Python path's does)."""
     if pi[PI_SYS] == PARTITIONED:
         code = _partitioned_rhs(t, y, mode, located, par, pf, pi, w, piv, f)
     elif pi[PI_SYS] == GGL:
@@ -323,6 +325,7 @@ def feval(t, y, mode, located, par, pf, pi, w, piv, f, info):
         code = rhs(t, y, mode, located, par, pf, pi, w, piv, f)
     if code == OK and not all_finite(f):
         code = NONFINITE_RHS
+        info[info.size - 1] = t
     if code != OK:
         info[0] = t
         info[1] = max_abs(y)
