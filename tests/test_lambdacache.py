@@ -216,3 +216,34 @@ def test_a_cached_linkage_keeps_its_symbolic_parts_pickled_until_they_are_read(c
     assert sp.simplify(read.definition.kinetic_energy - built.definition.kinetic_energy) == 0
     assert [str(e.expression) for e in read.reduction.equations] == \
         [str(e.expression) for e in built.reduction.equations]
+
+
+#: in a fresh process: the namespace's names against sympy's star imports, and numpy's lazy submodules it loaded
+NAMESPACE = """
+import json, sys
+import numpy
+from csim.linkage.lambdacache import _numpy_namespace
+ns = _numpy_namespace()
+loaded = sorted(name for name in numpy.__numpy_submodules__ if f"numpy.{name}" in sys.modules)
+ref = {}
+exec("import numpy; from numpy import *; from numpy.linalg import *", ref)
+print(json.dumps(dict(loaded=loaded, missing=sorted(set(ref) - set(ns) - {"__builtins__"}),
+                      different=sorted(k for k in ns if k in ref and ns[k] is not ref[k]))))
+"""
+
+
+def test_the_numpy_namespace_is_sympys_without_numpys_submodules_not_loaded_yet():
+    """What a generated function is executed in: sympy's names for "numpy", except the submodules that numpy
+    loads on first use (numpy.testing, numpy.f2py, numpy.random, ...: 45 ms of a warm run, read by none)."""
+    import json
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-c", NAMESPACE], capture_output=True, text=True, check=True)
+    out = json.loads(done.stdout.splitlines()[-1])
+    import numpy
+    lazy = set(numpy.__numpy_submodules__)
+    assert set(out["loaded"]) <= {"linalg", "lib", "exceptions", "dtypes"}, out  # (numpy's own import loads these)
+    assert "testing" not in out["loaded"] and "random" not in out["loaded"]
+    assert set(out["missing"]) <= lazy and "testing" in out["missing"], out
+    assert out["different"] == [], out

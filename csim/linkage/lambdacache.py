@@ -27,6 +27,7 @@ import inspect
 import json
 import os
 import pickle
+import sys
 from collections.abc import Callable
 from pathlib import Path
 
@@ -123,10 +124,21 @@ def cached_lambdify(key: str | None, name: str, make: Callable[[], Lambdified]) 
 
 
 def _numpy_namespace() -> dict:
-    """The names sympy's ``lambdify(..., "numpy")`` gives its functions (its ``MODULES["numpy"]``: numpy's and
-    numpy.linalg's, ``I`` and ``Heaviside``), made without importing sympy."""
-    namespace: dict = {}
-    exec("import numpy; from numpy import *; from numpy.linalg import *", namespace)
+    """The names sympy's ``lambdify(..., "numpy")`` gives its functions (its ``MODULES["numpy"]``: ``import
+    numpy; from numpy import *; from numpy.linalg import *``, ``I`` and ``Heaviside``), made without
+    importing sympy, and without the submodules numpy loads on first use that no process has loaded yet
+    (``numpy.testing``, ``numpy.f2py``, ``numpy.random``, ...: the star import loaded them, 45 ms of a
+    warm link-coupling run; a generated function reads none of them, and one that did would fail
+    :func:`_resolves` and be derived again)."""
+    import numpy
+    import numpy.linalg
+
+    lazy = getattr(numpy, "__numpy_submodules__", set())
+    namespace: dict = {"numpy": numpy}
+    for name in numpy.__all__:
+        if name not in lazy or f"numpy.{name}" in sys.modules:
+            namespace[name] = getattr(numpy, name)
+    namespace.update((name, getattr(numpy.linalg, name)) for name in numpy.linalg.__all__)
     namespace.update(I=1j, Heaviside=namespace["heaviside"])
     return namespace
 
