@@ -116,11 +116,17 @@ def _n_differential(pi, n):
     return n
 
 
+@inlined
+def _details(info):
+    """The failure's details in the loop's info: info[2:], but for its last slot (feval's, csim.fast.kernels.driver)."""
+    return info[2:info.size - 1]
+
+
 @hot
 def _dae_failed(reason, t, h, value, tol, residual0, info):
     """STEP_TOO_SMALL with the details of a failed Radau on a DAE (csim.physics.radau, DAE_*): info[0] = t."""
     info[0] = t
-    d = info[2:info.size - 1]  # (the last slot: feval's)
+    d = _details(info)
     d[DAE_REASON], d[DAE_T], d[DAE_H], d[DAE_VALUE], d[DAE_TOL], d[DAE_RESIDUAL0] = reason, t, h, value, tol, residual0
     d[DAE_NCOLS] = 0.0
     return STEP_TOO_SMALL
@@ -436,7 +442,7 @@ def _radau_singular(t, n, nd, RJ, cs, info):
     Jacobian, the columns of algebraic variables that F does not depend on) or after MAX_SINGULAR in this step;
     else OK (RadauDAE._step_impl)."""
     if cs[R_CURRENT_JAC] == 1:
-        d = info[2:info.size - 1]  # (the last slot: feval's)
+        d = _details(info)
         count = 0
         for j in range(nd, n):
             zero = True
